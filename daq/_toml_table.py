@@ -1,0 +1,88 @@
+"""Typed reading of one TOML table, with errors that name the file and dotted key."""
+
+import math
+import re
+from collections.abc import Callable, Iterable
+from typing import Any, TypeVar
+
+from daq.errors import ConfigError
+
+T = TypeVar("T")
+
+_MISSING: Any = object()
+# The first word of an estimator ValueError names the offending field.
+_FIELD_NAME = re.compile(r"^([A-Za-z_][A-Za-z0-9_]*)\b")
+
+
+class TomlTable:
+    """A TOML table and where it sits (``source`` file, dotted ``path``)."""
+
+    def __init__(self, data: dict[str, Any], source: str, path: str = "") -> None:
+        self.data = data
+        self.source = source
+        self.path = path
+
+    def key(self, name: str) -> str:
+        return f"{self.path}.{name}" if self.path else name
+
+    def error(self, name: str, reason: str) -> ConfigError:
+        return ConfigError(self.source, self.key(name) if name else self.path, reason)
+
+    def __contains__(self, name: str) -> bool:
+        return name in self.data
+
+    def _get(self, name: str, default: Any) -> Any:
+        if name in self.data:
+            return self.data[name]
+        if default is _MISSING:
+            raise self.error(name, "missing")
+        return default
+
+    def number(self, name: str, default: Any = _MISSING) -> float:
+        value = self._get(name, default)
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise self.error(name, f"must be a number, got {value!r}")
+        if not math.isfinite(value):
+            raise self.error(name, f"must be finite, got {value!r}")
+        return float(value)
+
+    def integer(self, name: str, default: Any = _MISSING) -> int:
+        value = self._get(name, default)
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise self.error(name, f"must be an integer, got {value!r}")
+        return value
+
+    def string(self, name: str, default: Any = _MISSING, pattern: str | None = None) -> str:
+        value = self._get(name, default)
+        if not isinstance(value, str) or not value:
+            raise self.error(name, f"must be a non-empty string, got {value!r}")
+        if pattern is not None and not re.fullmatch(pattern, value):
+            raise self.error(name, f"{value!r} does not match {pattern}")
+        return value
+
+    def table(self, name: str, required: bool = True) -> "TomlTable":
+        value = self._get(name, _MISSING if required else {})
+        if not isinstance(value, dict):
+            raise self.error(name, f"must be a table, got {value!r}")
+        return TomlTable(value, self.source, self.key(name))
+
+    def subtables(self) -> Iterable[tuple[str, "TomlTable"]]:
+        for name in self.data:
+            yield name, self.table(name)
+
+    def reject_unknown(self, allowed: Iterable[str]) -> None:
+        """Refuse keys nobody reads: a typo would otherwise silently keep a default."""
+        known = set(allowed)
+        for name in self.data:
+            if name not in known:
+                raise self.error(name, f"unknown key; expected one of {sorted(known)}")
+
+    def build(self, factory: Callable[..., T], **kwargs: Any) -> T:
+        """Call ``factory(**kwargs)``; its ValueError becomes a ConfigError on this table."""
+        try:
+            return factory(**kwargs)
+        except ValueError as exc:
+            message = str(exc)
+            match = _FIELD_NAME.match(message)
+            field = match.group(1) if match and match.group(1) in kwargs else ""
+            raise self.error(field, message) from exc

@@ -1,0 +1,33 @@
+"""Loading the CAN database (DBC) with cantools, with errors a person can act on."""
+
+from pathlib import Path
+
+import cantools
+from cantools.database.can import Database
+from cantools.database.errors import UnsupportedDatabaseFormatError
+
+from daq.errors import DbcError
+
+
+def load_database(path: str | Path) -> Database:
+    """Load a DBC file strictly (overlapping signals etc. are errors).
+
+    Raises :class:`DbcError` naming the file when it is missing, unreadable,
+    malformed or not a CAN database.
+    """
+    try:
+        database = cantools.database.load_file(str(path), database_format="dbc", strict=True)
+    except FileNotFoundError as exc:
+        raise DbcError(path, "no such file; set machine.dbc in the config to the DBC") from exc
+    except OSError as exc:
+        raise DbcError(path, f"cannot read it: {exc.strerror or exc}") from exc
+    except (UnsupportedDatabaseFormatError, ValueError, KeyError) as exc:
+        raise DbcError(path, f"not a valid DBC: {_first_line(exc)}") from exc
+    if not isinstance(database, Database) or not database.messages:
+        raise DbcError(path, "holds no CAN messages")
+    return database
+
+
+def _first_line(exc: BaseException) -> str:
+    text = str(exc).strip() or type(exc).__name__
+    return text.splitlines()[0]

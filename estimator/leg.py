@@ -1,0 +1,138 @@
+"""Streaming estimator of one leg: sample in, filtered foot force and soil pressure out."""
+
+from dataclasses import dataclass, replace
+
+from estimator.contact import ContactDetector
+from estimator.equations import contact_pressure_Pa, foot_force_N
+from estimator.geometry import LegGeometry
+from estimator.median import RunningMedian
+from estimator.metrics import SoilMetrics, SoilMetricsTracker
+from estimator.settings import EstimatorSettings
+from estimator.validity import STALE, sample_faults
+
+NAN = float("nan")
+
+
+@dataclass(frozen=True, slots=True)
+class LegSample:
+    """One decoded leg-cylinder frame: both chamber pressures and the frame's checks."""
+
+    #: Frame time (kernel time stamp), Unix seconds.
+    t_s: float
+    #: Piston (cap-end) chamber pressure.
+    p_piston_Pa: float
+    #: Rod (annulus) chamber pressure.
+    p_rod_Pa: float
+    #: Name of the sensor status from the DBC value table.
+    status: str = "ok"
+    #: The frame's CRC matched (True when the message is not CRC-protected).
+    crc_ok: bool = True
+    #: The frame's rolling counter advanced as expected (True when unprotected).
+    counter_ok: bool = True
+
+
+@dataclass(frozen=True, slots=True)
+class LegEstimate:
+    """The estimator's answer for one leg after a sample (or a staleness check)."""
+
+    leg: str
+    #: Frame time of the sample this estimate is based on (NaN before any frame).
+    t_s: float
+    #: Running median of the valid raw forces (eq. 4); NaN before the first valid sample.
+    force_N: float
+    #: Eq. (4) on this sample alone, unfiltered (NaN before any frame).
+    force_raw_N: float
+    #: Eq. (5) on the filtered force.
+    pressure_Pa: float
+    p_piston_Pa: float
+    p_rod_Pa: float
+    #: Foot on the ground (hysteresis on the filtered force).
+    contact: bool
+    valid: bool
+    #: Why the estimate is invalid (see :mod:`estimator.validity`); empty when valid.
+    reasons: tuple[str, ...]
+
+
+class LegEstimator:
+    """Feeds one leg's samples through eq. (4), validity, median, contact and metrics.
+
+    Invalid samples are reported (with their raw force) but never enter the
+    median, the contact detector or the soil metrics.
+    """
+
+    def __init__(
+        self, name: str, leg: LegGeometry, settings: EstimatorSettings, cycle_time_s: float
+    ) -> None:
+        if not cycle_time_s > 0:
+            raise ValueError(f"cycle_time_s of leg {name} must be > 0, got {cycle_time_s!r}")
+        self.name = name
+        self.leg = leg
+        self.settings = settings
+        #: No frame for longer than this makes the leg's estimate stale.
+        self.stale_after_s = settings.stale_after_cycles * cycle_time_s
+        self._median = RunningMedian(settings.median_window)
+        self._contact = ContactDetector(settings.contact_on_N, settings.contact_off_N)
+        self._metrics = SoilMetricsTracker(
+            settings.pressure_limit_Pa, settings.near_constant_window_s, self.stale_after_s
+        )
+        self._last = LegEstimate(
+            leg=name,
+            t_s=NAN,
+            force_N=NAN,
+            force_raw_N=NAN,
+            pressure_Pa=NAN,
+            p_piston_Pa=NAN,
+            p_rod_Pa=NAN,
+            contact=False,
+            valid=False,
+            reasons=(STALE,),
+        )
+
+    @property
+    def metrics(self) -> SoilMetrics:
+        return self._metrics.metrics
+
+    def reset_metrics(self) -> None:
+        """Restart the soil metrics (e.g. per movement cycle); the filter keeps its state."""
+        self._metrics.reset()
+
+    def update(self, sample: LegSample) -> LegEstimate:
+        """Take one received sample and return the leg's new estimate."""
+        reasons = sample_faults(
+            p_piston_Pa=sample.p_piston_Pa,
+            p_rod_Pa=sample.p_rod_Pa,
+            status=sample.status,
+            crc_ok=sample.crc_ok,
+            counter_ok=sample.counter_ok,
+            settings=self.settings,
+        )
+        force_raw_N = foot_force_N(sample.p_piston_Pa, sample.p_rod_Pa, self.leg)
+        if reasons:
+            force_N = self._median.value
+            contact = self._contact.in_contact
+        else:
+            force_N = self._median.push(force_raw_N)
+            contact = self._contact.update(force_N)
+        pressure_Pa = contact_pressure_Pa(force_N, self.leg.A_foot_m2)
+        if not reasons:
+            self._metrics.update(sample.t_s, pressure_Pa)
+        self._last = LegEstimate(
+            leg=self.name,
+            t_s=sample.t_s,
+            force_N=force_N,
+            force_raw_N=force_raw_N,
+            pressure_Pa=pressure_Pa,
+            p_piston_Pa=sample.p_piston_Pa,
+            p_rod_Pa=sample.p_rod_Pa,
+            contact=contact,
+            valid=not reasons,
+            reasons=reasons,
+        )
+        return self._last
+
+    def snapshot(self, now_s: float) -> LegEstimate:
+        """The latest estimate, judged at time ``now_s``: stale if no frame came for too long."""
+        last = self._last
+        if STALE in last.reasons or not now_s - last.t_s > self.stale_after_s:
+            return last
+        return replace(last, valid=False, reasons=(*last.reasons, STALE))

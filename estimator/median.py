@@ -1,0 +1,85 @@
+"""Running median over the last N samples: a streaming path and a numpy batch path.
+
+Both give bit-identical results on the same input. Until N samples have
+arrived the median is that of the samples so far; with an even count it is the
+mean of the two middle values, computed as ``(a + b) / 2`` in both paths.
+"""
+
+from collections import deque
+
+import numpy as np
+import numpy.typing as npt
+from numpy.lib.stride_tricks import sliding_window_view
+from sortedcontainers import SortedList
+
+# Rows of the sliding-window matrix partitioned at once in the batch path; bounds
+# its temporary memory to about _BATCH_ROWS * window * 8 bytes.
+_BATCH_ROWS = 65536
+
+
+def _check_window(window: int) -> None:
+    if not isinstance(window, int) or isinstance(window, bool) or window < 1 or window % 2 == 0:
+        raise ValueError(f"median window must be an odd integer >= 1, got {window!r}")
+
+
+class RunningMedian:
+    """Median of the last ``window`` pushed values, O(log N) per sample.
+
+    >>> m = RunningMedian(3)
+    >>> [m.push(v) for v in (5.0, 1.0, 3.0, 10.0, 0.0)]
+    [5.0, 3.0, 3.0, 3.0, 3.0]
+    """
+
+    def __init__(self, window: int) -> None:
+        _check_window(window)
+        self.window = window
+        self._arrival: deque[float] = deque()
+        self._sorted: SortedList = SortedList()
+
+    def __len__(self) -> int:
+        return len(self._arrival)
+
+    def push(self, value: float) -> float:
+        """Add a value, drop the oldest once the window is full, return the median."""
+        if len(self._arrival) == self.window:
+            self._sorted.remove(self._arrival.popleft())
+        self._arrival.append(value)
+        self._sorted.add(value)
+        return self.value
+
+    @property
+    def value(self) -> float:
+        """The current median; NaN before the first value."""
+        n = len(self._sorted)
+        if n == 0:
+            return float("nan")
+        middle = n // 2
+        if n % 2:
+            return float(self._sorted[middle])
+        return float((self._sorted[middle - 1] + self._sorted[middle]) / 2)
+
+
+def running_median(values: npt.ArrayLike, window: int) -> npt.NDArray[np.float64]:
+    """Batch path: the running median of every prefix-bounded window of ``values``.
+
+    ``out[i]`` is the median of ``values[max(0, i - window + 1) : i + 1]``, exactly
+    what :class:`RunningMedian` returns after pushing ``values[i]``.
+    """
+    _check_window(window)
+    x = np.asarray(values, dtype=np.float64)
+    if x.ndim != 1:
+        raise ValueError(f"values must be one-dimensional, got shape {x.shape}")
+    out = np.empty_like(x)
+    for i in range(min(window - 1, x.size)):
+        head = np.sort(x[: i + 1])
+        middle = (i + 1) // 2
+        out[i] = head[middle] if (i + 1) % 2 else (head[middle - 1] + head[middle]) / 2
+    if x.size >= window:
+        windows = sliding_window_view(x, window)
+        for start in range(0, windows.shape[0], _BATCH_ROWS):
+            chunk = windows[start : start + _BATCH_ROWS]
+            # An odd window's median is its middle order statistic: a selection,
+            # no arithmetic, hence identical to the streaming path.
+            selected = np.partition(chunk, window // 2, axis=1)[:, window // 2]
+            out[window - 1 + start : window - 1 + start + chunk.shape[0]] = selected
+    return out

@@ -1,0 +1,63 @@
+"""Tuning of the streaming estimator: filter length, validity limits, contact and metrics."""
+
+from dataclasses import dataclass
+
+from estimator._checks import require_finite, require_positive
+
+
+@dataclass(frozen=True, slots=True)
+class EstimatorSettings:
+    """How the estimator filters, validates and judges samples; SI units.
+
+    >>> EstimatorSettings(median_window=4)
+    Traceback (most recent call last):
+    ...
+    ValueError: median_window must be an odd integer >= 1, got 4
+    """
+
+    #: Samples in the running median (odd). The filter delays by (N-1)/2 samples.
+    median_window: int = 11
+    #: A leg's frame is stale when none came for this many cycle times.
+    stale_after_cycles: float = 3.0
+    #: Lowest pressure the transducers measure; below it a sample is invalid ("range").
+    pressure_min_Pa: float = -1.0e5
+    #: Highest pressure the transducers measure; above it a sample is invalid ("range").
+    pressure_max_Pa: float = 40.0e6
+    #: Name in the DBC's status value table that means the sensor is fine.
+    status_ok: str = "ok"
+    #: Filtered foot force at or above which a foot in the air counts as down.
+    contact_on_N: float = 8000.0
+    #: Filtered foot force at or below which a foot on the ground counts as lifted.
+    contact_off_N: float = 4000.0
+    #: Contact pressure whose exceedance time the soil metrics add up.
+    pressure_limit_Pa: float = 200.0e3
+    #: Length of the sliding window of the "near constant" pressure metric.
+    near_constant_window_s: float = 5.0
+
+    def __post_init__(self) -> None:
+        if (
+            not isinstance(self.median_window, int)
+            or isinstance(self.median_window, bool)
+            or self.median_window < 1
+            or self.median_window % 2 == 0
+        ):
+            raise ValueError(
+                f"median_window must be an odd integer >= 1, got {self.median_window!r}"
+            )
+        require_positive("stale_after_cycles", self.stale_after_cycles)
+        require_finite("pressure_min_Pa", self.pressure_min_Pa)
+        require_finite("pressure_max_Pa", self.pressure_max_Pa)
+        if self.pressure_min_Pa >= self.pressure_max_Pa:
+            raise ValueError(
+                f"pressure_min_Pa ({self.pressure_min_Pa}) must be below "
+                f"pressure_max_Pa ({self.pressure_max_Pa})"
+            )
+        require_positive("contact_on_N", self.contact_on_N)
+        require_finite("contact_off_N", self.contact_off_N)
+        if self.contact_off_N >= self.contact_on_N:
+            raise ValueError(
+                f"contact_off_N ({self.contact_off_N}) must be below contact_on_N "
+                f"({self.contact_on_N}): the gap between them is the hysteresis"
+            )
+        require_positive("pressure_limit_Pa", self.pressure_limit_Pa)
+        require_positive("near_constant_window_s", self.near_constant_window_s)
