@@ -2,7 +2,7 @@
 
 import math
 import re
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping
 from typing import Any, TypeVar
 
 from daq.errors import ConfigError
@@ -77,12 +77,22 @@ class TomlTable:
             if name not in known:
                 raise self.error(name, f"unknown key; expected one of {sorted(known)}")
 
-    def build(self, factory: Callable[..., T], **kwargs: Any) -> T:
-        """Call ``factory(**kwargs)``; its ValueError becomes a ConfigError on this table."""
+    def build(
+        self,
+        factory: Callable[..., T],
+        owners: Mapping[str, "TomlTable"] | None = None,
+        **kwargs: Any,
+    ) -> T:
+        """Call ``factory(**kwargs)``; its ValueError becomes a ConfigError.
+
+        The error names the key of the field the message starts with, in the
+        table ``owners`` says it came from (this table by default).
+        """
         try:
             return factory(**kwargs)
         except ValueError as exc:
             message = str(exc)
             match = _FIELD_NAME.match(message)
             field = match.group(1) if match and match.group(1) in kwargs else ""
-            raise self.error(field, message) from exc
+            owner = (owners or {}).get(field, self)
+            raise owner.error(field, message) from exc

@@ -158,15 +158,15 @@ def parse_machine_config(
     sensors = root.table("sensors", required=False)
     sensors.reject_unknown(SENSOR_KEYS)
     defaults = EstimatorSettings()
+    owners = {key: estimator for key in ESTIMATOR_KEYS} | {key: sensors for key in SENSOR_KEYS}
     settings_kwargs: dict[str, Any] = {
         "median_window": estimator.integer("median_window", defaults.median_window),
         "status_ok": sensors.string("status_ok", defaults.status_ok),
     }
-    for table, keys in ((estimator, ESTIMATOR_KEYS), (sensors, SENSOR_KEYS)):
-        for key in keys:
-            if key not in settings_kwargs:
-                settings_kwargs[key] = table.number(key, getattr(defaults, key))
-    settings = root.build(EstimatorSettings, **settings_kwargs)
+    for key, table in owners.items():
+        if key not in settings_kwargs:
+            settings_kwargs[key] = table.number(key, getattr(defaults, key))
+    settings = root.build(EstimatorSettings, owners, **settings_kwargs)
 
     leg_defaults = root.table("leg_defaults", required=False)
     leg_defaults.reject_unknown(GEOMETRY_KEYS)
@@ -196,13 +196,16 @@ def _leg(name: str, table: TomlTable, defaults: TomlTable, database: Database) -
         raise table.error("", f"leg name {name!r} must match {NAME_PATTERN}")
     table.reject_unknown((*GEOMETRY_KEYS, *LEG_SIGNAL_KEYS))
     values: dict[str, float] = {}
+    owners: dict[str, TomlTable] = {}
     for key in GEOMETRY_KEYS:
-        source = table if key in table else defaults
-        if key not in source:
+        owner = table if key in table else defaults
+        if key not in owner:
             raise table.error(key, "missing (and not given in [leg_defaults])")
-        values[key] = source.number(key)
+        values[key] = owner.number(key)
+        owners[key] = owner
     values["alpha_cyl_rad"] = math.radians(values.pop("alpha_cyl_deg"))
-    geometry = table.build(LegGeometry, **values)
+    owners["alpha_cyl_rad"] = owners.pop("alpha_cyl_deg")
+    geometry = table.build(LegGeometry, owners, **values)
 
     piston = _signal(table, "piston", database)
     rod = _signal(table, "rod", database)

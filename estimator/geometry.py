@@ -61,7 +61,8 @@ class LegGeometry:
         )
         if lever_arm_m <= 0:
             raise ValueError(
-                f"l_r_m*sin(alpha_cyl) - l_z_m*cos(alpha_cyl) = {lever_arm_m:.4g} m must be > 0: "
+                f"the lever arm l_r_m*sin(alpha_cyl) - l_z_m*cos(alpha_cyl) = {lever_arm_m:.4g} m "
+                "must be > 0: "
                 "with this geometry a pushing cylinder cannot carry the foot"
             )
         # Precomputed once so that the per-frame path is two multiplies and an add,

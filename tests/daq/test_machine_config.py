@@ -1,0 +1,132 @@
+"""Machine configuration: the example loads; wrong configs are refused naming file and key."""
+
+import re
+from pathlib import Path
+
+import pytest
+
+from daq.errors import ConfigError, DbcError
+from daq.machine import G_M_S2, load_machine_config
+from tests.helpers import EXAMPLE_CONFIG, LEGS
+
+EXAMPLE = EXAMPLE_CONFIG.read_text()
+
+
+def write(tmp_path: Path, text: str) -> Path:
+    path = tmp_path / "machine.toml"
+    path.write_text(text)
+    return path
+
+
+def refused(tmp_path: Path, text: str) -> ConfigError:
+    path = write(tmp_path, text)
+    with pytest.raises(ConfigError) as info:
+        load_machine_config(path)
+    assert str(path) in str(info.value)
+    return info.value
+
+
+def test_example_config_loads_with_documented_values() -> None:
+    config, database = load_machine_config(EXAMPLE_CONFIG)
+    assert config.machine_id == "pam-proto-1"
+    assert config.weight_N == pytest.approx(18_800.0 * G_M_S2)
+    assert tuple(config.legs) == LEGS
+    leg = config.legs["SB2_F2"]
+    assert leg.geometry.A_foot_m2 == 0.33
+    assert leg.geometry.force_ratio == pytest.approx(0.6705, abs=1e-4)
+    assert str(leg.piston) == "LEG_SB2_F2.SB2_F2_pPiston"
+    assert leg.cycle_time_s == 0.01
+    assert config.estimator.median_window == 11
+    assert set(config.protection) == {m.name for m in database.messages}
+
+
+def test_leg_table_overrides_leg_defaults(tmp_path: Path) -> None:
+    text = EXAMPLE.replace("[legs.SB1_F3]\n", "[legs.SB1_F3]\nA_foot_m2 = 0.5\n")
+    config, _ = load_machine_config(write(tmp_path, text))
+    assert config.legs["SB1_F3"].geometry.A_foot_m2 == 0.5
+    assert config.legs["SB1_F2"].geometry.A_foot_m2 == 0.33
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "key", "reason"),
+    [
+        ("l_r_m = 0.90\n", "", "legs.SB1_F1.l_r_m", "missing"),
+        ("A_rod_m2 = 4.737e-3", "A_rod_m2 = -4.737e-3", "leg_defaults.A_rod_m2", "must be > 0"),
+        ("[legs.SB2_F1]", "[legs.SB2_F1]\nA_piston_m2 = -1.0", "legs.SB2_F1.A_piston_m2", "> 0"),
+        ("A_foot_m2 = 0.33", 'A_foot_m2 = "big"', "leg_defaults.A_foot_m2", "must be a number"),
+        ("alpha_cyl_deg = 75.0", "alpha_cyl_deg = nan", "leg_defaults.alpha_cyl_deg", "finite"),
+        ("[legs.SB1_F2]", "[legs.SB1_F2]\nalpha_cyl_deg = 5.0", "legs.SB1_F2", "cannot carry"),
+        (
+            'piston = "LEG_SB1_F2.SB1_F2_pPiston"',
+            'piston = "LEG_SB1_F2.SB1_F2_pPistn"',
+            "legs.SB1_F2.piston",
+            "no signal 'SB1_F2_pPistn' in message LEG_SB1_F2",
+        ),
+        (
+            'rod = "LEG_SB2_F1.SB2_F1_pRod"',
+            'rod = "LEG_SB2_F9.SB2_F1_pRod"',
+            "legs.SB2_F1.rod",
+            "no message 'LEG_SB2_F9'",
+        ),
+        (
+            'rod = "LEG_SB2_F1.SB2_F1_pRod"',
+            'rod = "LEG_SB2_F2.SB2_F2_pRod"',
+            "legs.SB2_F1.rod",
+            "must share one frame",
+        ),
+        (
+            'status = "LEG_SB1_F1.SB1_F1_Status"',
+            'status = "SB1_F1_Status"',
+            "legs.SB1_F1.status",
+            "MESSAGE.SIGNAL",
+        ),
+        ("mass_kg = 18800.0", "mass_kg = 0", "machine.mass_kg", "must be > 0"),
+        ('id = "pam-proto-1"', 'id = "pam/proto"', "machine.id", "does not match"),
+        ("median_window = 11", "median_window = 10", "estimator.median_window", "odd"),
+        ("contact_off_N = 4000.0", "contact_off_N = 9000.0", "estimator.contact_off_N", "below"),
+        ("median_window = 11", "median_windw = 11", "estimator.median_windw", "unknown key"),
+        ("l_gb_m = 0.55", "l_gb = 0.55", "leg_defaults.l_gb", "unknown key"),
+        ('crc = "SB1_F1_CRC"', 'crc = "SB1_F1_Counter"', "protection.LEG_SB1_F1.crc", "8-bit"),
+        ("[legs.SB1_F1]", "[legs.SB1_F1]\nfoot = 1", "legs.SB1_F1.foot", "unknown key"),
+    ],
+)
+def test_wrong_config_is_refused_naming_the_key(
+    tmp_path: Path, old: str, new: str, key: str, reason: str
+) -> None:
+    assert old in EXAMPLE
+    error = refused(tmp_path, EXAMPLE.replace(old, new, 1))
+    assert error.key == key
+    assert reason in str(error)
+
+
+def test_missing_machine_table(tmp_path: Path) -> None:
+    error = refused(tmp_path, re.sub(r"\[machine\].*?\n\n", "", EXAMPLE, count=1, flags=re.S))
+    assert error.key == "machine" and "missing" in error.reason
+
+
+def test_no_legs(tmp_path: Path) -> None:
+    error = refused(tmp_path, EXAMPLE.split("[legs.SB1_F1]")[0] + "[legs]\n")
+    assert error.key == "legs" and "no legs" in error.reason
+
+
+def test_not_toml(tmp_path: Path) -> None:
+    error = refused(tmp_path, "[machine\nid = 3")
+    assert "not valid TOML" in str(error)
+
+
+def test_missing_file(tmp_path: Path) -> None:
+    with pytest.raises(ConfigError, match="no such file"):
+        load_machine_config(tmp_path / "absent.toml")
+
+
+def test_bad_dbc_is_a_dbc_error_naming_the_dbc(tmp_path: Path) -> None:
+    (tmp_path / "broken.dbc").write_text("BO_ nonsense {")
+    text = EXAMPLE.replace('# dbc = "portal_sensors.dbc"', 'dbc = "broken.dbc"')
+    with pytest.raises(DbcError, match="broken.dbc: not a valid DBC"):
+        load_machine_config(write(tmp_path, text))
+
+
+def test_missing_dbc(tmp_path: Path) -> None:
+    text = EXAMPLE.replace('# dbc = "portal_sensors.dbc"', 'dbc = "nowhere.dbc"')
+    with pytest.raises(DbcError, match="nowhere.dbc: no such file"):
+        load_machine_config(write(tmp_path, text))

@@ -1,0 +1,73 @@
+"""All legs together: the weight check and settings validation."""
+
+import pytest
+
+from daq.machine import G_M_S2
+from estimator import EstimatorSettings, LegGeometry, LegSample, MachineEstimator
+from tests.estimator.test_equations import DEFAULT
+from tests.estimator.test_leg import pressures_for
+from tests.helpers import LEGS
+
+MASS_KG = 18_800.0
+
+
+def machine() -> MachineEstimator:
+    leg = LegGeometry(**DEFAULT)
+    return MachineEstimator(
+        {name: leg for name in LEGS},
+        EstimatorSettings(median_window=1),
+        MASS_KG * G_M_S2,
+        {name: 0.01 for name in LEGS},
+    )
+
+
+def test_weight_residual_sums_the_legs_in_contact() -> None:
+    m = machine()
+    weight_N = MASS_KG * G_M_S2
+    # Three feet carry the machine, three are in the air (200 N on the foot).
+    for name in LEGS:
+        force = weight_N / 3 + 300.0 if name.startswith("SB1") else 200.0
+        m.update(name, LegSample(t_s=1.0, p_piston_Pa=pressures_for(force), p_rod_Pa=1e6))
+    check = m.snapshot(1.0).weight
+    assert check.legs_in_contact == 3
+    assert check.complete is True
+    assert check.total_force_N == pytest.approx(weight_N + 900.0)
+    assert check.residual_N == pytest.approx(900.0)
+
+
+def test_weight_check_is_incomplete_when_a_leg_is_invalid_or_stale() -> None:
+    m = machine()
+    for name in LEGS[:5]:
+        m.update(name, LegSample(t_s=1.0, p_piston_Pa=pressures_for(30e3), p_rod_Pa=1e6))
+    snapshot = m.snapshot(1.0)
+    assert snapshot.legs["SB2_F3"].reasons == ("stale",)
+    assert snapshot.weight.complete is False
+    assert snapshot.weight.legs_in_contact == 5
+    later = m.snapshot(2.0)
+    assert all("stale" in e.reasons for e in later.legs.values())
+    assert later.weight.total_force_N == 0.0
+
+
+def test_every_leg_needs_a_cycle_time() -> None:
+    with pytest.raises(ValueError, match="SB2_F3"):
+        MachineEstimator(
+            {name: LegGeometry(**DEFAULT) for name in LEGS},
+            EstimatorSettings(),
+            1.0,
+            {name: 0.01 for name in LEGS[:5]},
+        )
+
+
+@pytest.mark.parametrize(
+    ("kw", "word"),
+    [
+        ({"median_window": 10}, "median_window"),
+        ({"contact_off_N": 9000.0}, "contact_off_N"),
+        ({"pressure_min_Pa": 5e7}, "pressure_min_Pa"),
+        ({"near_constant_window_s": 0.0}, "near_constant_window_s"),
+        ({"stale_after_cycles": -1.0}, "stale_after_cycles"),
+    ],
+)
+def test_settings_refuse_inconsistent_values(kw: dict[str, object], word: str) -> None:
+    with pytest.raises(ValueError, match=word):
+        EstimatorSettings(**kw)  # type: ignore[arg-type]

@@ -1,0 +1,78 @@
+"""Running median: streaming vs brute force (property tests) and vs the batch path."""
+
+import statistics
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from estimator import RunningMedian, running_median
+
+finite = st.floats(min_value=-1e9, max_value=1e9, allow_nan=False)
+odd_windows = st.integers(min_value=0, max_value=12).map(lambda k: 2 * k + 1)
+
+
+def brute_force(values: list[float], window: int) -> list[float]:
+    return [statistics.median(values[max(0, i - window + 1) : i + 1]) for i in range(len(values))]
+
+
+@given(st.lists(finite, max_size=200), odd_windows)
+def test_streaming_equals_brute_force(values: list[float], window: int) -> None:
+    median = RunningMedian(window)
+    assert [median.push(v) for v in values] == brute_force(values, window)
+
+
+@given(st.lists(finite, max_size=200), odd_windows)
+def test_batch_is_bit_identical_to_streaming(values: list[float], window: int) -> None:
+    median = RunningMedian(window)
+    streamed = np.array([median.push(v) for v in values], dtype=np.float64)
+    batch = running_median(values, window)
+    assert streamed.tobytes() == batch.tobytes()
+
+
+@given(st.lists(st.integers(min_value=-3, max_value=3).map(float), max_size=100), odd_windows)
+def test_many_equal_values_are_removed_one_at_a_time(values: list[float], window: int) -> None:
+    median = RunningMedian(window)
+    assert [median.push(v) for v in values] == brute_force(values, window)
+    assert len(median) == min(len(values), window)
+
+
+def test_warm_up_uses_the_samples_so_far() -> None:
+    median = RunningMedian(5)
+    assert [median.push(v) for v in (10.0, 20.0, 0.0, 40.0, 50.0, 60.0)] == [
+        10.0,
+        15.0,
+        10.0,
+        15.0,
+        20.0,
+        40.0,
+    ]
+
+
+def test_a_single_impulse_is_removed_and_an_edge_kept() -> None:
+    signal = np.array([1.0] * 10 + [1e6] + [1.0] * 10 + [5.0] * 10)
+    filtered = running_median(signal, 5)
+    assert filtered.max() == 5.0  # the impulse is gone
+    # The step from 1 to 5 passes unsmoothed, delayed by (N - 1) / 2 = 2 samples.
+    assert list(filtered[21:26]) == [1.0, 1.0, 5.0, 5.0, 5.0]
+
+
+def test_batch_handles_more_rows_than_one_chunk() -> None:
+    values = np.random.default_rng(7).normal(size=70_001)
+    median = RunningMedian(9)
+    streamed = np.array([median.push(float(v)) for v in values])
+    assert np.array_equal(streamed, running_median(values, 9))
+
+
+def test_empty_median_is_nan() -> None:
+    assert np.isnan(RunningMedian(3).value)
+    assert running_median([], 3).size == 0
+
+
+@pytest.mark.parametrize("window", [0, 2, -1, 4, 2.0, True])
+def test_window_must_be_odd_positive_integer(window: object) -> None:
+    with pytest.raises(ValueError, match="odd integer"):
+        RunningMedian(window)  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="odd integer"):
+        running_median([1.0], window)  # type: ignore[arg-type]
