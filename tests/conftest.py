@@ -1,0 +1,31 @@
+"""Shared pytest configuration for portal-daq's tests.
+
+Tests marked ``vcan`` (the marker is declared in pyproject.toml) need a real
+SocketCAN ``vcan0``; they are skipped where there is none. ``tests/vcan/with-vcan``
+runs pytest inside User-Mode Linux with ``vcan0`` up, and ``./dev test`` uses it.
+"""
+
+from pathlib import Path
+
+import pytest
+
+# --- vcan: skip the real-SocketCAN tests where vcan0 is missing ---------------
+# (If another pytest_collection_modifyitems is ever needed in this file, merge
+# it with this one: a second definition would silently replace the first.)
+
+VCAN0 = Path("/sys/class/net/vcan0")
+VCAN_SKIP_REASON = (
+    "needs a real SocketCAN vcan0: run through tests/vcan/with-vcan (./dev test does)"
+)
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    if VCAN0.exists():
+        return
+    skip_vcan = pytest.mark.skip(reason=VCAN_SKIP_REASON)
+    for item in items:
+        if item.get_closest_marker("vcan") is not None:
+            item.add_marker(skip_vcan)
+
+
+# --- end vcan -----------------------------------------------------------------
