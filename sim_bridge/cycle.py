@@ -1,0 +1,103 @@
+"""The movement cycle of section 2.1 as actuator set-points over time (Figure 2).
+
+Pure functions of the cycle time ``t_s`` (scalars or numpy arrays). Every motion is a
+cosine-smoothed ramp between two set-points, so velocities start and end at zero:
+
+- move carriage:  t = 2..7 s, over SB2 -> over SB1; then on to the counterweight
+  position behind SB1 while SB2 is lifted (t = 8..12 s);
+- fold:           t = 8..12 s inclination lifts SB2's feet, t = 14..18 s SB2's legs fold
+  up (retract), t = 18..23 s the bridge folds (PT1-filtered command, hard stop at 23 s);
+- rotate:         t = 23..32 s the bridge turns 180 deg, from between SB1_F2/F3 to over SB1_F1;
+- unfold:         t = 32.5..39.5 s the bridge unfolds, t = 38..44 s SB2's legs extend
+  while the bridge is lowered; all six feet are down again at t = 44 s.
+"""
+
+import math
+
+import numpy as np
+import numpy.typing as npt
+
+from sim_bridge.params import ModelParams
+
+FloatArray = npt.NDArray[np.float64]
+
+#: Length of one simulated cycle (the step takes 44 s; one idle second follows).
+CYCLE_END_S = 45.0
+
+
+def ramp(t_s: npt.ArrayLike, start_s: float, end_s: float) -> FloatArray:
+    """0 before ``start_s``, 1 after ``end_s``, a half cosine in between."""
+    x = np.clip((np.asarray(t_s, dtype=np.float64) - start_s) / (end_s - start_s), 0.0, 1.0)
+    return np.asarray(0.5 - 0.5 * np.cos(np.pi * x), dtype=np.float64)
+
+
+def ramp_rate(t_s: npt.ArrayLike, start_s: float, end_s: float) -> FloatArray:
+    """Time derivative of :func:`ramp`, 1/s."""
+    t = np.asarray(t_s, dtype=np.float64)
+    duration = end_s - start_s
+    x = np.clip((t - start_s) / duration, 0.0, 1.0)
+    inside = (t > start_s) & (t < end_s)
+    return np.where(inside, 0.5 * np.pi / duration * np.sin(np.pi * x), 0.0).astype(np.float64)
+
+
+def carriage_m(t_s: npt.ArrayLike, p: ModelParams) -> FloatArray:
+    """Carriage position from SB1's axis towards SB2."""
+    return (
+        p.carriage_start_m
+        + (p.carriage_over_sb1_m - p.carriage_start_m) * ramp(t_s, 2.0, 7.0)
+        + (p.carriage_counterweight_m - p.carriage_over_sb1_m) * ramp(t_s, 7.5, 10.5)
+    )
+
+
+def inclination_rad(t_s: npt.ArrayLike, p: ModelParams) -> FloatArray:
+    """Bridge inclination at SB1 (positive lifts SB2); slightly negative at the end so
+    SB2's feet are pressed onto the ground by ``set_down_preload_m``."""
+    lift = math.radians(p.lift_inclination_deg)
+    preload = p.set_down_preload_m / p.bridge_length_m
+    return lift * ramp(t_s, 10.0, 12.0) - (lift + preload) * ramp(t_s, 38.0, 44.0)
+
+
+def inclination_rate_rad_s(t_s: npt.ArrayLike, p: ModelParams) -> FloatArray:
+    lift = math.radians(p.lift_inclination_deg)
+    preload = p.set_down_preload_m / p.bridge_length_m
+    return lift * ramp_rate(t_s, 10.0, 12.0) - (lift + preload) * ramp_rate(t_s, 38.0, 44.0)
+
+
+def sb2_stroke_m(t_s: npt.ArrayLike, p: ModelParams) -> FloatArray:
+    """Stroke of SB2's legs: retracted in the air (t = 14..18 s), extended again (38..43.5 s)."""
+    travel = p.stroke_extended_m - p.stroke_retracted_m
+    return p.stroke_extended_m - travel * (ramp(t_s, 14.0, 18.0) - ramp(t_s, 38.0, 43.5))
+
+
+def sb2_stroke_rate_m_s(t_s: npt.ArrayLike, p: ModelParams) -> FloatArray:
+    travel = p.stroke_extended_m - p.stroke_retracted_m
+    return -travel * (ramp_rate(t_s, 14.0, 18.0) - ramp_rate(t_s, 38.0, 43.5))
+
+
+def fold_command_rad(t_s: npt.ArrayLike, p: ModelParams) -> FloatArray:
+    """Fold command before the PT1 element: up t = 18..22.6 s, past the stop; down 32.5..39.5 s."""
+    target = math.radians(p.fold_stop_deg + p.fold_command_overshoot_deg)
+    return target * (ramp(t_s, 18.0, 22.6) - ramp(t_s, 32.5, 39.5))
+
+
+def rotation_rad(t_s: npt.ArrayLike) -> FloatArray:
+    """Bridge direction seen from SB1: pi (between F2 and F3) turning to 0 (over F1)."""
+    return np.pi * (1.0 - ramp(t_s, 23.0, 32.0))
+
+
+def rotation_acceleration_rad_s2(t_s: npt.ArrayLike) -> FloatArray:
+    t = np.asarray(t_s, dtype=np.float64)
+    duration = 9.0
+    x = np.clip((t - 23.0) / duration, 0.0, 1.0)
+    inside = (t > 23.0) & (t < 32.0)
+    return np.where(inside, -0.5 * np.pi * (np.pi / duration) ** 2 * np.cos(np.pi * x), 0.0)
+
+
+def phase_index(t_s: npt.ArrayLike) -> npt.NDArray[np.int_]:
+    """Index into sim_bridge.result.PHASES: idle, move_carriage, fold, rotate, unfold."""
+    t = np.asarray(t_s, dtype=np.float64)
+    return np.select(
+        [t < 2.0, t < 7.0, t < 8.0, t < 23.0, t < 32.5, t < 44.0],
+        [0, 1, 0, 2, 3, 4],
+        default=0,
+    )
