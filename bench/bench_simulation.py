@@ -13,6 +13,7 @@ from sim_bridge.model import simulate
 
 
 def main() -> None:
+    machine = f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores"
     for rtol in (1e-3, 1e-5):
         runs = []
         for _ in range(3):
@@ -28,7 +29,7 @@ def main() -> None:
                     "simulated_s": CYCLE_END_S,
                     "wall_s": round(best_s, 3),
                     "real_time_factor": round(CYCLE_END_S / best_s, 1),
-                    "machine": f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores",
+                    "machine": machine,
                 }
             )
         )

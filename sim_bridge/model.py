@@ -237,21 +237,14 @@ def _outputs(
         cylinder_rate / p.stribeck_velocity_m_s
     )
     cylinder_force_N = (force - leg.weight_term_N) / leg.force_ratio + friction_N
-    p_rod = np.full((n, 6), p.rod_back_pressure_Pa)
-    p_piston = (cylinder_force_N + p_rod * leg.A_rod_m2) / leg.A_piston_m2
+    p_piston, p_rod = _chamber_pressures(
+        cylinder_force_N, leg.A_piston_m2, leg.A_rod_m2, p.rod_back_pressure_Pa
+    )
     if noise is not None:
         p_piston = noise.apply(p_piston, t_s)
 
-    incl_force = incl_moment / p.incl_arm_m
-    incl_p_rod = np.where(
-        incl_force >= 0,
-        p.rod_back_pressure_Pa,
-        (p.rod_back_pressure_Pa * p.incl_A_piston_m2 - incl_force) / p.incl_A_rod_m2,
-    )
-    incl_p_piston = np.where(
-        incl_force >= 0,
-        (incl_force + p.rod_back_pressure_Pa * p.incl_A_rod_m2) / p.incl_A_piston_m2,
-        p.rod_back_pressure_Pa,
+    incl_p_piston, incl_p_rod = _chamber_pressures(
+        incl_moment / p.incl_arm_m, p.incl_A_piston_m2, p.incl_A_rod_m2, p.rod_back_pressure_Pa
     )
 
     tangential = _tangential_forces(p, t_s, states, force)
@@ -273,6 +266,22 @@ def _outputs(
         carriage_m=p.bridge_length_m / 2 - cycle.carriage_m(t_s, p),
         phase=cycle.phase_index(t_s),
     )
+
+
+def _chamber_pressures(
+    force_N: FloatArray, A_piston_m2: float, A_rod_m2: float, back_pressure_Pa: float
+) -> tuple[FloatArray, FloatArray]:
+    """(piston, rod) chamber pressures of a cylinder pushing with ``force_N`` (pulling
+    when negative): the loaded chamber carries the force, the other one sits at the
+    valve's back pressure."""
+    pushing = force_N + back_pressure_Pa * A_rod_m2 >= back_pressure_Pa * A_piston_m2
+    p_piston = np.where(
+        pushing, (force_N + back_pressure_Pa * A_rod_m2) / A_piston_m2, back_pressure_Pa
+    )
+    p_rod = np.where(
+        pushing, back_pressure_Pa, (back_pressure_Pa * A_piston_m2 - force_N) / A_rod_m2
+    )
+    return p_piston, p_rod
 
 
 def _tangential_forces(

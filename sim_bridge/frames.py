@@ -1,0 +1,293 @@
+"""From one row of a :class:`~sim_bridge.result.SimulationResult` to DBC signal values.
+
+Pure computation. Which signal carries what:
+
+- **Leg messages** follow the machine configuration: ``[legs.<LEG>]`` names the piston,
+  rod and status signals, so a different DBC works by editing the config. Each config leg
+  must be one of the simulation's legs (:data:`~sim_bridge.result.LEGS`).
+- **Every other signal** is found by its name in the DBC: ``INCL_<BASE>_pPiston`` /
+  ``_pRod`` / ``_Status``, ``<LEG>_Stroke``, ``<BASE>_InclinationAngle``,
+  ``Bridge_FoldAngle``, ``Bridge_RotationAngle``, ``Carriage_Position``,
+  ``Machine_Phase`` (value-table name), ``Machine_CycleCount`` (completed cycles) and
+  ``Machine_CycleTime`` (time since the cycle started).
+- Counter and CRC signals (``[protection.<MESSAGE>]``) are left to the
+  :class:`~daq.encoding.FrameEncoder`. A signal nobody supplies is sent as 0 (clipped into
+  its range) and listed in :attr:`FrameBuilder.defaulted`; a periodic message none of whose
+  signals is supplied is not sent at all (:attr:`FrameBuilder.skipped`).
+
+Status signals say the config's ``status_ok`` name unless a fault says otherwise. Every
+number is clipped into its DBC signal's ``[minimum, maximum]`` (cantools' strict encoder
+refuses anything else), fault values included; the pressure signals' DBC range
+(-1 .. 64.535 MPa) is wider than the transducers' (-0.1 .. 40 MPa), so an out-of-range
+fault of e.g. 45 MPa still goes out unchanged. NaN (no data) is sent as 0.
+"""
+
+import math
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass
+
+from cantools.database.can import Database, Message, Signal
+
+from daq.decoding import SignalValue
+from daq.errors import ConfigError
+from daq.machine import MachineConfig
+from sim_bridge.result import BASES, LEGS, PHASES, SimulationResult
+from sim_bridge.schedule import NS_PER_MS, NS_PER_S, MessageCycle
+
+#: A signal's value at one row: (result, row, completed cycles) -> physical value or name.
+Getter = Callable[[SimulationResult, int, int], SignalValue]
+
+
+@dataclass(frozen=True, slots=True)
+class LegOverride:
+    """What a fault makes one leg's message say instead of the simulation's values."""
+
+    p_piston_Pa: float
+    p_rod_Pa: float
+    #: Status value-table name; None keeps the config's ``status_ok``.
+    status: str | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class Position:
+    """Where a simulation time falls: which cycle, which row, how far into the cycle."""
+
+    cycle: int
+    row: int
+    t_cycle_s: float
+
+
+class Timeline:
+    """Maps simulation time since the bridge started onto rows of a looping result.
+
+    A cycle lasts ``len(result) * dt_s``; row ``i`` holds from ``i * dt_s`` until the next
+    row (zero-order hold, as a sampling sensor would send it).
+
+    >>> import numpy as np
+    >>> timeline = Timeline(n_rows=4, dt_s=0.01)
+    >>> timeline.position(50_000_000)
+    Position(cycle=1, row=1, t_cycle_s=0.01)
+    """
+
+    def __init__(self, n_rows: int, dt_s: float) -> None:
+        if n_rows < 2:
+            raise ValueError(f"a simulation result needs at least 2 rows, got {n_rows}")
+        if not (math.isfinite(dt_s) and dt_s > 0):
+            raise ValueError(f"the result's time step must be > 0, got {dt_s!r} s")
+        self.n_rows = n_rows
+        self.dt_ns = max(1, round(dt_s * NS_PER_S))
+        #: Length of one cycle, ns.
+        self.cycle_ns = n_rows * self.dt_ns
+
+    @classmethod
+    def of(cls, result: SimulationResult) -> "Timeline":
+        return cls(len(result), result.dt_s)
+
+    def position(self, sim_t_ns: int) -> Position:
+        cycle, t_in_cycle_ns = divmod(sim_t_ns, self.cycle_ns)
+        row = t_in_cycle_ns // self.dt_ns
+        return Position(cycle, row, row * self.dt_ns / NS_PER_S)
+
+
+@dataclass(frozen=True, slots=True)
+class _LegSignals:
+    leg: str
+    piston: Signal
+    rod: Signal
+    status: Signal | None
+
+
+@dataclass(frozen=True, slots=True)
+class _MessagePlan:
+    message: str
+    legs: tuple[_LegSignals, ...]
+    #: Signals found by name, with their getters.
+    named: tuple[tuple[Signal, Getter], ...]
+    #: Signals sent as a constant (nobody supplies them).
+    constants: tuple[tuple[Signal, SignalValue], ...]
+
+
+class FrameBuilder:
+    """Builds each periodic message's signal values from a simulation row.
+
+    Constructed once from the machine configuration and the DBC; raises
+    :class:`~daq.errors.ConfigError` when a config leg is not a simulated leg.
+    """
+
+    def __init__(self, config: MachineConfig, database: Database) -> None:
+        self.status_ok = config.estimator.status_ok
+        protected = {
+            (name, signal)
+            for name, protection in config.protection.items()
+            for signal in (protection.counter, protection.crc)
+        }
+        legs_by_message: dict[str, list[str]] = {}
+        for leg in config.legs.values():
+            if leg.name not in LEGS:
+                raise ConfigError(
+                    config.source,
+                    f"legs.{leg.name}",
+                    f"the simulation has no leg {leg.name!r}; its legs are {', '.join(LEGS)}",
+                )
+            legs_by_message.setdefault(leg.message, []).append(leg.name)
+        getters = _named_getters(self.status_ok)
+        self._plans: dict[str, _MessagePlan] = {}
+        #: Signals sent as a constant 0, as "MESSAGE.SIGNAL".
+        self.defaulted: list[str] = []
+        #: Periodic messages not sent because the simulation supplies none of their signals.
+        self.skipped: list[str] = []
+        #: The messages built, with their DBC cycle times, in DBC order.
+        self.cycles: list[MessageCycle] = []
+        for message in database.messages:
+            if not message.cycle_time:
+                continue
+            legs = tuple(
+                _leg_signals(message, config, leg) for leg in legs_by_message.get(message.name, ())
+            )
+            taken = {s.name for leg in legs for s in (leg.piston, leg.rod, leg.status) if s}
+            named: list[tuple[Signal, Getter]] = []
+            constants: list[tuple[Signal, SignalValue]] = []
+            for signal in message.signals:
+                if signal.name in taken or (message.name, signal.name) in protected:
+                    continue
+                if signal.name == "Machine_Phase":
+                    named.append((signal, _phase_getter(signal)))
+                elif signal.name in getters:
+                    named.append((signal, getters[signal.name]))
+                else:
+                    constants.append((signal, clip(signal, 0.0)))
+            if not legs and not named:
+                self.skipped.append(message.name)
+                continue
+            self.defaulted += [f"{message.name}.{signal.name}" for signal, _ in constants]
+            self._plans[message.name] = _MessagePlan(
+                message.name, legs, tuple(named), tuple(constants)
+            )
+            self.cycles.append(MessageCycle(message.name, int(message.cycle_time) * NS_PER_MS))
+        #: Leg name -> its message.
+        self.leg_messages = {leg.name: leg.message for leg in config.legs.values()}
+
+    def leg_status_names(self) -> dict[str, frozenset[str]]:
+        """Leg -> the names in its status signal's value table (empty without one)."""
+        names: dict[str, frozenset[str]] = {}
+        for plan in self._plans.values():
+            for leg in plan.legs:
+                choices = leg.status.choices if leg.status is not None else None
+                names[leg.leg] = frozenset(str(choice) for choice in (choices or {}).values())
+        return names
+
+    @property
+    def messages(self) -> list[str]:
+        """The messages this builder can fill, in DBC order."""
+        return list(self._plans)
+
+    def signals(
+        self,
+        message: str,
+        result: SimulationResult,
+        row: int,
+        cycle: int,
+        overrides: Mapping[str, LegOverride] | None = None,
+    ) -> dict[str, SignalValue]:
+        """The signal values of ``message`` at ``row`` (counter and CRC left out)."""
+        plan = self._plans[message]
+        values: dict[str, SignalValue] = {}
+        for leg in plan.legs:
+            column = LEGS.index(leg.leg)
+            override = (overrides or {}).get(leg.leg)
+            if override is None:
+                p_piston = float(result.p_piston_Pa[row, column])
+                p_rod = float(result.p_rod_Pa[row, column])
+                status = self.status_ok
+            else:
+                p_piston, p_rod = override.p_piston_Pa, override.p_rod_Pa
+                status = override.status or self.status_ok
+            values[leg.piston.name] = clip(leg.piston, p_piston)
+            values[leg.rod.name] = clip(leg.rod, p_rod)
+            if leg.status is not None:
+                values[leg.status.name] = status
+        for signal, getter in plan.named:
+            values[signal.name] = clip(signal, getter(result, row, cycle))
+        for signal, constant in plan.constants:
+            values[signal.name] = constant
+        return values
+
+    def frames(
+        self,
+        result: SimulationResult,
+        row: int,
+        messages: Iterable[str],
+        cycle: int,
+        overrides: Mapping[str, LegOverride] | None = None,
+    ) -> list[tuple[str, dict[str, SignalValue]]]:
+        """(message, signals) for each of ``messages`` at ``row``."""
+        return [
+            (message, self.signals(message, result, row, cycle, overrides)) for message in messages
+        ]
+
+
+def clip(signal: Signal, value: SignalValue) -> SignalValue:
+    """``value`` clipped into the signal's DBC range; names pass unchanged, NaN becomes 0."""
+    if isinstance(value, str):
+        return value
+    number = float(value)
+    if math.isnan(number):
+        number = 0.0
+    if signal.minimum is not None:
+        number = max(number, float(signal.minimum))
+    if signal.maximum is not None:
+        number = min(number, float(signal.maximum))
+    if not signal.is_float and signal.scale == 1 and signal.offset == 0:
+        return round(number)
+    return number
+
+
+def _leg_signals(message: Message, config: MachineConfig, leg_name: str) -> _LegSignals:
+    leg = config.legs[leg_name]
+    signal = message.get_signal_by_name
+    return _LegSignals(
+        leg=leg_name,
+        piston=signal(leg.piston.signal),
+        rod=signal(leg.rod.signal),
+        status=signal(leg.status.signal) if leg.status is not None else None,
+    )
+
+
+def _column(field: str, column: int) -> Getter:
+    return lambda result, row, cycle: float(getattr(result, field)[row, column])
+
+
+def _series(field: str) -> Getter:
+    return lambda result, row, cycle: float(getattr(result, field)[row])
+
+
+def _phase_getter(signal: Signal) -> Getter:
+    """The phase by its value-table name when the DBC's table has the names, else its index."""
+    names = {str(choice) for choice in (signal.choices or {}).values()}
+
+    def phase(result: SimulationResult, row: int, cycle: int) -> SignalValue:
+        index = int(result.phase[row])
+        if 0 <= index < len(PHASES) and PHASES[index] in names:
+            return PHASES[index]
+        return index
+
+    return phase
+
+
+def _named_getters(status_ok: str) -> dict[str, Getter]:
+    """Getters of the signals found by name in the DBC (Machine_Phase aside)."""
+    getters: dict[str, Getter] = {
+        "Bridge_FoldAngle": _series("fold_deg"),
+        "Bridge_RotationAngle": _series("rotation_deg"),
+        "Carriage_Position": _series("carriage_m"),
+        "Machine_CycleCount": lambda result, row, cycle: cycle,
+        "Machine_CycleTime": lambda result, row, cycle: float(result.t_s[row]),
+    }
+    for b, base in enumerate(BASES):
+        getters[f"INCL_{base}_pPiston"] = _column("incl_p_piston_Pa", b)
+        getters[f"INCL_{base}_pRod"] = _column("incl_p_rod_Pa", b)
+        getters[f"INCL_{base}_Status"] = lambda result, row, cycle: status_ok
+        getters[f"{base}_InclinationAngle"] = _column("inclination_deg", b)
+    for i, leg in enumerate(LEGS):
+        getters[f"{leg}_Stroke"] = _column("stroke_m", i)
+    return getters

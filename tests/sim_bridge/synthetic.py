@@ -1,0 +1,117 @@
+"""Helpers of the bridge tests: small synthetic simulation results and playing them.
+
+The synthetic result is not physics: every column is a distinct, smooth, in-range
+function of time (so a mix-up of legs or rows shows), and the true force is eq. (4) of
+the pressures, so the truth and the frames agree.
+"""
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from cantools.database.can import Database
+
+from daq.decoding import DecodedFrame, FrameDecoder
+from daq.encoding import FrameEncoder
+from daq.machine import MachineConfig
+from estimator import foot_force_N
+from sim_bridge.faults import FaultConfig, FaultInjector
+from sim_bridge.frames import FrameBuilder
+from sim_bridge.playout import Playout, fault_targets
+from sim_bridge.result import LEGS, PHASES, SimulationResult
+from sim_bridge.schedule import Instant, instants, schedule
+from tests.helpers import example_machine
+
+CONFIG, DATABASE = example_machine()
+
+
+def make_result(duration_s: float = 2.0, dt_s: float = 0.01) -> SimulationResult:
+    """A synthetic cycle of ``duration_s`` sampled every ``dt_s``."""
+    n = round(duration_s / dt_s)
+    t_s = np.arange(n) * dt_s
+    legs = np.arange(len(LEGS))
+    wave = np.sin(2 * math.pi * t_s[:, None] / duration_s + legs[None, :])
+    p_piston = 8e6 + 1e6 * legs[None, :] + 3e6 * wave
+    p_rod = np.full_like(p_piston, 0.8e6) + 1e4 * legs[None, :]
+    geometry = CONFIG.legs["SB1_F1"].geometry
+    force = np.asarray(foot_force_N(p_piston, p_rod, geometry), dtype=np.float64)
+    return SimulationResult(
+        t_s=t_s,
+        p_piston_Pa=p_piston,
+        p_rod_Pa=p_rod,
+        force_true_N=force,
+        ground_compression_m=force / 5e8,
+        slipping=np.zeros((n, 6), dtype=np.bool_),
+        incl_p_piston_Pa=np.column_stack([5e6 + 1e6 * wave[:, 0], 6e6 + 1e6 * wave[:, 1]]),
+        incl_p_rod_Pa=np.column_stack([1e6 + 0 * t_s, 1.2e6 + 0 * t_s]),
+        stroke_m=0.3 + 0.1 * legs[None, :] + 0.05 * (1 + wave),
+        inclination_deg=np.column_stack([3 * wave[:, 2], -3 * wave[:, 3]]),
+        fold_deg=45 * (1 + wave[:, 4]) / 2,
+        rotation_deg=180 * t_s / duration_s,
+        carriage_m=4.5 * wave[:, 5],
+        phase=(np.arange(n) * len(PHASES) // n).astype(np.int_),
+    )
+
+
+def make_playout(
+    result: SimulationResult,
+    faults: FaultConfig | None = None,
+    config: MachineConfig = CONFIG,
+    database: Database = DATABASE,
+) -> Playout:
+    builder = FrameBuilder(config, database)
+    injector = FaultInjector(faults or FaultConfig(seed=1), fault_targets(builder))
+    return Playout(result, builder, FrameEncoder(database, config.protection), injector)
+
+
+@dataclass(frozen=True)
+class Played:
+    """One instant of a played result: its frames as a receiver decodes them, and its row."""
+
+    instant: Instant
+    frames: list[DecodedFrame]
+    row: int
+    cycle: int
+
+    def of(self, message: str) -> list[DecodedFrame]:
+        return [frame for frame in self.frames if frame.message == message]
+
+
+def play(result: SimulationResult, end_s: float, faults: FaultConfig | None = None) -> list[Played]:
+    """Every instant before ``end_s`` (simulated), decoded by one fresh decoder."""
+    playout = make_playout(result, faults)
+    decoder = FrameDecoder(DATABASE, CONFIG.protection)
+    played = []
+    for instant in instants(schedule(playout.cycles, end_sim_ns=round(end_s * 1e9))):
+        position, outgoing = playout.frames(instant)
+        decoded = [
+            decoder.decode(item.frame.arbitration_id, item.frame.data, instant.sim_t_ns / 1e9)
+            for item in outgoing
+        ]
+        played.append(Played(instant, decoded, position.row, position.cycle))
+    return played
+
+
+def frames_of(played: list[Played], message: str) -> list[DecodedFrame]:
+    return [frame for step in played for frame in step.of(message)]
+
+
+def write_export(directory: Path, result: SimulationResult) -> tuple[Path, Path]:
+    """``result`` as an external CSV export with its mapping (SI units): (data, mapping)."""
+    columns: dict[str, np.ndarray] = {"t": result.t_s, "phase": result.phase.astype(float)}
+    mapping = ['[input]\ntime = "t"\n', "[signals]", 'phase = "phase"\n']
+    for i, leg in enumerate(LEGS):
+        columns[f"p_{leg}"] = result.p_piston_Pa[:, i]
+        columns[f"r_{leg}"] = result.p_rod_Pa[:, i]
+        columns[f"F_{leg}"] = result.force_true_N[:, i]
+        mapping.append(f'[legs.{leg}]\npiston = "p_{leg}"\nrod = "r_{leg}"\nforce = "F_{leg}"\n')
+    names = list(columns)
+    rows = [",".join(names)] + [
+        ",".join(repr(float(columns[name][row])) for name in names) for row in range(len(result))
+    ]
+    data = directory / "export.csv"
+    data.write_text("\n".join(rows) + "\n")
+    mapping_path = directory / "mapping.toml"
+    mapping_path.write_text("\n".join(mapping))
+    return data, mapping_path

@@ -1,0 +1,146 @@
+"""Frames built from a simulation row decode back to the row's values within quantization."""
+
+import tomllib
+
+import numpy as np
+import pytest
+
+from daq.decoding import FrameDecoder
+from daq.encoding import FrameEncoder
+from daq.errors import ConfigError
+from daq.machine import parse_machine_config
+from sim_bridge.frames import FrameBuilder, LegOverride, Timeline
+from sim_bridge.result import BASES, LEGS, PHASES, SimulationResult
+from tests.helpers import EXAMPLE_CONFIG
+from tests.sim_bridge.synthetic import CONFIG, DATABASE, frames_of, make_result, play
+
+#: Half a step of each signal's scale: the most rounding may move a value.
+PRESSURE_TOLERANCE_PA = 500.0
+
+
+def decode_row(result: SimulationResult, row: int, cycle: int = 0) -> dict[str, dict]:
+    builder = FrameBuilder(CONFIG, DATABASE)
+    encoder = FrameEncoder(DATABASE, CONFIG.protection)
+    decoder = FrameDecoder(DATABASE, CONFIG.protection)
+    decoded = {}
+    for message, signals in builder.frames(result, row, builder.messages, cycle):
+        frame = encoder.encode(message, signals)
+        out = decoder.decode(frame.arbitration_id, frame.data, 0.0)
+        assert out.crc_ok and out.counter_ok
+        decoded[message] = dict(out.signals)
+    return decoded
+
+
+@pytest.mark.parametrize("row", [0, 37, 150, 199])
+def test_every_message_decodes_back_to_the_row(result: SimulationResult, row: int) -> None:
+    decoded = decode_row(result, row, cycle=3)
+    for i, leg in enumerate(LEGS):
+        signals = decoded[f"LEG_{leg}"]
+        assert signals[f"{leg}_pPiston"] == pytest.approx(
+            result.p_piston_Pa[row, i], abs=PRESSURE_TOLERANCE_PA
+        )
+        assert signals[f"{leg}_pRod"] == pytest.approx(
+            result.p_rod_Pa[row, i], abs=PRESSURE_TOLERANCE_PA
+        )
+        assert signals[f"{leg}_Status"] == "ok"
+        base = leg[:3]
+        assert decoded[f"STROKE_{base}"][f"{leg}_Stroke"] == pytest.approx(
+            result.stroke_m[row, i], abs=0.5e-4
+        )
+    for b, base in enumerate(BASES):
+        incl = decoded[f"INCL_{base}"]
+        assert incl[f"INCL_{base}_pPiston"] == pytest.approx(
+            result.incl_p_piston_Pa[row, b], abs=PRESSURE_TOLERANCE_PA
+        )
+        assert incl[f"INCL_{base}_pRod"] == pytest.approx(
+            result.incl_p_rod_Pa[row, b], abs=PRESSURE_TOLERANCE_PA
+        )
+        assert incl[f"INCL_{base}_Status"] == "ok"
+        assert decoded["BRIDGE_POSE"][f"{base}_InclinationAngle"] == pytest.approx(
+            result.inclination_deg[row, b], abs=0.005
+        )
+    assert decoded["BRIDGE_POSE"]["Bridge_FoldAngle"] == pytest.approx(
+        result.fold_deg[row], abs=0.005
+    )
+    motion = decoded["BRIDGE_MOTION"]
+    assert motion["Bridge_RotationAngle"] == pytest.approx(result.rotation_deg[row], abs=0.005)
+    assert motion["Carriage_Position"] == pytest.approx(result.carriage_m[row], abs=0.0005)
+    state = decoded["MACHINE_STATE"]
+    assert state["Machine_Phase"] == PHASES[result.phase[row]]
+    assert state["Machine_CycleCount"] == 3
+    assert state["Machine_CycleTime"] == pytest.approx(result.t_s[row], abs=0.005)
+
+
+def test_values_outside_the_dbc_range_are_clipped_into_it(result: SimulationResult) -> None:
+    result.p_piston_Pa[5, 0] = 80e6
+    result.p_rod_Pa[5, 0] = -5e6
+    result.stroke_m[5, 1] = 3.0
+    result.fold_deg[5] = -20.0
+    result.carriage_m[5] = np.nan
+    decoded = decode_row(result, 5)
+    assert decoded["LEG_SB1_F1"]["SB1_F1_pPiston"] == 64_535_000
+    assert decoded["LEG_SB1_F1"]["SB1_F1_pRod"] == -1_000_000
+    assert decoded["STROKE_SB1"]["SB1_F2_Stroke"] == pytest.approx(2.5)
+    assert decoded["BRIDGE_POSE"]["Bridge_FoldAngle"] == pytest.approx(-5.0)
+    assert decoded["BRIDGE_MOTION"]["Carriage_Position"] == 0.0
+
+
+def test_a_leg_override_replaces_the_values_and_is_not_clipped_to_the_sensor_range(
+    result: SimulationResult,
+) -> None:
+    builder = FrameBuilder(CONFIG, DATABASE)
+    overrides = {"SB1_F2": LegOverride(45e6, 1e6, "sensor_fault")}
+    signals = builder.signals("LEG_SB1_F2", result, 10, 0, overrides)
+    assert signals == {"SB1_F2_pPiston": 45e6, "SB1_F2_pRod": 1e6, "SB1_F2_Status": "sensor_fault"}
+    untouched = builder.signals("LEG_SB1_F1", result, 10, 0, overrides)
+    assert untouched["SB1_F1_pPiston"] == result.p_piston_Pa[10, 0]
+
+
+def test_the_leg_messages_follow_the_config_mapping(result: SimulationResult) -> None:
+    # Swap where SB1_F1 and SB1_F2 are on the bus: the frames must swap, not the code.
+    data = tomllib.loads(EXAMPLE_CONFIG.read_text())
+    legs = data["legs"]
+    legs["SB1_F1"], legs["SB1_F2"] = legs["SB1_F2"], legs["SB1_F1"]
+    config = parse_machine_config(data, "swapped.toml", DATABASE)
+    builder = FrameBuilder(config, DATABASE)
+    signals = builder.signals("LEG_SB1_F2", result, 20, 0)
+    assert signals["SB1_F2_pPiston"] == result.p_piston_Pa[20, LEGS.index("SB1_F1")]
+    assert builder.leg_messages["SB1_F1"] == "LEG_SB1_F2"
+
+
+def test_a_config_leg_the_simulation_lacks_is_refused() -> None:
+    data = tomllib.loads(EXAMPLE_CONFIG.read_text())
+    data["legs"]["FRONT"] = data["legs"].pop("SB1_F1")
+    config = parse_machine_config(data, "renamed.toml", DATABASE)
+    with pytest.raises(ConfigError, match=r"renamed.toml: legs.FRONT: the simulation has no leg"):
+        FrameBuilder(config, DATABASE)
+
+
+def test_a_config_without_a_leg_does_not_send_its_message(result: SimulationResult) -> None:
+    data = tomllib.loads(EXAMPLE_CONFIG.read_text())
+    del data["legs"]["SB2_F3"]
+    builder = FrameBuilder(parse_machine_config(data, "five.toml", DATABASE), DATABASE)
+    assert "LEG_SB2_F3" not in builder.messages
+    assert builder.skipped == ["LEG_SB2_F3"]
+    assert "MACHINE_STATE" in builder.messages
+
+
+def test_timeline_holds_each_row_until_the_next_and_loops() -> None:
+    timeline = Timeline(n_rows=100, dt_s=0.02)
+    assert timeline.cycle_ns == 2_000_000_000
+    assert timeline.position(0) == timeline.position(10_000_000)  # zero-order hold
+    assert timeline.position(30_000_000).row == 1
+    late = timeline.position(2_000_000_000 * 3 + 40_000_000)
+    assert (late.cycle, late.row, late.t_cycle_s) == (3, 2, 0.04)
+
+
+def test_played_rows_follow_the_simulation_time() -> None:
+    result = make_result(duration_s=0.5)
+    played = play(result, end_s=1.2)
+    legs = frames_of(played, "LEG_SB1_F1")
+    assert len(legs) == 120
+    rows = [step.row for step in played]
+    assert rows[:3] == [0, 1, 2] and rows[50] == 0 and rows[-1] == 19
+    cycles = [f.signals["Machine_CycleCount"] for f in frames_of(played, "MACHINE_STATE")]
+    assert cycles == [0] * 5 + [1] * 5 + [2] * 2
+    assert all(frame.counter_ok and frame.crc_ok for step in played for frame in step.frames)
