@@ -60,6 +60,21 @@ class TomlTable:
             raise self.error(name, f"{value!r} does not match {pattern}")
         return value
 
+    def boolean(self, name: str, default: Any = _MISSING) -> bool:
+        value = self._get(name, default)
+        if not isinstance(value, bool):
+            raise self.error(name, f"must be true or false, got {value!r}")
+        return value
+
+    def strings(self, name: str, default: Any = _MISSING) -> tuple[str, ...]:
+        """A list of non-empty strings, e.g. Zenoh endpoints."""
+        value = self._get(name, default)
+        if not isinstance(value, (list, tuple)) or not all(
+            isinstance(item, str) and item for item in value
+        ):
+            raise self.error(name, f"must be a list of non-empty strings, got {value!r}")
+        return tuple(value)
+
     def table(self, name: str, required: bool = True) -> "TomlTable":
         value = self._get(name, _MISSING if required else {})
         if not isinstance(value, dict):

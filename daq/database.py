@@ -28,6 +28,17 @@ def load_database(path: str | Path) -> Database:
     return database
 
 
+def load_database_string(text: str, source: str) -> Database:
+    """Load a DBC from its text (e.g. one embedded in a recording); ``source`` names it."""
+    try:
+        database = cantools.database.load_string(text, database_format="dbc", strict=True)
+    except (UnsupportedDatabaseFormatError, ValueError, KeyError) as exc:
+        raise DbcError(source, f"not a valid DBC: {_first_line(exc)}") from exc
+    if not isinstance(database, Database) or not database.messages:
+        raise DbcError(source, "holds no CAN messages")
+    return database
+
+
 def _first_line(exc: BaseException) -> str:
     text = str(exc).strip() or type(exc).__name__
     return text.splitlines()[0]

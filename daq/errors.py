@@ -7,10 +7,15 @@ the object and value at fault::
     PortalDaqError
     ├── ConfigError        a machine/service configuration is unusable (fatal at start)
     ├── DbcError           the CAN database cannot be loaded or lacks what is needed (fatal)
+    ├── BusError           the CAN bus cannot be opened or read (retried, never fatal)
+    ├── ZenohError         the Zenoh session cannot be opened (fatal at start)
+    ├── RecordingError     an MCAP recording cannot be written or read
     └── FrameError         one received frame cannot be used (counted, never fatal)
         ├── UnknownFrameError   its ID is not in the DBC
         ├── FrameLengthError    its DLC differs from the DBC's length
-        └── SignalDecodeError   cantools could not decode it
+        ├── SignalDecodeError   cantools could not decode it
+        ├── ErrorFrameError     it is a CAN error frame (bus fault report)
+        └── RemoteFrameError    it is a remote (RTR) frame, which carries no data
 
 Configuration and DBC errors are also ``ValueError`` so that generic callers
 treating bad input as a value problem keep working.
@@ -46,6 +51,34 @@ class DbcError(PortalDaqError, ValueError):
         super().__init__(f"{self.source}: {reason}")
 
 
+class BusError(PortalDaqError):
+    """The CAN bus cannot be opened or read; the service retries and reports the state."""
+
+    def __init__(self, channel: str, reason: str, hint: str = "") -> None:
+        self.channel = channel
+        self.reason = reason
+        self.hint = hint
+        super().__init__(f"CAN bus {channel!r}: {reason}" + (f" ({hint})" if hint else ""))
+
+
+class ZenohError(PortalDaqError):
+    """The Zenoh session cannot be opened with the configured endpoints."""
+
+    def __init__(self, reason: str, hint: str = "") -> None:
+        self.reason = reason
+        self.hint = hint
+        super().__init__(f"Zenoh: {reason}" + (f" ({hint})" if hint else ""))
+
+
+class RecordingError(PortalDaqError):
+    """An MCAP recording cannot be written (directory, disk) or read back."""
+
+    def __init__(self, path: str | Path, reason: str) -> None:
+        self.path = str(path)
+        self.reason = reason
+        super().__init__(f"{self.path}: {reason}")
+
+
 class FrameError(PortalDaqError):
     """A received CAN frame cannot be used; the service counts it and records it raw."""
 
@@ -74,3 +107,15 @@ class SignalDecodeError(FrameError):
     """cantools could not decode the frame's payload."""
 
     kind = "decode_error"
+
+
+class ErrorFrameError(FrameError):
+    """The frame is a CAN error frame: the controller reports a bus fault, no data."""
+
+    kind = "error_frame"
+
+
+class RemoteFrameError(FrameError):
+    """The frame is a remote (RTR) frame: a request, no data to decode."""
+
+    kind = "remote_frame"

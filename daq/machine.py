@@ -55,6 +55,11 @@ ESTIMATOR_KEYS = (
     "near_constant_window_s",
 )
 SENSOR_KEYS = ("pressure_min_Pa", "pressure_max_Pa", "status_ok")
+#: Top-level tables of the machine configuration.
+MACHINE_TABLES = ("machine", "estimator", "sensors", "leg_defaults", "legs", "protection")
+#: Tables of the service configuration that may share the file; this loader leaves
+#: them to :mod:`daq.service_config`, which checks them.
+SERVICE_TABLES = ("bus", "zenoh", "publish", "recording")
 
 
 @dataclass(frozen=True, slots=True)
@@ -119,19 +124,30 @@ def load_machine_config(path: str | Path) -> tuple[MachineConfig, Database]:
 
     Raises :class:`ConfigError` (file, key, reason) or :class:`DbcError`.
     """
+    return machine_from_toml(read_toml(path), str(path), Path(path).parent)
+
+
+def machine_from_toml(
+    data: dict[str, Any], source: str, config_dir: Path
+) -> tuple[MachineConfig, Database]:
+    """The machine part of parsed TOML and its DBC (``machine.dbc``, relative to ``config_dir``)."""
+    dbc_path = _dbc_path(TomlTable(data, source), config_dir)
+    database = load_database(dbc_path)
+    return parse_machine_config(data, source, database, dbc_path), database
+
+
+def read_toml(path: str | Path) -> dict[str, Any]:
+    """The parsed TOML file; a missing, unreadable or malformed file is a ConfigError."""
     source = str(path)
     try:
         with open(path, "rb") as file:
-            data = tomllib.load(file)
+            return tomllib.load(file)
     except FileNotFoundError as exc:
         raise ConfigError(source, "", "no such file") from exc
     except OSError as exc:
         raise ConfigError(source, "", f"cannot read it: {exc.strerror or exc}") from exc
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(source, "", f"not valid TOML: {exc}") from exc
-    dbc_path = _dbc_path(TomlTable(data, source), Path(path).parent)
-    database = load_database(dbc_path)
-    return parse_machine_config(data, source, database, dbc_path), database
 
 
 def _dbc_path(root: TomlTable, config_dir: Path) -> Path:
@@ -146,7 +162,7 @@ def parse_machine_config(
 ) -> MachineConfig:
     """Build a :class:`MachineConfig` from parsed TOML, checking names against ``database``."""
     root = TomlTable(data, source)
-    root.reject_unknown(("machine", "estimator", "sensors", "leg_defaults", "legs", "protection"))
+    root.reject_unknown((*MACHINE_TABLES, *SERVICE_TABLES))
     machine = root.table("machine")
     machine.reject_unknown(("id", "mass_kg", "dbc"))
     mass_kg = machine.number("mass_kg")

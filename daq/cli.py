@@ -1,0 +1,90 @@
+"""Command line: ``portal-daq --config FILE`` runs the service, ``portal-daq replay`` replays.
+
+Argument parsing and exit codes only; the work is in :mod:`daq.runner` and
+:mod:`daq.replay`. Exit status: 0 after a clean stop (SIGTERM, SIGINT), 2 for a
+bad configuration or DBC, 1 when a resource cannot be had at start (Zenoh
+endpoint, recording directory); the reason is one line on stderr.
+"""
+
+import argparse
+import logging
+import os
+import signal
+import sys
+import threading
+from collections.abc import Sequence
+from pathlib import Path
+
+from daq.errors import ConfigError, DbcError, PortalDaqError
+from daq.replay import replay
+from daq.runner import run_service
+from daq.service_config import load_service_config
+
+PROG = "portal-daq"
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = list(sys.argv[1:] if argv is None else argv)
+    if args[:1] == ["replay"]:
+        return replay_main(args[1:])
+    parser = argparse.ArgumentParser(
+        prog=PROG,
+        description="CAN-bus DAQ and soil-pressure estimation; `portal-daq replay -h` "
+        "for offline replay.",
+    )
+    parser.add_argument("--config", type=Path, required=True, help="service + machine TOML")
+    parser.add_argument("--log-level", default="INFO", help="DEBUG, INFO, WARNING, ERROR")
+    options = parser.parse_args(args)
+    setup_logging(options.log_level)
+    try:
+        config = load_service_config(options.config)
+    except (ConfigError, DbcError) as exc:
+        return fail(exc, 2)
+    stop = threading.Event()
+    for signum in (signal.SIGTERM, signal.SIGINT):
+        signal.signal(signum, lambda *_: stop.set())
+    try:
+        run_service(config, stop)
+    except (ConfigError, DbcError) as exc:
+        return fail(exc, 2)
+    except PortalDaqError as exc:
+        return fail(exc, 1)
+    return 0
+
+
+def replay_main(args: Sequence[str]) -> int:
+    parser = argparse.ArgumentParser(
+        prog=f"{PROG} replay",
+        description="Run a recording (service MCAP, candump .log, .asc, .blf) through the "
+        "decoder and estimator; one CSV row per leg estimate.",
+    )
+    parser.add_argument("recording", type=Path)
+    parser.add_argument("--config", type=Path, help="machine config (MCAP: default embedded)")
+    parser.add_argument("--out", type=Path, help="CSV file (default: stdout)")
+    options = parser.parse_args(args)
+    setup_logging("WARNING")
+    try:
+        if options.out is None:
+            replay(options.recording, sys.stdout, options.config)
+        else:
+            with open(options.out, "w", newline="") as out:
+                replay(options.recording, out, options.config)
+    except (ConfigError, DbcError) as exc:
+        return fail(exc, 2)
+    except (PortalDaqError, OSError) as exc:
+        return fail(exc, 1)
+    return 0
+
+
+def setup_logging(level: str) -> None:
+    """To stderr; under systemd (journald adds time stamps) without time stamps."""
+    under_systemd = "JOURNAL_STREAM" in os.environ or "INVOCATION_ID" in os.environ
+    fmt = "%(levelname)s %(name)s: %(message)s"
+    logging.basicConfig(
+        level=level.upper(), format=fmt if under_systemd else "%(asctime)s " + fmt, force=True
+    )
+
+
+def fail(exc: BaseException, status: int) -> int:
+    sys.stderr.write(f"{PROG}: {exc}\n")
+    return status

@@ -1,0 +1,61 @@
+"""A received CAN frame as the pipeline sees it, independent of where it came from.
+
+Live frames come from python-can (:func:`from_can_message`), replayed ones from an
+MCAP recording or a candump/ASC/BLF log; all become a :class:`RawFrame`.
+"""
+
+from dataclasses import dataclass
+
+import can
+
+
+@dataclass(frozen=True, slots=True)
+class RawFrame:
+    """One CAN frame as received."""
+
+    #: Receive time (the kernel's time stamp on SocketCAN), Unix seconds.
+    t_s: float
+    arbitration_id: int
+    is_extended_id: bool
+    data: bytes
+    #: A CAN error frame (controller fault report); carries no signals.
+    is_error_frame: bool = False
+    #: A remote (RTR) frame; carries no data.
+    is_remote_frame: bool = False
+
+    @property
+    def dlc(self) -> int:
+        return len(self.data)
+
+
+def from_can_message(message: can.Message) -> RawFrame:
+    """The :class:`RawFrame` of a python-can message (live or from a log reader)."""
+    return RawFrame(
+        t_s=float(message.timestamp),
+        arbitration_id=int(message.arbitration_id),
+        is_extended_id=bool(message.is_extended_id),
+        data=bytes(message.data or b""),
+        is_error_frame=bool(message.is_error_frame),
+        is_remote_frame=bool(message.is_remote_frame),
+    )
+
+
+#: Bus states reported on the status topic.
+BUS_UP = "up"
+BUS_DOWN = "down"
+BUS_ABSENT = "absent"
+BUS_CLOSED = "closed"
+
+
+@dataclass(frozen=True, slots=True)
+class BusEvent:
+    """A change of the bus state, queued in order with the frames around it."""
+
+    #: Wall-clock time of the change, Unix seconds.
+    t_s: float
+    #: :data:`BUS_UP`, :data:`BUS_DOWN`, :data:`BUS_ABSENT` or :data:`BUS_CLOSED`.
+    state: str
+    reason: str
+    #: Reception resumes after a gap: the consumer resets the rolling counters
+    #: (and a replay of the recording does the same at the same place).
+    reset_counters: bool = False

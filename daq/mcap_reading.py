@@ -1,0 +1,75 @@
+"""Reading the service's MCAP files back in file order, tolerating a cut-off end.
+
+A file whose writer was killed has no summary and may end inside a chunk. The
+mcap package's seeking reader needs the summary; this reads the records one by
+one (mcap's ``StreamReader``, chunk CRCs checked) and stops quietly at the
+first record that is incomplete, so everything up to the last complete chunk
+comes back. File order is the order the recorder wrote, i.e. the order the
+frames went through the pipeline (which replay relies on).
+"""
+
+import logging
+from collections.abc import Iterator
+from dataclasses import dataclass
+from typing import IO
+
+from mcap.records import Attachment, Channel, Footer, Message
+from mcap.stream_reader import StreamReader
+
+logger = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True, slots=True)
+class RecordedMessage:
+    topic: str
+    log_time_ns: int
+    data: bytes
+
+
+@dataclass(frozen=True, slots=True)
+class RecordedAttachment:
+    name: str
+    data: bytes
+
+
+class RecordingStream:
+    """Iterates over the messages and attachments of one MCAP stream, in file order.
+
+    After iteration, :attr:`complete` tells whether the file ended properly
+    (footer read) and :attr:`stopped_by` why reading stopped early, if it did.
+    """
+
+    def __init__(self, stream: IO[bytes], name: str = "recording") -> None:
+        self._stream = stream
+        self.name = name
+        self.complete = False
+        self.stopped_by: str | None = None
+
+    def __iter__(self) -> Iterator[RecordedMessage | RecordedAttachment]:
+        channels: dict[int, Channel] = {}
+        records = StreamReader(self._stream, validate_crcs=True).records
+        while True:
+            try:
+                record = next(records)
+            except StopIteration:
+                return
+            # A cut-off file fails in many ways (EndOfFile, struct.error, a
+            # decompression error, a CRC mismatch): each means "the end is missing".
+            except Exception as exc:  # noqa: BLE001
+                self.stopped_by = f"{type(exc).__name__}: {exc}".rstrip(": ")
+                logger.warning(
+                    "%s ends without its summary (%s): read up to its last complete chunk",
+                    self.name,
+                    self.stopped_by,
+                )
+                return
+            if isinstance(record, Channel):
+                channels[record.id] = record
+            elif isinstance(record, Message):
+                channel = channels.get(record.channel_id)
+                if channel is not None:
+                    yield RecordedMessage(channel.topic, record.log_time, record.data)
+            elif isinstance(record, Attachment):
+                yield RecordedAttachment(record.name, record.data)
+            elif isinstance(record, Footer):
+                self.complete = True

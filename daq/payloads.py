@@ -1,0 +1,119 @@
+"""JSON payloads of the Zenoh keys and MCAP channels (one shape for both).
+
+Pure functions from the pipeline's values to JSON-ready dicts, and
+:func:`json_bytes`, which writes NaN and infinities as ``null`` (they are not
+valid JSON). Field names carry their units; times are Unix seconds.
+"""
+
+import json
+import math
+from collections.abc import Mapping
+from typing import Any
+
+from daq.decoding import DecodedFrame
+from daq.frames import BusEvent
+from daq.pipeline import FrameResult
+from estimator.leg import LegEstimate
+from estimator.machine import MachineSnapshot
+from estimator.metrics import SoilMetrics
+
+JsonObject = dict[str, Any]
+
+
+def json_bytes(payload: Mapping[str, Any]) -> bytes:
+    """Compact UTF-8 JSON; NaN and +-inf become ``null``."""
+    return json.dumps(_finite(payload), separators=(",", ":"), allow_nan=False).encode()
+
+
+def _finite(value: Any) -> Any:
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, Mapping):
+        return {str(key): _finite(item) for key, item in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_finite(item) for item in value]
+    return value
+
+
+def leg_ground(estimate: LegEstimate) -> JsonObject:
+    """``<prefix>/leg/<LEG>/ground`` and the MCAP channel ``/leg/<LEG>/ground``."""
+    return {
+        "leg": estimate.leg,
+        "t": estimate.t_s,
+        "force_N": estimate.force_N,
+        "force_raw_N": estimate.force_raw_N,
+        "pressure_Pa": estimate.pressure_Pa,
+        "p_piston_Pa": estimate.p_piston_Pa,
+        "p_rod_Pa": estimate.p_rod_Pa,
+        "contact": estimate.contact,
+        "valid": estimate.valid,
+        "reasons": list(estimate.reasons),
+    }
+
+
+def machine_ground(snapshot: MachineSnapshot) -> JsonObject:
+    """``<prefix>/ground``: every leg judged at ``snapshot.t_s``, and the weight check."""
+    weight = snapshot.weight
+    return {
+        "t": snapshot.t_s,
+        "legs": {name: leg_ground(estimate) for name, estimate in snapshot.legs.items()},
+        "total_force_N": weight.total_force_N,
+        "weight_N": weight.weight_N,
+        "residual_N": weight.residual_N,
+        "legs_in_contact": weight.legs_in_contact,
+        "complete": weight.complete,
+    }
+
+
+def soil_metrics(t_s: float, metrics: Mapping[str, SoilMetrics]) -> JsonObject:
+    """``<prefix>/metrics``: each leg's soil metrics."""
+    return {
+        "t": t_s,
+        "legs": {
+            name: {
+                "peak_pressure_Pa": m.peak_pressure_Pa,
+                "peak_t": m.peak_t_s,
+                "near_constant_pressure_Pa": m.near_constant_pressure_Pa,
+                "near_constant_t": m.near_constant_t_s,
+                "time_above_limit_s": m.time_above_limit_s,
+                "samples": m.samples,
+            }
+            for name, m in metrics.items()
+        },
+    }
+
+
+def signals(frame: DecodedFrame) -> JsonObject:
+    """``<prefix>/signals/<MESSAGE>`` and ``/signals/<MESSAGE>``: one decoded frame."""
+    return {
+        "t": frame.t_s,
+        "crc_ok": frame.crc_ok,
+        "counter_ok": frame.counter_ok,
+        "signals": dict(frame.signals),
+    }
+
+
+def raw_frame(result: FrameResult) -> JsonObject:
+    """MCAP ``/can/raw``: every frame, bad ones included, with the fault if any."""
+    frame = result.frame
+    return {
+        "t": frame.t_s,
+        "id": frame.arbitration_id,
+        "extended": frame.is_extended_id,
+        "dlc": frame.dlc,
+        "data": frame.data.hex(),
+        "error_frame": frame.is_error_frame,
+        "remote_frame": frame.is_remote_frame,
+        "error": result.error_kind,
+        "reason": result.error.reason if result.error is not None else None,
+    }
+
+
+def bus_event(event: BusEvent) -> JsonObject:
+    """MCAP ``/daq/bus``: a change of the bus state."""
+    return {
+        "t": event.t_s,
+        "state": event.state,
+        "reason": event.reason,
+        "reset_counters": event.reset_counters,
+    }

@@ -1,0 +1,265 @@
+"""Recording to rotating MCAP files, in a thread of its own fed through a bounded queue.
+
+The consumer hands each :class:`~daq.pipeline.FrameResult` (and each bus event)
+to :meth:`Recorder.submit`, which never blocks: when the queue is full the item
+is dropped and counted. The recorder thread serialises to JSON, writes through
+:class:`~daq.mcap_file.McapFile`, writes the chunk in progress out every
+``flush_period_s`` and starts a new file when one reaches ``max_bytes`` or spans
+``max_duration_s`` of frame time. Files are named
+``<machine>_<UTC start, YYYYmmddTHHMMSS.mmmZ>.mcap``.
+
+A write error (disk full, directory gone) is logged and counted, the file is
+abandoned and a new one tried after :data:`RETRY_AFTER_S`; it never stops the
+service. :meth:`Recorder.close` (also on SIGTERM) finishes the file, so it has
+its summary; after a crash the file reads back up to its last written chunk.
+"""
+
+import logging
+import queue
+import threading
+import time
+from collections.abc import Callable, Mapping
+from datetime import UTC, datetime
+from pathlib import Path
+
+from cantools.database.can import Database
+
+from daq.errors import RecordingError
+from daq.frames import BusEvent
+from daq.mcap_file import CountingFile, McapFile
+from daq.pipeline import FrameResult
+from daq.service_config import RecordingSettings
+
+logger = logging.getLogger(__name__)
+
+#: After a write error, the next file is tried this much later.
+RETRY_AFTER_S = 5.0
+#: On close, queued items are still written for at most this long.
+DRAIN_S = 0.5
+
+Item = FrameResult | BusEvent
+
+
+def file_name(machine_id: str, t_s: float) -> str:
+    """``<machine>_<UTC time>.mcap``, sortable by name.
+
+    >>> file_name("pam-1", 0.0)
+    'pam-1_19700101T000000.000Z.mcap'
+    """
+    stamp = datetime.fromtimestamp(t_s, UTC)
+    return f"{machine_id}_{stamp:%Y%m%dT%H%M%S}.{stamp.microsecond // 1000:03d}Z.mcap"
+
+
+class Recorder:
+    """Writes what it is handed to MCAP files under ``settings.directory``.
+
+    The constructor opens nothing; :meth:`start` (or ``with``) creates the
+    directory, opens the first file and starts the thread.
+    """
+
+    def __init__(
+        self,
+        settings: RecordingSettings,
+        database: Database,
+        *,
+        machine_id: str,
+        attachments: Mapping[str, bytes] = {},
+        now: Callable[[], float] = time.time,
+    ) -> None:
+        if settings.directory is None:
+            raise ValueError("settings.directory is None: recording is off")
+        self.directory: Path = settings.directory
+        self.settings = settings
+        self._database = database
+        self._machine_id = machine_id
+        self._attachments = dict(attachments)
+        self._now = now
+        self._queue: queue.Queue[Item] = queue.Queue(maxsize=settings.queue_size)
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._file: McapFile | None = None
+        self._stream: CountingFile | None = None
+        self._last_flush = 0.0
+        self._retry_at = 0.0
+        #: Items dropped: queue full, or no file open after a write error.
+        self.dropped = 0
+        #: Write errors.
+        self.errors = 0
+        #: Files begun, and the current one.
+        self.paths: list[Path] = []
+
+    def __enter__(self) -> "Recorder":
+        self.start()
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()
+
+    @property
+    def alive(self) -> bool:
+        return self._thread is not None and self._thread.is_alive()
+
+    @property
+    def depth(self) -> int:
+        return self._queue.qsize()
+
+    @property
+    def current_path(self) -> Path | None:
+        return self.paths[-1] if self._file is not None else None
+
+    @property
+    def current_bytes(self) -> int:
+        return self._stream.count if self._stream is not None else 0
+
+    def start(self) -> None:
+        """Create the directory, open the first file, start the thread.
+
+        Raises :class:`RecordingError` when the directory cannot be written.
+        """
+        if self._thread is not None:
+            return
+        try:
+            self.directory.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise RecordingError(
+                self.directory, f"cannot create it: {exc.strerror or exc}"
+            ) from exc
+        self._open(self._now())
+        self._thread = threading.Thread(target=self._run, name="recorder", daemon=True)
+        self._thread.start()
+
+    def submit(self, item: Item) -> None:
+        """Queue ``item`` for writing; never blocks (a full queue drops and counts)."""
+        try:
+            self._queue.put_nowait(item)
+        except queue.Full:
+            self.dropped += 1
+
+    def close(self) -> None:
+        """Write what is queued (for at most :data:`DRAIN_S`), finish the file. Idempotent."""
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join()
+        self._close_file()
+
+    # --- recorder thread ---------------------------------------------------
+
+    def _run(self) -> None:
+        period_s = self.settings.flush_period_s
+        while not self._stop.is_set():
+            try:
+                item = self._queue.get(timeout=min(0.1, period_s))
+            except queue.Empty:
+                pass
+            else:
+                self._write(item)
+            if time.monotonic() - self._last_flush >= period_s:
+                self._guarded(self._flush)
+        deadline = time.monotonic() + DRAIN_S
+        while time.monotonic() < deadline:
+            try:
+                item = self._queue.get_nowait()
+            except queue.Empty:
+                break
+            self._write(item)
+
+    def _write(self, item: Item) -> None:
+        if self._file is None:
+            if time.monotonic() < self._retry_at or not self._guarded(
+                lambda: self._open(self._now())
+            ):
+                self.dropped += 1
+                return
+        # Frame time drives rotation; bus events carry wall-clock time.
+        if isinstance(item, FrameResult) and self._due_for_rotation(item.frame.t_s):
+            self._close_file()
+            if not self._guarded(lambda: self._open(self._now())):
+                self.dropped += 1
+                return
+        mcap = self._file
+        assert mcap is not None
+        if isinstance(item, FrameResult):
+            self._guarded(lambda: mcap.write_result(item))
+        else:
+            self._guarded(lambda: mcap.write_event(item))
+
+    def _due_for_rotation(self, t_s: float) -> bool:
+        mcap, stream = self._file, self._stream
+        if mcap is None or stream is None or mcap.message_count == 0:
+            return False
+        if stream.count >= self.settings.max_bytes:
+            return True
+        first_ns = mcap.first_log_time_ns
+        return first_ns is not None and t_s * 1e9 - first_ns >= self.settings.max_duration_s * 1e9
+
+    def _guarded(self, action: Callable[[], object]) -> bool:
+        """Run a file operation; an OS error abandons the file and schedules a retry."""
+        try:
+            action()
+        except (OSError, RecordingError) as exc:
+            self.errors += 1
+            logger.error(
+                "recording to %s failed: %s; check free space and the rights on the "
+                "directory; next file in %.0f s",
+                self.directory,
+                exc,
+                RETRY_AFTER_S,
+            )
+            self._abandon_file()
+            self._retry_at = time.monotonic() + RETRY_AFTER_S
+            return False
+        return True
+
+    def _flush(self) -> None:
+        self._last_flush = time.monotonic()
+        if self._file is not None:
+            self._file.flush()
+
+    def _open(self, t_s: float) -> None:
+        path = self.directory / file_name(self._machine_id, t_s)
+        serial = 0
+        while path in self.paths or path.exists():
+            serial += 1
+            path = path.with_name(f"{file_name(self._machine_id, t_s)[:-5]}_{serial}.mcap")
+        try:
+            raw = open(path, "xb", buffering=0)  # noqa: SIM115 (closed in _close_file)
+        except OSError as exc:
+            raise RecordingError(path, f"cannot create it: {exc.strerror or exc}") from exc
+        stream = CountingFile(raw)
+        mcap = McapFile(
+            stream,
+            self._database,
+            compression=self.settings.compression,
+            chunk_size=self.settings.chunk_size,
+        )
+        try:
+            mcap.start(self._attachments, t_s)
+        except BaseException:
+            stream.close()
+            raise
+        self._file, self._stream = mcap, stream
+        self._last_flush = time.monotonic()
+        self.paths.append(path)
+        logger.info("recording to %s", path)
+
+    def _close_file(self) -> None:
+        mcap, stream = self._file, self._stream
+        self._file = self._stream = None
+        if mcap is None or stream is None:
+            return
+        try:
+            mcap.close()
+        except OSError as exc:
+            self.errors += 1
+            logger.error("cannot finish %s: %s", self.paths[-1], exc)
+        finally:
+            stream.close()
+
+    def _abandon_file(self) -> None:
+        stream = self._stream
+        self._file = self._stream = None
+        if stream is not None:
+            try:
+                stream.close()
+            except OSError:
+                pass

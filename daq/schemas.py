@@ -1,0 +1,92 @@
+"""JSON Schemas of the MCAP channels (encoding ``jsonschema``, messages ``json``).
+
+Foxglove reads these to offer the fields for plotting. Numbers that may be NaN
+are written as ``null`` (see :func:`daq.payloads.json_bytes`), hence the
+``["number", "null"]`` types.
+"""
+
+from typing import Any
+
+from cantools.database.can import Message
+
+Schema = dict[str, Any]
+
+_NUMBER = {"type": ["number", "null"]}
+_TIME = {"type": "number", "description": "frame time (kernel time stamp), Unix seconds"}
+
+
+def _object(title: str, properties: dict[str, Any]) -> Schema:
+    return {
+        "$schema": "https://json-schema.org/draft/2020-12/schema",
+        "title": title,
+        "type": "object",
+        "properties": properties,
+        "required": list(properties),
+    }
+
+
+RAW_FRAME = _object(
+    "portal.RawFrame",
+    {
+        "t": _TIME,
+        "id": {"type": "integer", "description": "arbitration ID"},
+        "extended": {"type": "boolean", "description": "29-bit ID"},
+        "dlc": {"type": "integer"},
+        "data": {"type": "string", "description": "payload, hex"},
+        "error_frame": {"type": "boolean"},
+        "remote_frame": {"type": "boolean"},
+        "error": {
+            "type": ["string", "null"],
+            "description": "why the frame could not be used: unknown_id, wrong_dlc, "
+            "decode_error, error_frame, remote_frame; null when it decoded",
+        },
+        "reason": {"type": ["string", "null"]},
+    },
+)
+
+LEG_GROUND = _object(
+    "portal.LegGround",
+    {
+        "leg": {"type": "string"},
+        "t": _TIME,
+        "force_N": _NUMBER | {"description": "running median of the valid raw forces"},
+        "force_raw_N": _NUMBER | {"description": "eq. (4) on this frame alone"},
+        "pressure_Pa": _NUMBER | {"description": "eq. (5) on the filtered force"},
+        "p_piston_Pa": _NUMBER,
+        "p_rod_Pa": _NUMBER,
+        "contact": {"type": "boolean"},
+        "valid": {"type": "boolean"},
+        "reasons": {"type": "array", "items": {"type": "string"}},
+    },
+)
+
+BUS_EVENT = _object(
+    "portal.BusEvent",
+    {
+        "t": {"type": "number", "description": "wall-clock time, Unix seconds"},
+        "state": {"type": "string", "description": "up, down or absent"},
+        "reason": {"type": "string"},
+        "reset_counters": {
+            "type": "boolean",
+            "description": "reception resumed after a gap: rolling counters were reset",
+        },
+    },
+)
+
+
+def signals_schema(message: Message) -> Schema:
+    """Schema of ``/signals/<MESSAGE>``: the message's signals by name."""
+    signal_types: dict[str, Any] = {}
+    for signal in message.signals:
+        types = ["number", "null"] + (["string"] if signal.choices else [])
+        description = f"{signal.unit}" if signal.unit else ""
+        signal_types[signal.name] = {"type": types, "description": description}
+    return _object(
+        f"portal.signals.{message.name}",
+        {
+            "t": _TIME,
+            "crc_ok": {"type": "boolean"},
+            "counter_ok": {"type": "boolean"},
+            "signals": {"type": "object", "properties": signal_types},
+        },
+    )

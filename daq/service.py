@@ -1,0 +1,226 @@
+"""The DAQ service: reader, consumer, publisher and recorder wired together, and its main loop.
+
+Everything that touches the outside is passed in: a factory that opens the CAN
+bus, the Zenoh session, the recorder and the systemd notifier (built in
+``daq.__main__``; in tests a python-can ``virtual`` bus, a loopback Zenoh
+session and a temporary directory). Data path::
+
+    bus --recv--> BusReader --queue--> Consumer (Pipeline) --queue--> ZenohPublisher
+                                                         \\--queue--> Recorder (MCAP)
+
+:meth:`Service.run` is the main thread's loop: READY=1 once the bus is open
+(the session is open before the service exists), ``<prefix>/status`` and
+STATUS= every ``status_period_s``, WATCHDOG=1 while the service is healthy,
+STOPPING=1 when ``stop`` is set, then a clean shutdown.
+
+Healthy, for the watchdog: every thread alive and each of the reader,
+consumer and publisher loops turned within :data:`HEARTBEAT_MAX_AGE_S`. The
+reader's loop turns at least every receive timeout (0.1 s) even on a quiet
+bus, and while the bus is down or being reopened (the service repairs that
+itself, so a restart by systemd would not help); the consumer's loop turns at
+least every 0.1 s, and stops turning only when it hangs on a frame.
+"""
+
+import logging
+import math
+import queue
+import threading
+import time
+from collections.abc import Callable
+
+import zenoh
+
+from daq.bus_reader import BusFactory, BusReader, LinkProbe
+from daq.consumer import Consumer
+from daq.frames import BusEvent, RawFrame
+from daq.payloads import JsonObject
+from daq.pipeline import Pipeline
+from daq.publisher import ZenohPublisher
+from daq.recorder import Recorder
+from daq.sd_notify import SdNotifier
+from daq.service_config import ServiceConfig
+
+logger = logging.getLogger(__name__)
+
+#: A thread whose loop has not turned for this long is hung: no WATCHDOG=1.
+HEARTBEAT_MAX_AGE_S = 2.0
+
+
+class Service:
+    """The running service. The constructor opens nothing; :meth:`start` starts the threads."""
+
+    def __init__(
+        self,
+        config: ServiceConfig,
+        *,
+        open_bus: BusFactory,
+        session: zenoh.Session,
+        recorder: Recorder | None = None,
+        notifier: SdNotifier | None = None,
+        link_up: LinkProbe | None = None,
+        now: Callable[[], float] = time.time,
+    ) -> None:
+        self.config = config
+        self._now = now
+        self.inbox: queue.Queue[RawFrame | BusEvent] = queue.Queue(maxsize=config.bus.queue_size)
+        self.pipeline = Pipeline.from_config(config.machine, config.database)
+        self.publisher = ZenohPublisher(
+            session, config.zenoh.key_prefix, queue_size=config.publish.queue_size
+        )
+        self.recorder = recorder
+        self.notifier = notifier or SdNotifier(None)
+        self.reader = BusReader(
+            open_bus, self.inbox, channel=config.bus.channel, link_up=link_up, now=now
+        )
+        self.consumer = Consumer(
+            self.pipeline,
+            self.inbox,
+            config.publish,
+            publisher=self.publisher,
+            recorder=recorder,
+            now=now,
+        )
+        self._started_monotonic = time.monotonic()
+        self._rate_mark = (time.monotonic(), 0)
+        self._frames_per_s = 0.0
+        self._started = False
+        self._closed = False
+
+    def __enter__(self) -> "Service":
+        self.start()
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()
+
+    def start(self) -> None:
+        if self._started:
+            return
+        self._started = True
+        self._started_monotonic = time.monotonic()
+        self._rate_mark = (self._started_monotonic, 0)
+        self.publisher.start()
+        if self.recorder is not None:
+            self.recorder.start()
+        self.consumer.start()
+        self.reader.start()
+
+    def close(self) -> None:
+        """Stop receiving, drain the queues, finish the recording. Idempotent."""
+        if self._closed:
+            return
+        self._closed = True
+        self.reader.close()
+        self.consumer.close()
+        self.publisher.close()
+        if self.recorder is not None:
+            self.recorder.close()
+
+    def run(self, stop: threading.Event) -> None:
+        """Start, then publish status and notify systemd until ``stop`` is set; then close."""
+        notifier = self.notifier
+        period_s = self.config.publish.status_period_s
+        watchdog_period_s = min(period_s, (notifier.watchdog_s or math.inf) / 2)
+        ready = False
+        next_status = next_watchdog = time.monotonic()
+        try:
+            self.start()
+            while not stop.is_set():
+                now = time.monotonic()
+                if not ready and self.reader.opened.is_set():
+                    ready = True
+                    notifier.ready()
+                    logger.info("ready: CAN bus %s open", self.config.bus.channel)
+                if now >= next_status:
+                    next_status = max(next_status + period_s, now)
+                    status = self.status()
+                    self.publisher.submit("status", status)
+                    if ready:  # systemd hears READY=1 first
+                        notifier.status(status_line(status))
+                if ready and now >= next_watchdog:
+                    next_watchdog = max(next_watchdog + watchdog_period_s, now)
+                    if self.healthy():
+                        notifier.watchdog()
+                    else:
+                        logger.error("a service thread hangs: no WATCHDOG=1 (%s)", self.threads())
+                wake = min(next_status, next_watchdog if ready else now + 0.05)
+                stop.wait(max(0.0, wake - time.monotonic()))
+        finally:
+            notifier.stopping()
+            logger.info("stopping")
+            self.close()
+
+    def threads(self) -> dict[str, float | None]:
+        """Age in seconds of each thread's last loop turn; None for a dead thread."""
+        now = time.monotonic()
+        parts = {
+            "reader": (self.reader.alive, self.reader.heartbeat),
+            "consumer": (self.consumer.alive, self.consumer.heartbeat),
+            "publisher": (self.publisher.alive, self.publisher.heartbeat),
+        }
+        return {name: now - beat if alive else None for name, (alive, beat) in parts.items()}
+
+    def healthy(self) -> bool:
+        recorder_ok = self.recorder is None or self.recorder.alive
+        return recorder_ok and all(
+            age is not None and age < HEARTBEAT_MAX_AGE_S for age in self.threads().values()
+        )
+
+    def status(self) -> JsonObject:
+        """The ``<prefix>/status`` payload (call from one thread: it keeps the rate mark)."""
+        now = time.monotonic()
+        received = self.reader.received
+        mark_t, mark_received = self._rate_mark
+        if now - mark_t > 0:
+            self._frames_per_s = (received - mark_received) / (now - mark_t)
+        self._rate_mark = (now, received)
+        bad = dict(self.pipeline.bad)
+        recorder = self.recorder
+        return {
+            "t": self._now(),
+            "uptime_s": now - self._started_monotonic,
+            "bus": {
+                "interface": self.config.bus.interface,
+                "channel": self.config.bus.channel,
+                "state": self.reader.state,
+                "reason": self.reader.reason,
+                "reopens": self.reader.reopens,
+            },
+            "frames_per_s": self._frames_per_s,
+            "frames": {
+                "received": received,
+                "processed": self.pipeline.frames,
+                "unknown": bad.get("unknown_id", 0),
+                "bad": sum(bad.values()),
+                "dropped": self.reader.dropped,
+            },
+            "bad": bad,
+            "queues": {
+                "rx": self.inbox.qsize(),
+                "publish": self.publisher.depth,
+                "record": recorder.depth if recorder is not None else 0,
+            },
+            "dropped": {
+                "rx": self.reader.dropped,
+                "publish": self.publisher.dropped,
+                "record": recorder.dropped if recorder is not None else 0,
+            },
+            "recording": None
+            if recorder is None
+            else {
+                "file": str(recorder.current_path) if recorder.current_path else None,
+                "bytes": recorder.current_bytes,
+                "errors": recorder.errors,
+            },
+            "healthy": self.healthy(),
+        }
+
+
+def status_line(status: JsonObject) -> str:
+    """One line for systemd's STATUS=, e.g. ``bus up, 600 frames/s, 0 bad, 0 dropped``."""
+    frames = status["frames"]
+    dropped = sum(status["dropped"].values())
+    return (
+        f"bus {status['bus']['state']}, {status['frames_per_s']:.0f} frames/s, "
+        f"{frames['bad']} bad, {dropped} dropped"
+    )

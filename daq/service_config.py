@@ -1,0 +1,226 @@
+"""The service configuration: bus, Zenoh, publishing and recording, next to the machine's.
+
+One TOML file holds both parts (example: ``deploy/portal-daq.example.toml``): the
+machine tables read by :mod:`daq.machine` and the service tables ``[bus]``,
+``[zenoh]``, ``[publish]`` and ``[recording]`` read here. Every service table is
+optional; left-out keys take the defaults of the dataclasses below. Relative
+paths are relative to the config file. Unknown keys are refused like in the
+machine part, naming file and key.
+
+>>> config = load_service_config("deploy/portal-daq.example.toml")  # doctest: +SKIP
+>>> config.zenoh.key_prefix, config.bus.channel  # doctest: +SKIP
+('portal/pam-proto-1', 'can0')
+"""
+
+from dataclasses import dataclass, fields
+from pathlib import Path
+from typing import Any
+
+import can
+from cantools.database.can import Database
+
+from daq._toml_table import TomlTable
+from daq.machine import MachineConfig, machine_from_toml, read_toml
+
+#: A Zenoh key expression without wildcards: chunks joined by '/'.
+KEY_PREFIX_PATTERN = r"[^/*$?#\s]+(/[^/*$?#\s]+)*"
+ZENOH_MODES = ("peer", "client", "router")
+COMPRESSIONS = ("zstd", "lz4", "none")
+
+
+@dataclass(frozen=True, slots=True)
+class BusSettings:
+    """``[bus]``: the CAN interface, opened with python-can."""
+
+    #: python-can interface name: ``socketcan`` on the machine, ``virtual`` in tests.
+    interface: str = "socketcan"
+    channel: str = "can0"
+    receive_own_messages: bool = False
+    #: Install kernel receive filters for the DBC's IDs. Off by default: then every
+    #: frame reaches the service, and frames with other IDs are counted
+    #: (``unknown_id``) and recorded raw; on, the kernel drops them unseen.
+    kernel_filters: bool = False
+    #: Frames the reader thread may queue for the consumer; beyond, frames are dropped
+    #: and counted (``dropped``).
+    queue_size: int = 10_000
+
+
+@dataclass(frozen=True, slots=True)
+class ZenohSettings:
+    """``[zenoh]``: the session; the explicit keys override the JSON5 file's."""
+
+    #: A Zenoh JSON5 configuration file (e.g. ``deploy/zenoh.json5``); None: defaults.
+    config_file: Path | None = None
+    #: ``peer``, ``client`` or ``router``; None keeps the file's (or Zenoh's) choice.
+    mode: str | None = None
+    #: Endpoints to connect to, e.g. ``tcp/192.168.1.10:7447``.
+    connect: tuple[str, ...] = ()
+    #: Endpoints to listen on, e.g. ``tcp/0.0.0.0:7447``.
+    listen: tuple[str, ...] = ()
+    #: UDP multicast scouting; None keeps the file's (or Zenoh's) choice.
+    multicast_scouting: bool | None = None
+    #: Every key the service publishes starts with this.
+    key_prefix: str = "portal/machine"
+
+
+@dataclass(frozen=True, slots=True)
+class PublishSettings:
+    """``[publish]``: what goes out on Zenoh, and how often."""
+
+    #: Rate of the all-legs ``<prefix>/ground`` message.
+    ground_rate_hz: float = 10.0
+    #: Publish every decoded message on ``<prefix>/signals/<MESSAGE>``.
+    signals: bool = True
+    #: Period of ``<prefix>/status``, ``<prefix>/metrics`` and systemd's STATUS=.
+    status_period_s: float = 1.0
+    #: Messages waiting for the Zenoh thread; beyond, they are dropped and counted.
+    queue_size: int = 10_000
+
+
+@dataclass(frozen=True, slots=True)
+class RecordingSettings:
+    """``[recording]``: MCAP files; no ``directory``, no recording."""
+
+    directory: Path | None = None
+    #: A file is closed and the next one begun at this size ...
+    max_bytes: int = 512 * 1024 * 1024
+    #: ... or after this long (frame time).
+    max_duration_s: float = 3600.0
+    compression: str = "zstd"
+    #: Uncompressed bytes per chunk. A crash loses at most the chunk being built.
+    chunk_size: int = 1024 * 1024
+    #: The chunk being built is written out at least this often, so that a crash
+    #: loses at most this much time of data.
+    flush_period_s: float = 1.0
+    #: Results waiting for the recorder thread; beyond, they are dropped and counted.
+    queue_size: int = 20_000
+
+
+@dataclass(frozen=True)
+class ServiceConfig:
+    """The whole configuration of the service: machine and service parts."""
+
+    #: The file this was read from, for messages.
+    source: str
+    machine: MachineConfig
+    database: Database
+    bus: BusSettings
+    zenoh: ZenohSettings
+    publish: PublishSettings
+    recording: RecordingSettings
+
+
+def load_service_config(path: str | Path) -> ServiceConfig:
+    """Read and check the whole configuration file and the DBC it names.
+
+    Raises :class:`~daq.errors.ConfigError` (file, key, reason) or
+    :class:`~daq.errors.DbcError`.
+    """
+    source = str(path)
+    data = read_toml(path)
+    config_dir = Path(path).parent
+    machine, database = machine_from_toml(data, source, config_dir)
+    root = TomlTable(data, source)
+    return ServiceConfig(
+        source=source,
+        machine=machine,
+        database=database,
+        bus=_bus(root.table("bus", required=False)),
+        zenoh=_zenoh(root.table("zenoh", required=False), config_dir, machine.machine_id),
+        publish=_publish(root.table("publish", required=False)),
+        recording=_recording(root.table("recording", required=False), config_dir),
+    )
+
+
+def _keys(settings: type) -> list[str]:
+    return [field.name for field in fields(settings)]
+
+
+def _positive(table: TomlTable, name: str, default: float) -> float:
+    value = table.number(name, default)
+    if value <= 0:
+        raise table.error(name, f"must be > 0, got {value}")
+    return value
+
+
+def _positive_int(table: TomlTable, name: str, default: int) -> int:
+    value = table.integer(name, default)
+    if value <= 0:
+        raise table.error(name, f"must be > 0, got {value}")
+    return value
+
+
+def _choice(table: TomlTable, name: str, choices: tuple[str, ...], default: Any) -> Any:
+    if name not in table and default is None:
+        return None
+    value = table.string(name, default)
+    if value not in choices:
+        raise table.error(name, f"must be one of {list(choices)}, got {value!r}")
+    return value
+
+
+def _bus(table: TomlTable) -> BusSettings:
+    defaults = BusSettings()
+    table.reject_unknown(_keys(BusSettings))
+    interface = table.string("interface", defaults.interface)
+    if interface not in can.VALID_INTERFACES:
+        raise table.error(
+            "interface", f"unknown python-can interface {interface!r}; e.g. socketcan, virtual"
+        )
+    return BusSettings(
+        interface=interface,
+        channel=table.string("channel", defaults.channel),
+        receive_own_messages=table.boolean("receive_own_messages", False),
+        kernel_filters=table.boolean("kernel_filters", False),
+        queue_size=_positive_int(table, "queue_size", defaults.queue_size),
+    )
+
+
+def _zenoh(table: TomlTable, config_dir: Path, machine_id: str) -> ZenohSettings:
+    table.reject_unknown(_keys(ZenohSettings))
+    config_file = None
+    if "config_file" in table:
+        config_file = config_dir / table.string("config_file")
+        if not config_file.is_file():
+            raise table.error("config_file", f"no such file: {config_file}")
+    multicast = table.boolean("multicast_scouting") if "multicast_scouting" in table else None
+    return ZenohSettings(
+        config_file=config_file,
+        mode=_choice(table, "mode", ZENOH_MODES, None),
+        connect=table.strings("connect", ()),
+        listen=table.strings("listen", ()),
+        multicast_scouting=multicast,
+        key_prefix=table.string("key_prefix", f"portal/{machine_id}", pattern=KEY_PREFIX_PATTERN),
+    )
+
+
+def _publish(table: TomlTable) -> PublishSettings:
+    defaults = PublishSettings()
+    table.reject_unknown(_keys(PublishSettings))
+    return PublishSettings(
+        ground_rate_hz=_positive(table, "ground_rate_hz", defaults.ground_rate_hz),
+        signals=table.boolean("signals", defaults.signals),
+        status_period_s=_positive(table, "status_period_s", defaults.status_period_s),
+        queue_size=_positive_int(table, "queue_size", defaults.queue_size),
+    )
+
+
+def _recording(table: TomlTable, config_dir: Path) -> RecordingSettings:
+    defaults = RecordingSettings()
+    table.reject_unknown(_keys(RecordingSettings))
+    directory = config_dir / table.string("directory") if "directory" in table else None
+    if directory is not None and directory.exists() and not directory.is_dir():
+        raise table.error("directory", f"{directory} exists and is not a directory")
+    chunk_size = _positive_int(table, "chunk_size", defaults.chunk_size)
+    max_bytes = _positive_int(table, "max_bytes", defaults.max_bytes)
+    if max_bytes < chunk_size:
+        raise table.error("max_bytes", f"must be >= chunk_size ({chunk_size}), got {max_bytes}")
+    return RecordingSettings(
+        directory=directory,
+        max_bytes=max_bytes,
+        max_duration_s=_positive(table, "max_duration_s", defaults.max_duration_s),
+        compression=_choice(table, "compression", COMPRESSIONS, defaults.compression),
+        chunk_size=chunk_size,
+        flush_period_s=_positive(table, "flush_period_s", defaults.flush_period_s),
+        queue_size=_positive_int(table, "queue_size", defaults.queue_size),
+    )

@@ -1,0 +1,57 @@
+"""Building the Zenoh session's configuration from ``[zenoh]``; opening it (in __main__).
+
+Order, later winning: Zenoh's defaults, the JSON5 ``config_file``, then the
+explicit keys ``mode``, ``connect``, ``listen``, ``multicast_scouting``.
+"""
+
+import json
+import re
+
+import zenoh
+
+from daq.errors import ConfigError, ZenohError
+from daq.service_config import ZenohSettings
+
+
+def zenoh_config(settings: ZenohSettings, source: str = "") -> zenoh.Config:
+    """The :class:`zenoh.Config` for ``settings``; a bad JSON5 file is a ConfigError."""
+    config = zenoh.Config()
+    if settings.config_file is not None:
+        try:
+            config = zenoh.Config.from_file(str(settings.config_file))
+        except zenoh.ZError as exc:
+            raise ConfigError(settings.config_file, "", f"not a valid Zenoh config: {exc}") from exc
+    overrides: dict[str, object] = {}
+    if settings.mode is not None:
+        overrides["mode"] = settings.mode
+    if settings.connect:
+        overrides["connect/endpoints"] = list(settings.connect)
+    if settings.listen:
+        overrides["listen/endpoints"] = list(settings.listen)
+    if settings.multicast_scouting is not None:
+        overrides["scouting/multicast/enabled"] = settings.multicast_scouting
+    for key, value in overrides.items():
+        try:
+            config.insert_json5(key, json.dumps(value))
+        except zenoh.ZError as exc:
+            raise ConfigError(source, f"zenoh.{key.split('/')[0]}", str(exc)) from exc
+    return config
+
+
+def open_session(settings: ZenohSettings, source: str = "") -> zenoh.Session:
+    """Open the session; a failure (e.g. the listen port is taken) is a ZenohError."""
+    config = zenoh_config(settings, source)
+    try:
+        return zenoh.open(config)
+    except zenoh.ZError as exc:
+        raise ZenohError(
+            _without_source_locations(str(exc)) or "cannot open the session",
+            "check [zenoh] listen/connect: is the port taken by another process, "
+            "is the address on this host?",
+        ) from exc
+
+
+def _without_source_locations(message: str) -> str:
+    """Zenoh's errors end in `` at /root/.cargo/.../tcp.rs:61.``: noise for an operator."""
+    lines = message.strip().splitlines()
+    return re.sub(r"\s+at \S+\.rs:\d+\.?", "", lines[0]) if lines else ""

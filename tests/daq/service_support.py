@@ -1,0 +1,204 @@
+"""Helpers of the service tests (in-process and vcan): configs, Zenoh peers, frames, expectations.
+
+Real things only: python-can buses, Zenoh sessions on loopback (peer mode,
+multicast scouting off), MCAP files in a temporary directory.
+"""
+
+from __future__ import annotations
+
+import json
+import socket
+import statistics
+import threading
+from collections.abc import Callable, Iterable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+import can
+import zenoh
+
+from daq.encoding import FrameEncoder
+from daq.machine import MachineConfig
+from estimator.equations import foot_force_N
+from tests.helpers import EXAMPLE_CONFIG, LEGS
+
+WAIT_S = 20.0  # generous: inside User-Mode Linux everything is slow
+
+
+def free_port() -> int:
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return int(sock.getsockname()[1])
+
+
+def service_toml(
+    *,
+    interface: str = "virtual",
+    channel: str = "test",
+    port: int,
+    recording: Path | None = None,
+    status_period_s: float = 0.2,
+    chunk_size: int = 1024 * 1024,
+    extra: str = "",
+) -> str:
+    """A full service config: the example machine plus service tables for a test."""
+    text = f"""
+[bus]
+interface = "{interface}"
+channel = "{channel}"
+
+[zenoh]
+mode = "peer"
+listen = ["tcp/127.0.0.1:{port}"]
+multicast_scouting = false
+
+[publish]
+ground_rate_hz = 10.0
+status_period_s = {status_period_s}
+"""
+    if recording is not None:
+        text += f"""
+[recording]
+directory = "{recording}"
+chunk_size = {chunk_size}
+max_bytes = {max(chunk_size, 1024 * 1024)}
+flush_period_s = 0.2
+"""
+    return text + extra + "\n" + EXAMPLE_CONFIG.read_text()
+
+
+def write_service_config(tmp_path: Path, **kwargs: Any) -> Path:
+    path = tmp_path / "portal-daq.toml"
+    path.write_text(service_toml(**kwargs))
+    return path
+
+
+def peer_config(*, listen: str | None = None, connect: str | None = None) -> zenoh.Config:
+    config = zenoh.Config()
+    config.insert_json5("mode", '"peer"')
+    config.insert_json5("scouting/multicast/enabled", "false")
+    # Zenoh's default listener is tcp/[::]:0, which fails where there is no IPv6
+    # (the User-Mode Linux guest): always listen on IPv4 loopback.
+    config.insert_json5("listen/endpoints", json.dumps([listen or "tcp/127.0.0.1:0"]))
+    if connect:
+        config.insert_json5("connect/endpoints", json.dumps([connect]))
+    return config
+
+
+class Collector:
+    """A subscriber on ``key`` that keeps every (key, JSON payload, encoding) it gets."""
+
+    def __init__(self, session: zenoh.Session, key: str) -> None:
+        self.samples: list[tuple[str, Any, str]] = []
+        self._changed = threading.Condition()
+        self._subscriber = session.declare_subscriber(key, self._on_sample)
+
+    def _on_sample(self, sample: zenoh.Sample) -> None:
+        payload = json.loads(sample.payload.to_bytes())
+        with self._changed:
+            self.samples.append((str(sample.key_expr), payload, str(sample.encoding)))
+            self._changed.notify_all()
+
+    def of(self, key: str) -> list[Any]:
+        """Payloads received on ``key``, in order."""
+        with self._changed:
+            return [payload for k, payload, _ in self.samples if k == key]
+
+    def wait_until(self, condition: Callable[[], bool], timeout: float = WAIT_S) -> None:
+        with self._changed:
+            assert self._changed.wait_for(condition, timeout), "Zenoh samples missing"
+
+    def wait_for(
+        self, key: str, predicate: Callable[[Any], bool] = lambda _: True, timeout: float = WAIT_S
+    ) -> Any:
+        """The first payload on ``key`` (received from now on) satisfying ``predicate``."""
+        with self._changed:
+            start = len(self.samples)
+        found: list[Any] = []
+
+        def seen() -> bool:
+            found[:] = [p for k, p, _ in self.samples[start:] if k == key and predicate(p)]
+            return bool(found)
+
+        self.wait_until(seen, timeout)
+        return found[0]
+
+
+@contextmanager
+def subscriber_session(port: int) -> Iterator[zenoh.Session]:
+    session = zenoh.open(peer_config(connect=f"tcp/127.0.0.1:{port}"))
+    try:
+        yield session
+    finally:
+        session.close()
+
+
+def leg_signals(leg: str, p_piston_Pa: float, p_rod_Pa: float) -> dict[str, Any]:
+    return {f"{leg}_pPiston": p_piston_Pa, f"{leg}_pRod": p_rod_Pa, f"{leg}_Status": "ok"}
+
+
+def pressure_series(count: int, seed: int = 0) -> list[tuple[float, float]]:
+    """Chamber pressures with a step and impulsive spikes (what the median is for)."""
+    series = []
+    for i in range(count):
+        p_piston = 9.0e6 + 2.0e4 * i + (4.0e6 if i % 7 == 3 else 0.0) + 1000.0 * seed
+        p_rod = 1.0e6 + (5.0e5 if i > count // 2 else 0.0)
+        series.append((p_piston, p_rod))
+    return series
+
+
+def can_message(frame: Any, t_s: float) -> can.Message:
+    return can.Message(
+        timestamp=t_s,
+        arbitration_id=frame.arbitration_id,
+        is_extended_id=frame.is_extended_id,
+        data=frame.data,
+    )
+
+
+def leg_messages(
+    encoder: FrameEncoder, count: int, t0_s: float, legs: Iterable[str] = LEGS
+) -> list[can.Message]:
+    """``count`` frames per leg, 10 ms apart, all legs interleaved."""
+    series = {leg: pressure_series(count, seed) for seed, leg in enumerate(legs)}
+    messages = []
+    for i in range(count):
+        for leg, values in series.items():
+            frame = encoder.encode(f"LEG_{leg}", leg_signals(leg, *values[i]))
+            messages.append(can_message(frame, t0_s + 0.01 * i))
+    return messages
+
+
+def expected_forces(
+    machine: MachineConfig, leg: str, pressures: list[tuple[float, float]]
+) -> list[tuple[float, float]]:
+    """(raw, filtered) force per sample, computed independently: eq. (4) and a
+    brute-force median over the last N raw forces (every sample valid)."""
+    geometry = machine.legs[leg].geometry
+    window = machine.estimator.median_window
+    raw = [foot_force_N(p, r, geometry) for p, r in pressures]
+    return [
+        (raw[i], statistics.median(raw[max(0, i + 1 - window) : i + 1])) for i in range(len(raw))
+    ]
+
+
+def assert_estimates_match(
+    machine: MachineConfig,
+    leg: str,
+    sent: list[tuple[float, float]],
+    received: list[dict[str, Any]],
+) -> None:
+    """Published estimates of ``leg`` match eq. (4) + running median to 1 N."""
+    assert len(received) == len(sent)
+    decoded = [(m["p_piston_Pa"], m["p_rod_Pa"]) for m in received]
+    for (p, r), (dp, dr) in zip(sent, decoded, strict=True):
+        assert abs(p - dp) <= 500.0 and abs(r - dr) <= 500.0  # DBC resolution 1000 Pa
+    for message, (raw_N, filtered_N) in zip(
+        received, expected_forces(machine, leg, decoded), strict=True
+    ):
+        assert message["valid"] is True, message
+        assert abs(message["force_raw_N"] - raw_N) <= 1.0
+        assert abs(message["force_N"] - filtered_N) <= 1.0
+        geometry = machine.legs[leg].geometry
+        assert abs(message["pressure_Pa"] - filtered_N / geometry.A_foot_m2) <= 1.0 / 0.33

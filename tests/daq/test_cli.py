@@ -1,0 +1,166 @@
+"""The service as a process: exit codes, one-line errors, sd_notify order, SIGTERM, replay CLI."""
+
+from __future__ import annotations
+
+import csv
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import can
+import pytest
+import zenoh
+from mcap.reader import make_reader
+
+from daq.encoding import FrameEncoder
+from tests.daq.service_support import (
+    WAIT_S,
+    free_port,
+    leg_messages,
+    peer_config,
+    write_service_config,
+)
+from tests.helpers import EXAMPLE_CONFIG, ROOT, example_machine
+
+GUEST = os.environ.get("PORTAL_VCAN_GUEST") == "1"
+
+
+def run_cli(*args: str, env: dict[str, str] | None = None) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "daq", *args],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        cwd=ROOT,
+        env=env,
+    )
+
+
+def assert_one_line_error(result: subprocess.CompletedProcess[str], status: int, text: str) -> None:
+    assert result.returncode == status, result.stderr
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1, result.stderr
+    assert lines[0].startswith("portal-daq: ") and text in lines[0]
+    assert "Traceback" not in result.stderr
+
+
+def test_bad_config_exits_2_with_one_line(tmp_path: Path) -> None:
+    path = write_service_config(tmp_path, port=free_port())
+    path.write_text(path.read_text().replace("[bus]\n", "[bus]\nbitrate = 500000\n"))
+    assert_one_line_error(run_cli("--config", str(path)), 2, f"{path}: bus.bitrate: unknown key")
+
+
+def test_bad_machine_value_exits_2_naming_file_and_key(tmp_path: Path) -> None:
+    path = tmp_path / "bad.toml"
+    path.write_text(EXAMPLE_CONFIG.read_text().replace("median_window = 11", "median_window = 4"))
+    assert_one_line_error(run_cli("--config", str(path)), 2, f"{path}: estimator.median_window")
+
+
+def test_bad_dbc_exits_2(tmp_path: Path) -> None:
+    (tmp_path / "broken.dbc").write_text("BO_ nonsense {")
+    path = tmp_path / "bad.toml"
+    path.write_text(
+        EXAMPLE_CONFIG.read_text().replace('# dbc = "portal_sensors.dbc"', 'dbc = "broken.dbc"')
+    )
+    assert_one_line_error(run_cli("--config", str(path)), 2, "broken.dbc: not a valid DBC")
+
+
+def test_missing_config_exits_2() -> None:
+    assert_one_line_error(run_cli("--config", "/nonexistent.toml"), 2, "no such file")
+
+
+def test_taken_zenoh_port_exits_1_with_a_hint(tmp_path: Path) -> None:
+    port = free_port()
+    with zenoh.open(peer_config(listen=f"tcp/127.0.0.1:{port}")):
+        result = run_cli("--config", str(write_service_config(tmp_path, port=port)))
+    assert result.returncode == 1, result.stderr
+    last = result.stderr.strip().splitlines()[-1]  # after the start-up log lines
+    assert last.startswith("portal-daq: Zenoh: ") and "Address already in use" in last
+    assert "port" in last and ".rs:" not in last and "Traceback" not in result.stderr
+
+
+def test_notify_order_and_clean_sigterm(tmp_path: Path) -> None:
+    """READY before STATUS/WATCHDOG, STOPPING last; the MCAP file gets its summary."""
+    config = write_service_config(
+        tmp_path, channel="notify-test", port=free_port(), recording=tmp_path / "rec"
+    )
+    address = str(tmp_path / "notify.sock")
+    with socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM) as sock:
+        sock.bind(address)
+        sock.settimeout(WAIT_S)
+        env = dict(os.environ, NOTIFY_SOCKET=address, WATCHDOG_USEC="400000")
+        process = subprocess.Popen(
+            [sys.executable, "-m", "daq", "--config", str(config)],
+            cwd=ROOT,
+            env=env,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        try:
+            messages: list[str] = []
+            while not (any(m.startswith("STATUS=") for m in messages) and "WATCHDOG=1" in messages):
+                messages.append(sock.recv(4096).decode())
+            process.send_signal(signal.SIGTERM)
+            sent_at = time.monotonic()
+            status = process.wait(timeout=WAIT_S)
+            elapsed_s = time.monotonic() - sent_at
+            sock.settimeout(0.5)
+            try:
+                while True:
+                    messages.append(sock.recv(4096).decode())
+            except TimeoutError:
+                pass
+        finally:
+            if process.poll() is None:
+                process.kill()
+            stderr = process.communicate()[1]
+    assert status == 0, stderr
+    assert messages[0] == "READY=1"
+    assert messages[-1] == "STOPPING=1" and messages.count("STOPPING=1") == 1
+    assert all(m.startswith(("STATUS=bus up", "WATCHDOG=1")) for m in messages[1:-1]), messages
+    if not GUEST:
+        assert elapsed_s < 2.0
+    (path,) = (tmp_path / "rec").iterdir()
+    with open(path, "rb") as file:
+        assert make_reader(file).get_summary() is not None
+
+
+def write_candump_log(path: Path) -> int:
+    config, database = example_machine()
+    messages = leg_messages(FrameEncoder(database, config.protection), 4, 1_700_000_000.0)
+    with can.Logger(str(path)) as logger:
+        for message in messages:
+            message.channel = "can0"
+            logger.on_message_received(message)
+    return len(messages)
+
+
+def test_replay_cli_on_a_candump_log(tmp_path: Path) -> None:
+    log = tmp_path / "drive.log"
+    count = write_candump_log(log)
+    out = tmp_path / "out.csv"
+    result = run_cli("replay", str(log), "--config", str(EXAMPLE_CONFIG), "--out", str(out))
+    assert result.returncode == 0, result.stderr
+    with open(out, newline="") as file:
+        rows = list(csv.DictReader(file))
+    assert len(rows) == count
+    assert {row["leg"] for row in rows} == {
+        "SB1_F1",
+        "SB1_F2",
+        "SB1_F3",
+        "SB2_F1",
+        "SB2_F2",
+        "SB2_F3",
+    }
+    assert all(row["valid"] == "1" for row in rows)
+    assert float(rows[0]["t"]) == pytest.approx(1_700_000_000.0)
+
+
+def test_replay_of_a_can_log_needs_a_config(tmp_path: Path) -> None:
+    log = tmp_path / "drive.log"
+    write_candump_log(log)
+    assert_one_line_error(run_cli("replay", str(log)), 2, "needs --config")

@@ -1,0 +1,69 @@
+"""The pure pipeline: frames in, estimates out, faults counted by kind, never raised."""
+
+import json
+import math
+
+from daq.encoding import FrameEncoder
+from daq.frames import RawFrame
+from daq.payloads import json_bytes, leg_ground
+from daq.pipeline import Pipeline
+from estimator.equations import foot_force_N
+from tests.daq.service_support import leg_signals
+from tests.helpers import example_machine
+
+
+def make() -> tuple[Pipeline, FrameEncoder]:
+    config, database = example_machine()
+    return Pipeline.from_config(config, database), FrameEncoder(database, config.protection)
+
+
+def raw(frame, t_s: float) -> RawFrame:  # type: ignore[no-untyped-def]
+    return RawFrame(t_s, frame.arbitration_id, frame.is_extended_id, frame.data)
+
+
+def test_leg_frame_gives_its_estimate() -> None:
+    pipeline, encoder = make()
+    result = pipeline.process(raw(encoder.encode("LEG_SB1_F3", leg_signals("SB1_F3", 9e6, 1e6)), 5))
+    (estimate,) = result.estimates
+    geometry = pipeline.estimator.legs["SB1_F3"].leg
+    assert estimate.leg == "SB1_F3" and estimate.t_s == 5 and estimate.valid
+    assert estimate.force_raw_N == foot_force_N(9e6, 1e6, geometry)
+    assert result.decoded is not None and result.error is None
+    assert pipeline.frames == 1 and not pipeline.bad
+
+
+def test_bad_frames_are_counted_by_kind_never_raised() -> None:
+    pipeline, encoder = make()
+    good = encoder.encode("LEG_SB1_F1", leg_signals("SB1_F1", 9e6, 1e6))
+    frames = [
+        RawFrame(0, 0x7FF, False, b""),
+        RawFrame(0, 0x100, False, good.data[:5]),
+        RawFrame(0, 0x100, True, good.data),  # extended 0x100 is not the DBC's 0x100
+        RawFrame(0, 0x100, False, b"", is_remote_frame=True),
+        RawFrame(0, 0x4, False, bytes(8), is_error_frame=True),
+    ]
+    kinds = [pipeline.process(frame).error_kind for frame in frames]
+    assert kinds == ["unknown_id", "wrong_dlc", "unknown_id", "remote_frame", "error_frame"]
+    assert pipeline.bad == {"unknown_id": 2, "wrong_dlc": 1, "remote_frame": 1, "error_frame": 1}
+    assert pipeline.frames == 5
+
+
+def test_reset_counters_forgives_the_jump_after_a_gap() -> None:
+    pipeline, encoder = make()
+    signals = leg_signals("SB1_F1", 9e6, 1e6)
+    pipeline.process(raw(encoder.encode("LEG_SB1_F1", signals, counter=1), 0))
+    pipeline.reset_counters()
+    after_gap = pipeline.process(raw(encoder.encode("LEG_SB1_F1", signals, counter=9), 1))
+    assert after_gap.estimates[0].valid
+    jump = pipeline.process(raw(encoder.encode("LEG_SB1_F1", signals, counter=3), 2))
+    assert jump.estimates[0].reasons == ("counter",)
+    assert pipeline.bad == {"counter": 1}
+
+
+def test_json_payload_writes_nan_as_null() -> None:
+    pipeline, _ = make()
+    snapshot = pipeline.snapshot(100.0)
+    payload = json.loads(json_bytes(leg_ground(snapshot.legs["SB1_F1"])))
+    assert payload["force_N"] is None and payload["t"] is None
+    assert payload["reasons"] == ["stale"] and payload["valid"] is False
+    assert json.loads(json_bytes({"x": [math.inf, -math.inf, 1.5]})) == {"x": [None, None, 1.5]}

@@ -1,0 +1,96 @@
+"""Service configuration: the example loads; wrong service tables are refused naming the key."""
+
+from pathlib import Path
+
+import pytest
+
+from daq.errors import ConfigError
+from daq.machine import load_machine_config
+from daq.service_config import load_service_config
+from daq.zenoh_session import zenoh_config
+from tests.helpers import ROOT
+
+EXAMPLE = ROOT / "deploy" / "portal-daq.example.toml"
+MACHINE_ONLY = ROOT / "deploy" / "machine.example.toml"
+
+
+def test_example_loads_with_documented_values() -> None:
+    config = load_service_config(EXAMPLE)
+    assert config.machine.machine_id == "pam-proto-1"
+    assert (config.bus.interface, config.bus.channel) == ("socketcan", "can0")
+    assert config.bus.kernel_filters is False and config.bus.receive_own_messages is False
+    assert config.zenoh.key_prefix == "portal/pam-proto-1"
+    assert config.zenoh.config_file == EXAMPLE.parent / "zenoh.json5"
+    assert config.publish.ground_rate_hz == 10.0 and config.publish.signals is True
+    assert config.recording.compression == "zstd"
+    assert config.recording.directory == Path("/var/lib/portal-daq/recordings")
+    zenoh_config(config.zenoh)  # the JSON5 file is valid for Zenoh
+
+
+def test_machine_loader_accepts_the_service_file() -> None:
+    machine, _ = load_machine_config(EXAMPLE)
+    assert machine == load_service_config(EXAMPLE).machine
+
+
+def test_machine_file_alone_gives_service_defaults() -> None:
+    config = load_service_config(MACHINE_ONLY)
+    assert config.bus.channel == "can0" and config.recording.directory is None
+    assert config.zenoh.config_file is None and config.zenoh.connect == ()
+    assert config.publish.status_period_s == 1.0
+
+
+def refused(tmp_path: Path, text: str) -> ConfigError:
+    path = tmp_path / "portal-daq.toml"
+    path.write_text(text + "\n" + MACHINE_ONLY.read_text())
+    with pytest.raises(ConfigError) as info:
+        load_service_config(path)
+    assert str(path) in str(info.value)
+    return info.value
+
+
+@pytest.mark.parametrize(
+    ("text", "key", "reason"),
+    [
+        ('[bus]\nchanel = "can0"', "bus.chanel", "unknown key"),
+        ('[bus]\ninterface = "socketcam"', "bus.interface", "unknown python-can interface"),
+        ("[bus]\nreceive_own_messages = 1", "bus.receive_own_messages", "true or false"),
+        ("[bus]\nqueue_size = 0", "bus.queue_size", "> 0"),
+        ('[zenoh]\nmode = "peers"', "zenoh.mode", "must be one of"),
+        ('[zenoh]\nconnect = "tcp/1.2.3.4:7447"', "zenoh.connect", "list of non-empty strings"),
+        ('[zenoh]\nkey_prefix = "portal/*"', "zenoh.key_prefix", "does not match"),
+        ('[zenoh]\nkey_prefix = "/portal"', "zenoh.key_prefix", "does not match"),
+        ('[zenoh]\nconfig_file = "absent.json5"', "zenoh.config_file", "no such file"),
+        ("[publish]\nground_rate_hz = -1", "publish.ground_rate_hz", "> 0"),
+        ('[publish]\nsignals = "yes"', "publish.signals", "true or false"),
+        ("[publish]\nstatus_period_s = 0", "publish.status_period_s", "> 0"),
+        ('[recording]\ncompression = "gzip"', "recording.compression", "must be one of"),
+        ("[recording]\nmax_bytes = 100", "recording.max_bytes", ">= chunk_size"),
+        ('[recording]\nmax_duration_s = "1h"', "recording.max_duration_s", "must be a number"),
+        ("[recordings]\nx = 1", "recordings", "unknown key"),
+    ],
+)
+def test_wrong_service_table_is_refused_naming_the_key(
+    tmp_path: Path, text: str, key: str, reason: str
+) -> None:
+    error = refused(tmp_path, text)
+    assert error.key == key
+    assert reason in str(error)
+
+
+def test_relative_paths_are_relative_to_the_config_file(tmp_path: Path) -> None:
+    (tmp_path / "z.json5").write_text("{ mode: 'peer' }")
+    path = tmp_path / "portal-daq.toml"
+    text = '[zenoh]\nconfig_file = "z.json5"\n[recording]\ndirectory = "rec"\n'
+    path.write_text(text + MACHINE_ONLY.read_text())
+    config = load_service_config(path)
+    assert config.zenoh.config_file == tmp_path / "z.json5"
+    assert config.recording.directory == tmp_path / "rec"
+
+
+def test_bad_zenoh_file_is_a_config_error(tmp_path: Path) -> None:
+    (tmp_path / "z.json5").write_text("{ mode: ")
+    path = tmp_path / "portal-daq.toml"
+    path.write_text('[zenoh]\nconfig_file = "z.json5"\n' + MACHINE_ONLY.read_text())
+    config = load_service_config(path)
+    with pytest.raises(ConfigError, match="z.json5: not a valid Zenoh config"):
+        zenoh_config(config.zenoh)

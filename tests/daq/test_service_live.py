@@ -1,0 +1,340 @@
+"""The service in-process: python-can virtual bus in, real Zenoh on loopback and MCAP out."""
+
+from __future__ import annotations
+
+import io
+import json
+import queue
+import threading
+import time
+import uuid
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+import can
+import pytest
+import zenoh
+from mcap.reader import make_reader
+
+from daq.bus_reader import BusReader
+from daq.decoding import FrameDecoder
+from daq.encoding import FrameEncoder
+from daq.frames import BusEvent, RawFrame
+from daq.recorder import Recorder
+from daq.replay import replay
+from daq.runner import bus_factory, recording_attachments
+from daq.service import Service
+from daq.service_config import ServiceConfig, load_service_config
+from daq.zenoh_session import zenoh_config
+from tests.daq.service_support import (
+    WAIT_S,
+    Collector,
+    assert_estimates_match,
+    can_message,
+    free_port,
+    leg_messages,
+    leg_signals,
+    pressure_series,
+    subscriber_session,
+    write_service_config,
+)
+from tests.helpers import LEGS
+
+FRAMES_PER_LEG = 25
+
+
+@pytest.fixture
+def config(tmp_path: Path) -> ServiceConfig:
+    path = write_service_config(
+        tmp_path, channel=f"test-{uuid.uuid4().hex}", port=free_port(), recording=tmp_path / "rec"
+    )
+    return load_service_config(path)
+
+
+@contextmanager
+def live_service(config: ServiceConfig) -> Iterator[Service]:
+    """The service on a virtual bus, with a real Zenoh session and recorder, running
+    (:meth:`Service.run`) in a thread as it does in the main thread of the process."""
+    frame_ids = FrameDecoder(config.database, config.machine.protection).frame_ids
+    recorder = Recorder(
+        config.recording,
+        config.database,
+        machine_id=config.machine.machine_id,
+        attachments=recording_attachments(config),
+    )
+    with zenoh.open(zenoh_config(config.zenoh)) as session:
+        service = Service(
+            config,
+            open_bus=bus_factory(config.bus, frame_ids),
+            session=session,
+            recorder=recorder,
+        )
+        stop = threading.Event()
+        runner = threading.Thread(target=service.run, args=(stop,))
+        runner.start()
+        try:
+            assert service.reader.opened.wait(WAIT_S)
+            yield service
+        finally:
+            stop.set()
+            runner.join()
+
+
+@contextmanager
+def sender(config: ServiceConfig) -> Iterator[can.BusABC]:
+    bus = can.Bus(interface="virtual", channel=config.bus.channel, preserve_timestamps=True)
+    try:
+        yield bus
+    finally:
+        bus.shutdown()
+
+
+def zenoh_port(config: ServiceConfig) -> int:
+    return int(config.zenoh.listen[0].rsplit(":", 1)[1])
+
+
+def connected_collector(session: zenoh.Session, prefix: str) -> Collector:
+    """A collector on ``<prefix>/**`` that has seen the service (so nothing is missed)."""
+    collector = Collector(session, f"{prefix}/**")
+    collector.wait_for(f"{prefix}/ground")
+    return collector
+
+
+def encoder_for(config: ServiceConfig) -> FrameEncoder:
+    return FrameEncoder(config.database, config.machine.protection)
+
+
+def recorded(path: Path) -> list[tuple[str, dict]]:
+    with open(path, "rb") as file:
+        reader = make_reader(file)
+        return [
+            (channel.topic, json.loads(message.data))
+            for _, channel, message in reader.iter_messages(log_time_order=False)
+        ]
+
+
+def test_published_estimates_match_equation_4_and_running_median(config: ServiceConfig) -> None:
+    prefix = config.zenoh.key_prefix
+    with live_service(config), subscriber_session(zenoh_port(config)) as session:
+        collector = connected_collector(session, prefix)
+        with sender(config) as bus:
+            for message in leg_messages(encoder_for(config), FRAMES_PER_LEG, time.time()):
+                bus.send(message)
+        keys = {leg: f"{prefix}/leg/{leg}/ground" for leg in LEGS}
+        collector.wait_until(
+            lambda: all(len(collector.of(key)) >= FRAMES_PER_LEG for key in keys.values())
+        )
+        for seed, (leg, key) in enumerate(keys.items()):
+            sent = pressure_series(FRAMES_PER_LEG, seed)
+            assert_estimates_match(config.machine, leg, sent, collector.of(key))
+        encodings = {encoding for key, _, encoding in collector.samples}
+        assert encodings == {"application/json"}
+        signals = collector.of(f"{prefix}/signals/LEG_SB1_F1")
+        assert len(signals) == FRAMES_PER_LEG and signals[0]["crc_ok"] is True
+
+        ground = collector.wait_for(
+            f"{prefix}/ground", lambda p: p["legs"]["SB2_F3"]["force_N"] is not None
+        )
+        assert set(ground["legs"]) == set(LEGS)
+        assert ground["weight_N"] == pytest.approx(config.machine.weight_N)
+        assert "residual_N" in ground and "total_force_N" in ground
+
+
+def test_stale_legs_and_nan_are_null_not_invalid_json(config: ServiceConfig) -> None:
+    prefix = config.zenoh.key_prefix
+    with live_service(config), subscriber_session(zenoh_port(config)) as session:
+        collector = connected_collector(session, prefix)
+        ground = collector.wait_for(f"{prefix}/ground")
+        for leg in ground["legs"].values():  # no frame yet: stale, NaN forces as null
+            assert leg["valid"] is False and "stale" in leg["reasons"]
+            assert leg["force_N"] is None
+        metrics = collector.wait_for(f"{prefix}/metrics")
+        assert metrics["legs"]["SB1_F1"]["peak_pressure_Pa"] is None
+
+
+def test_bad_frames_are_counted_and_recorded_raw(config: ServiceConfig) -> None:
+    prefix = config.zenoh.key_prefix
+    encoder = encoder_for(config)
+    t0 = time.time()
+    good = encoder.encode("LEG_SB1_F1", leg_signals("SB1_F1", 9e6, 1e6))
+    bad_crc = encoder.encode("LEG_SB1_F1", leg_signals("SB1_F1", 9e6, 1e6), corrupt_crc=True)
+    jump = encoder.encode("LEG_SB1_F1", leg_signals("SB1_F1", 9e6, 1e6), counter=9)
+    messages = [
+        can_message(good, t0),
+        can.Message(timestamp=t0, arbitration_id=0x7AB, data=b"\x01\x02", is_extended_id=False),
+        can.Message(timestamp=t0, arbitration_id=0x100, data=good.data[:7], is_extended_id=False),
+        can.Message(timestamp=t0, arbitration_id=0x1ABCDE, data=b"", is_extended_id=True),
+        can.Message(timestamp=t0, arbitration_id=0x100, is_remote_frame=True, dlc=8),
+        can.Message(timestamp=t0, arbitration_id=0x80, is_error_frame=True, dlc=8, data=bytes(8)),
+        can_message(bad_crc, t0 + 0.01),
+        can_message(jump, t0 + 0.02),
+    ]
+    with live_service(config) as service, subscriber_session(zenoh_port(config)) as session:
+        collector = connected_collector(session, prefix)
+        with sender(config) as bus:
+            for message in messages:
+                bus.send(message)
+        status = collector.wait_for(
+            f"{prefix}/status", lambda s: s["frames"]["processed"] == len(messages)
+        )
+        assert status["bad"] == {
+            "unknown_id": 2,
+            "wrong_dlc": 1,
+            "remote_frame": 1,
+            "error_frame": 1,
+            "crc": 1,
+            "counter": 1,
+        }
+        assert status["frames"]["unknown"] == 2 and status["frames"]["bad"] == 7
+        assert status["bus"]["state"] == "up" and status["dropped"]["rx"] == 0
+        assert set(status["queues"]) == {"rx", "publish", "record"}
+        assert status["uptime_s"] > 0 and status["frames_per_s"] >= 0
+        assert status["healthy"] is True
+        leg = collector.of(f"{prefix}/leg/SB1_F1/ground")
+        assert [m["reasons"] for m in leg] == [[], ["crc"], ["counter"]]
+        path = service.recorder.paths[0]  # type: ignore[union-attr]
+    raw = [payload for topic, payload in recorded(path) if topic == "/can/raw"]
+    assert [(r["id"], r["error"]) for r in raw] == [
+        (0x100, None),
+        (0x7AB, "unknown_id"),
+        (0x100, "wrong_dlc"),
+        (0x1ABCDE, "unknown_id"),
+        (0x100, "remote_frame"),
+        (0x80, "error_frame"),
+        (0x100, None),
+        (0x100, None),
+    ]
+    assert raw[1]["data"] == "0102" and raw[3]["extended"] is True and raw[2]["dlc"] == 7
+
+
+def test_late_joiner_gets_the_latest_value_of_every_key(config: ServiceConfig) -> None:
+    prefix = config.zenoh.key_prefix
+    with live_service(config), subscriber_session(zenoh_port(config)) as session:
+        collector = connected_collector(session, prefix)
+        with sender(config) as bus:
+            for message in leg_messages(encoder_for(config), 5, time.time()):
+                bus.send(message)
+        last_key = f"{prefix}/leg/SB2_F3/ground"
+        collector.wait_until(lambda: len(collector.of(last_key)) == 5)
+        collector.wait_for(f"{prefix}/status")
+        with subscriber_session(zenoh_port(config)) as late:
+            replies = {}
+            deadline = time.monotonic() + WAIT_S
+            while last_key not in replies and time.monotonic() < deadline:
+                for reply in late.get(f"{prefix}/**", timeout=5.0):
+                    replies[str(reply.ok.key_expr)] = json.loads(reply.ok.payload.to_bytes())
+        for leg in LEGS:
+            assert (
+                replies[f"{prefix}/leg/{leg}/ground"]
+                == collector.of(f"{prefix}/leg/{leg}/ground")[-1]
+            )
+        for key in ("ground", "status", "metrics", "signals/LEG_SB1_F1"):
+            assert f"{prefix}/{key}" in replies
+
+
+def test_liveliness_token_while_running(config: ServiceConfig) -> None:
+    prefix = config.zenoh.key_prefix
+    with live_service(config), subscriber_session(zenoh_port(config)) as session:
+        connected_collector(session, prefix)
+        tokens = [str(r.ok.key_expr) for r in session.liveliness().get(f"{prefix}/alive")]
+        assert tokens == [f"{prefix}/alive"]
+
+
+def test_replay_of_the_recording_equals_the_live_estimates(config: ServiceConfig) -> None:
+    encoder = encoder_for(config)
+    messages = leg_messages(encoder, FRAMES_PER_LEG, time.time())
+    t = messages[-1].timestamp
+    messages += [  # faults too: they must replay the same way
+        can_message(encoder.encode("LEG_SB1_F2", leg_signals("SB1_F2", 2e7, 1e6), counter=3), t),
+        can_message(
+            encoder.encode("LEG_SB1_F2", leg_signals("SB1_F2", 1e7, 1e6), corrupt_crc=True),
+            t + 0.01,
+        ),
+        can_message(encoder.encode("LEG_SB1_F2", leg_signals("SB1_F2", 1e7, 1e6)), t + 0.02),
+    ]
+    with live_service(config) as service:
+        with sender(config) as bus:
+            for message in messages:
+                bus.send(message)
+        deadline = time.monotonic() + WAIT_S
+        while service.pipeline.frames < len(messages) and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert service.pipeline.frames == len(messages)
+        recorder = service.recorder
+        assert recorder is not None
+    path = recorder.paths[0]
+    live = [p for topic, p in recorded(path) if topic.startswith("/leg/")]
+    assert len(live) == 6 * FRAMES_PER_LEG + 3
+
+    for config_path in (None, Path(config.source)):
+        out = io.StringIO()
+        assert replay(path, out, config_path) == len(live)
+        rows = out.getvalue().splitlines()
+        assert rows[0].startswith("leg,t,force_N,force_raw_N,pressure_Pa")
+        replayed = [row.split(",") for row in rows[1:]]
+        for row, estimate in zip(replayed, live, strict=True):
+            assert row[0] == estimate["leg"]
+            numbers = [float(x) for x in row[1:7]]
+            keys = ("t", "force_N", "force_raw_N", "pressure_Pa", "p_piston_Pa", "p_rod_Pa")
+            assert numbers == [estimate[k] for k in keys]  # bit for bit
+            assert row[7:9] == [str(int(estimate["contact"])), str(int(estimate["valid"]))]
+            assert row[9] == "|".join(estimate["reasons"])
+    assert live[-3]["reasons"] == ["counter"] and live[-2]["reasons"] == ["crc"]
+
+
+def test_mcap_channels_and_schemas_are_readable(config: ServiceConfig) -> None:
+    with live_service(config) as service:
+        with sender(config) as bus:
+            for message in leg_messages(encoder_for(config), 3, time.time()):
+                bus.send(message)
+        deadline = time.monotonic() + WAIT_S
+        while service.pipeline.frames < 18 and time.monotonic() < deadline:
+            time.sleep(0.01)
+        recorder = service.recorder
+        assert recorder is not None
+    with open(recorder.paths[0], "rb") as file:
+        reader = make_reader(file)
+        summary = reader.get_summary()
+        assert summary is not None  # finished cleanly: summary present
+        topics = {channel.topic: channel for channel in summary.channels.values()}
+        assert {"/can/raw", "/signals/LEG_SB1_F1", "/leg/SB1_F1/ground", "/daq/bus"} <= set(topics)
+        for channel in topics.values():
+            assert channel.message_encoding == "json"
+            schema = summary.schemas[channel.schema_id]
+            assert schema.encoding == "jsonschema"
+            assert json.loads(schema.data)["type"] == "object"
+        assert summary.statistics is not None and summary.statistics.message_count > 0
+        names = {a.name for a in reader.iter_attachments()}
+        assert names == {"portal-daq.toml", "portal_sensors.dbc"}
+        for schema, _, message in reader.iter_messages():
+            assert schema is not None
+            payload = json.loads(message.data)
+            assert set(json.loads(schema.data)["required"]) <= set(payload)
+
+
+def test_reader_never_blocks_and_counts_overflow() -> None:
+    channel = f"test-{uuid.uuid4().hex}"
+    inbox: queue.Queue[RawFrame | BusEvent] = queue.Queue(maxsize=5)
+    reader = BusReader(
+        lambda: can.Bus(interface="virtual", channel=channel), inbox, channel=channel
+    )
+    with reader:
+        assert reader.opened.wait(WAIT_S)
+        with can.Bus(interface="virtual", channel=channel) as bus:
+            for i in range(20):
+                bus.send(can.Message(arbitration_id=0x100 + i, data=b"", is_extended_id=False))
+            deadline = time.monotonic() + WAIT_S
+            while reader.received < 20 and time.monotonic() < deadline:
+                time.sleep(0.01)
+    assert reader.received == 20
+    items = [inbox.get_nowait() for _ in range(inbox.qsize())]
+    assert isinstance(items[0], BusEvent) and items[0].state == "up"
+    assert [f.arbitration_id for f in items[1:] if isinstance(f, RawFrame)] == [
+        0x100,
+        0x101,
+        0x102,
+        0x103,
+    ]
+    assert reader.dropped == 16
+    assert reader.state == "closed"
