@@ -1,0 +1,136 @@
+"""deploy/: the systemd unit passes systemd-analyze, the install script installs into a root."""
+
+import configparser
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from tests.helpers import ROOT
+
+DEPLOY = ROOT / "deploy"
+UNIT = DEPLOY / "systemd" / "portal-daq.service"
+
+needs_systemd = pytest.mark.skipif(
+    shutil.which("systemd-analyze") is None, reason="needs systemd-analyze (Debian: systemd)"
+)
+
+
+def unit_sections(path: Path) -> configparser.ConfigParser:
+    parser = configparser.ConfigParser(strict=False, interpolation=None)
+    parser.optionxform = str  # type: ignore[assignment,method-assign]
+    parser.read(path)
+    return parser
+
+
+def test_unit_has_notify_watchdog_restart_user_state_and_hardening() -> None:
+    unit = unit_sections(UNIT)
+    service = unit["Service"]
+    assert service["Type"] == "notify"
+    assert service["WatchdogSec"] == "10s"
+    assert service["Restart"] == "on-failure"
+    assert service["User"] == "portal-daq"
+    assert service["StateDirectory"] == "portal-daq"
+    assert service["ProtectSystem"] == "strict"
+    assert service["NoNewPrivileges"] == "yes"
+    assert set(service["RestrictAddressFamilies"].split()) == {
+        "AF_CAN",
+        "AF_NETLINK",
+        "AF_UNIX",
+        "AF_INET",
+        "AF_INET6",
+    }
+    assert unit["Unit"]["BindsTo"] == "sys-subsystem-net-devices-can0.device"
+    assert "sys-subsystem-net-devices-can0.device" in unit["Unit"]["After"].split()
+
+
+@needs_systemd
+def test_unit_passes_systemd_analyze_verify(tmp_path: Path) -> None:
+    # verify checks that ExecStart exists: point it at this checkout's console script.
+    executable = str(Path(sys.executable).with_name("portal-daq"))
+    text = UNIT.read_text().replace("/opt/portal-daq/venv/bin/portal-daq", executable)
+    unit = tmp_path / "portal-daq.service"
+    unit.write_text(text)
+    result = subprocess.run(
+        ["systemd-analyze", "verify", "--man=no", str(unit)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert result.returncode == 0, result.stderr
+    # verify exits 0 on ignored lines too; any complaint about our file is a failure.
+    complaints = [line for line in result.stderr.splitlines() if "portal-daq.service" in line]
+    assert complaints == []
+
+
+@needs_systemd
+def test_systemd_analyze_catches_a_broken_unit(tmp_path: Path) -> None:
+    unit = tmp_path / "portal-daq.service"
+    unit.write_text(UNIT.read_text().replace("ProtectSystem=strict", "ProtectSystem=sometimes"))
+    result = subprocess.run(
+        ["systemd-analyze", "verify", "--man=no", str(unit)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert "ProtectSystem" in result.stderr or "protect system" in result.stderr
+
+
+def test_networkd_brings_can0_up_with_bitrate_and_bus_off_restart() -> None:
+    can0 = unit_sections(DEPLOY / "network" / "80-can0.network")
+    assert can0["Match"]["Name"] == "can0"
+    assert can0["CAN"]["BitRate"] == "500000"
+    assert can0["CAN"]["RestartSec"] == "100ms"
+    vcan = unit_sections(DEPLOY / "network" / "80-vcan0.netdev")
+    assert (vcan["NetDev"]["Name"], vcan["NetDev"]["Kind"]) == ("vcan0", "vcan")
+
+
+@needs_systemd
+def test_install_script_into_a_temporary_root(tmp_path: Path) -> None:
+    root = tmp_path / "root"
+    subprocess.run(
+        [str(DEPLOY / "install.sh"), "--root", str(root), "--with-vcan"],
+        check=True,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    venv = root / "opt/portal-daq/venv"
+    help_text = subprocess.run(
+        [str(venv / "bin/portal-daq"), "--help"], check=True, capture_output=True, text=True
+    ).stdout
+    assert "--config" in help_text
+    config = root / "etc/portal-daq/portal-daq.toml"
+    assert config.is_file() and (root / "etc/portal-daq/zenoh.json5").is_file()
+    # The installed example configuration loads with the installed package.
+    subprocess.run(
+        [
+            str(venv / "bin/python"),
+            "-c",
+            "import sys; from daq.service_config import load_service_config;"
+            " load_service_config(sys.argv[1])",
+            str(config),
+        ],
+        check=True,
+        timeout=60,
+    )
+    unit = root / "etc/systemd/system/portal-daq.service"
+    assert unit.read_text() == UNIT.read_text()
+    enabled = root / "etc/systemd/system/multi-user.target.wants/portal-daq.service"
+    assert enabled.is_symlink()
+    assert (root / "etc/systemd/network/80-can0.network").is_file()
+    assert (root / "etc/systemd/network/80-vcan0.netdev").is_file()
+    passwd = (root / "etc/passwd").read_text()
+    assert any(line.startswith("portal-daq:") for line in passwd.splitlines())
+
+    # A second install keeps the operator's configuration.
+    config.write_text(config.read_text() + "\n# edited by the operator\n")
+    subprocess.run(
+        [str(DEPLOY / "install.sh"), "--root", str(root), "--pip-args", "--no-deps"],
+        check=True,
+        capture_output=True,
+        timeout=600,
+    )
+    assert config.read_text().endswith("# edited by the operator\n")
