@@ -1,0 +1,65 @@
+"""``portal-daq dashboard --config FILE [--http HOST:PORT] [--duration S] [--connect EP] ...``.
+
+Exit status: 0 after SIGINT/SIGTERM or ``--duration``; 2 for a bad config or
+``--http`` (one line on stderr); 1 when the Zenoh session or the HTTP address
+cannot be had.
+"""
+
+import argparse
+import sys
+from collections.abc import Sequence
+
+from daq.dashboard.server import Dashboard
+from daq.errors import ConfigError, DbcError, PortalDaqError
+from daq.live.command import add_viewer_arguments, fail, load_viewer, setup_logging, stop_on_signals
+from daq.live.session import open_viewer_session
+
+COMMAND = "dashboard"
+DEFAULT_HTTP = "127.0.0.1:8080"
+
+
+def dashboard_main(args: Sequence[str]) -> int:
+    parser = argparse.ArgumentParser(
+        prog=f"portal-daq {COMMAND}",
+        description="Live web dashboard of the service from Zenoh: the six contact pressures "
+        "over the last 60 s against the limit, bus status, contact and validity per leg.",
+    )
+    add_viewer_arguments(parser)
+    parser.add_argument(
+        "--http",
+        default=DEFAULT_HTTP,
+        metavar="HOST:PORT",
+        help=f"where to serve the page (port 0: any free one) [{DEFAULT_HTTP}]",
+    )
+    options = parser.parse_args(args)
+    setup_logging(options.log_level)
+    try:
+        viewer = load_viewer(options)
+        address = http_address(options.http)
+    except (ConfigError, DbcError) as exc:
+        return fail(COMMAND, exc, 2)
+    stop = stop_on_signals()
+    try:
+        with (
+            open_viewer_session(viewer.zenoh) as session,
+            Dashboard(session, viewer.config, address) as dashboard,
+        ):
+            sys.stdout.write(f"dashboard of {viewer.config.prefix} on {dashboard.url}\n")
+            sys.stdout.flush()
+            stop.wait(options.duration)
+    except PortalDaqError as exc:
+        return fail(COMMAND, exc, 1)
+    return 0
+
+
+def http_address(text: str) -> tuple[str, int]:
+    """``HOST:PORT`` (``[::1]:8080`` for IPv6) to ``(host, port)``; ConfigError when not.
+
+    >>> http_address("127.0.0.1:8080"), http_address("[::1]:0")
+    (('127.0.0.1', 8080), ('::1', 0))
+    """
+    host, _, port = text.rpartition(":")
+    host = host[1:-1] if host.startswith("[") and host.endswith("]") else host
+    if not host or not port.isdigit() or int(port) > 65535:
+        raise ConfigError("--http", "", f"expected HOST:PORT, e.g. {DEFAULT_HTTP}, got {text!r}")
+    return host, int(port)

@@ -1,0 +1,206 @@
+"""The dashboard: a Zenoh subscription feeding one hub thread, and a small HTTP server.
+
+Routes (GET): ``/`` the page (``static/index.html``, everything inline: no
+external assets), ``/api/latest`` and ``/api/history?since=T&generation=G``
+(see :mod:`daq.dashboard.api`). The page polls both four times a second: plain
+requests that complete, unlike a Server-Sent Events stream, so headless
+browsers (``--virtual-time-budget``) and proxies handle it, and ``since``
+makes sure no snapshot is missed.
+
+Threads: Zenoh's callbacks only enqueue (:class:`~daq.live.feed.LiveFeed`);
+the hub thread applies each payload to the state and the history under a
+lock; the HTTP threads (stdlib ``ThreadingHTTPServer``) read them under the
+same lock. The session is passed in; :meth:`Dashboard.start` binds the HTTP
+address and declares the subscribers; :meth:`Dashboard.close` undoes both.
+"""
+
+import logging
+import math
+import socket
+import threading
+import time
+from collections.abc import Callable
+from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
+from importlib import resources
+from typing import Any, cast
+from urllib.parse import parse_qs, urlsplit
+
+import zenoh
+
+from daq.dashboard.api import history_document, latest_document
+from daq.dashboard.history import PressureHistory
+from daq.errors import PortalDaqError
+from daq.live.feed import LiveFeed, apply_item
+from daq.live.state import LiveState
+from daq.live.viewer import ViewerConfig
+from daq.payloads import json_bytes
+
+logger = logging.getLogger(__name__)
+
+PAGE = "static/index.html"
+#: The hub thread checks for ``close`` this often while no payload comes.
+HUB_WAIT_S = 0.1
+
+
+class Dashboard:
+    """Serves ``viewer``'s service on ``address`` (host, port; port 0: any free one)."""
+
+    def __init__(
+        self,
+        session: zenoh.Session,
+        viewer: ViewerConfig,
+        address: tuple[str, int],
+        *,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
+        self.viewer = viewer
+        self.address = address
+        self.feed = LiveFeed(session, viewer.prefix, clock=clock)
+        self._clock = clock
+        self._state = LiveState(viewer.prefix)
+        self._history = PressureHistory(viewer.legs)
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._server: _Server | None = None
+        self._threads: list[threading.Thread] = []
+        self._page = b""
+        self._closed = False
+
+    def __enter__(self) -> "Dashboard":
+        self.start()
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()
+
+    @property
+    def url(self) -> str:
+        """``http://host:port/`` as bound (the real port when 0 was asked for)."""
+        if self._server is None:
+            raise RuntimeError("the dashboard is not started")
+        host, port = self._server.server_address[:2]
+        host = host.decode() if isinstance(host, bytes) else host
+        return f"http://{f'[{host}]' if ':' in host else host}:{port}/"
+
+    def start(self) -> None:
+        """Bind the HTTP address, subscribe, start the threads; PortalDaqError when it cannot."""
+        if self._server is not None:
+            return
+        try:
+            self._page = resources.files("daq.dashboard").joinpath(PAGE).read_bytes()
+        except OSError as exc:
+            raise PortalDaqError(f"dashboard page {PAGE} missing: reinstall portal-daq") from exc
+        host, port = self.address
+        try:
+            self._server = _Server((host, port), _Handler, self)
+        except OSError as exc:
+            raise PortalDaqError(
+                f"HTTP: cannot listen on {host}:{port}: {exc.strerror or exc} "
+                "(is another dashboard running? choose another --http)"
+            ) from exc
+        self.feed.start()
+        self._threads = [
+            threading.Thread(target=self._hub, name="dashboard-hub", daemon=True),
+            threading.Thread(
+                target=self._server.serve_forever,
+                kwargs={"poll_interval": 0.2},
+                name="dashboard-http",
+                daemon=True,
+            ),
+        ]
+        for thread in self._threads:
+            thread.start()
+
+    def close(self) -> None:
+        """Stop serving, undeclare the subscribers (the session stays open). Idempotent."""
+        if self._closed:
+            return
+        self._closed = True
+        self._stop.set()
+        if self._server is not None:
+            self._server.shutdown()
+            self._server.server_close()
+        for thread in self._threads:
+            thread.join()
+        self.feed.close()
+
+    def page(self) -> bytes:
+        return self._page
+
+    def latest(self) -> bytes:
+        with self._lock:
+            document = latest_document(
+                self.viewer, self._state, self._clock(), dropped=self.feed.dropped
+            )
+        return json_bytes(document)
+
+    def history(self, since_s: float | None, generation: int | None) -> bytes:
+        with self._lock:
+            document = history_document(self._history, since_s, generation)
+        return json_bytes(document)
+
+    def _hub(self) -> None:
+        while not self._stop.is_set():
+            item = self.feed.wait(HUB_WAIT_S)
+            if item is None:
+                continue
+            with self._lock:
+                before = self._state.ground
+                apply_item(self._state, item)
+                ground = self._state.ground
+                if ground is not None and ground is not before:
+                    self._history.add(ground.value)
+
+
+class _Server(ThreadingHTTPServer):
+    daemon_threads = True
+
+    def __init__(
+        self, address: tuple[str, int], handler: type[BaseHTTPRequestHandler], dashboard: Dashboard
+    ) -> None:
+        self.dashboard = dashboard
+        if ":" in address[0]:
+            self.address_family = socket.AF_INET6
+        super().__init__(address, handler)
+
+
+class _Handler(BaseHTTPRequestHandler):
+    server_version = "portal-daq-dashboard"
+
+    def do_GET(self) -> None:
+        dashboard = cast(_Server, self.server).dashboard
+        url = urlsplit(self.path)
+        if url.path in ("/", "/index.html"):
+            self._send(200, "text/html; charset=utf-8", dashboard.page())
+        elif url.path == "/api/latest":
+            self._send(200, "application/json", dashboard.latest())
+        elif url.path == "/api/history":
+            query = parse_qs(url.query)
+            since = _number(query, "since", float)
+            generation = _number(query, "generation", int)
+            self._send(200, "application/json", dashboard.history(since, generation))
+        else:
+            self._send(404, "application/json", json_bytes({"error": f"no route {url.path}"}))
+
+    def _send(self, code: int, content_type: str, body: bytes) -> None:
+        self.send_response(code)
+        self.send_header("Content-Type", content_type)
+        self.send_header("Content-Length", str(len(body)))
+        self.send_header("Cache-Control", "no-store")
+        self.end_headers()
+        try:
+            self.wfile.write(body)
+        except (BrokenPipeError, ConnectionResetError):  # the browser went away
+            pass
+
+    def log_message(self, fmt: str, *args: Any) -> None:
+        logger.debug("%s %s", self.address_string(), fmt % args)
+
+
+def _number(query: dict[str, list[str]], name: str, kind: Callable[[str], Any]) -> Any:
+    """``kind(query[name])``, or None when missing, malformed or not finite."""
+    try:
+        value = kind(query[name][0])
+    except (KeyError, IndexError, ValueError):
+        return None
+    return value if math.isfinite(value) else None

@@ -1,0 +1,240 @@
+"""The service's latest values as a viewer received them: pure parsing, no I/O.
+
+:class:`LiveState` takes raw Zenoh payloads (``<prefix>/ground``, ``/status``,
+``/metrics``; JSON as :mod:`daq.payloads` writes it, NaN as ``null``) with the
+viewer's monotonic receive time, and keeps the latest of each as typed,
+frozen readings. A payload that is not a JSON object is counted in
+:attr:`LiveState.ignored`; missing or ``null`` fields read as ``None`` (the
+contract may grow; a viewer must not crash on an older or newer service).
+
+Ages are judged on the viewer's own clock (time since received), never by
+comparing the service's ``t`` with the viewer's wall clock, so a skewed clock
+on either side cannot make data look fresh or stale.
+"""
+
+import json
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any, Generic, TypeVar
+
+T = TypeVar("T")
+
+#: The keys a viewer subscribes to, relative to the service's prefix.
+GROUND, STATUS, METRICS = "ground", "status", "metrics"
+SUFFIXES = (GROUND, STATUS, METRICS)
+
+
+@dataclass(frozen=True, slots=True)
+class LegReading:
+    """One leg's estimate, as judged in the service's ``<prefix>/ground`` snapshot."""
+
+    leg: str
+    #: Frame time of the leg's last estimate, Unix seconds (service clock).
+    t_s: float | None
+    #: Filtered vertical foot force (eq. 4 + running median).
+    force_N: float | None
+    #: Contact pressure (eq. 5) from the filtered force.
+    pressure_Pa: float | None
+    contact: bool
+    valid: bool
+    #: Why the estimate is invalid, e.g. ``("stale",)``; empty when valid.
+    reasons: tuple[str, ...]
+
+
+@dataclass(frozen=True, slots=True)
+class GroundReading:
+    """``<prefix>/ground``: every leg and the weight check."""
+
+    #: Snapshot time, Unix seconds (service clock).
+    t_s: float | None
+    legs: Mapping[str, LegReading]
+    total_force_N: float | None
+    weight_N: float | None
+    residual_N: float | None
+    legs_in_contact: int | None
+    complete: bool
+
+
+@dataclass(frozen=True, slots=True)
+class StatusReading:
+    """``<prefix>/status``: the service's health, once a status period."""
+
+    t_s: float | None
+    uptime_s: float | None
+    #: ``up``, ``down``, ``opening``, ``closed`` ... (the bus reader's state).
+    bus_state: str
+    bus_interface: str
+    bus_channel: str
+    bus_reason: str | None
+    bus_reopens: int
+    frames_per_s: float | None
+    frames_received: int
+    #: Frames with a fault (unknown ID, DLC, CRC, counter ...), all kinds.
+    frames_bad: int
+    #: Messages dropped anywhere (receive, publish and record queues).
+    dropped: int
+    healthy: bool | None
+
+
+@dataclass(frozen=True, slots=True)
+class LegMetrics:
+    """One leg's soil metrics from ``<prefix>/metrics``."""
+
+    peak_pressure_Pa: float | None
+    near_constant_pressure_Pa: float | None
+    time_above_limit_s: float | None
+
+
+@dataclass(frozen=True, slots=True)
+class MetricsReading:
+    t_s: float | None
+    legs: Mapping[str, LegMetrics]
+
+
+@dataclass(frozen=True, slots=True)
+class Received(Generic[T]):
+    """A reading and when the viewer received it (``time.monotonic()`` seconds)."""
+
+    value: T
+    received_s: float
+
+    def age_s(self, now_s: float) -> float:
+        return max(0.0, now_s - self.received_s)
+
+
+class LiveState:
+    """The latest ground, status and metrics under ``prefix``; one thread applies.
+
+    >>> state = LiveState("portal/m")
+    >>> state.apply("portal/m/status", b'{"bus": {"state": "up"}}', received_s=5.0)
+    True
+    >>> state.status.value.bus_state if state.status else None
+    'up'
+    """
+
+    def __init__(self, prefix: str) -> None:
+        self.prefix = prefix
+        self.ground: Received[GroundReading] | None = None
+        self.status: Received[StatusReading] | None = None
+        self.metrics: Received[MetricsReading] | None = None
+        #: Payloads that were not JSON objects, or came on a key not viewed.
+        self.ignored = 0
+
+    def key(self, suffix: str) -> str:
+        return f"{self.prefix}/{suffix}"
+
+    def holds(self, key: str) -> bool:
+        """Whether a value for ``key`` is held already."""
+        held = {
+            self.key(GROUND): self.ground,
+            self.key(STATUS): self.status,
+            self.key(METRICS): self.metrics,
+        }
+        return held.get(key) is not None
+
+    def apply(self, key: str, payload: bytes, received_s: float) -> bool:
+        """Take one payload received on ``key``; False (and counted) when unusable."""
+        try:
+            data = json.loads(payload)
+        except (UnicodeDecodeError, json.JSONDecodeError):
+            data = None
+        if not isinstance(data, dict):
+            self.ignored += 1
+            return False
+        if key == self.key(GROUND):
+            self.ground = Received(parse_ground(data), received_s)
+        elif key == self.key(STATUS):
+            self.status = Received(parse_status(data), received_s)
+        elif key == self.key(METRICS):
+            self.metrics = Received(parse_metrics(data), received_s)
+        else:
+            self.ignored += 1
+            return False
+        return True
+
+
+def parse_leg(name: str, data: Mapping[str, Any]) -> LegReading:
+    reasons = data.get("reasons")
+    return LegReading(
+        leg=name,
+        t_s=_number(data, "t"),
+        force_N=_number(data, "force_N"),
+        pressure_Pa=_number(data, "pressure_Pa"),
+        contact=data.get("contact") is True,
+        valid=data.get("valid") is True,
+        reasons=tuple(str(r) for r in reasons) if isinstance(reasons, list) else (),
+    )
+
+
+def parse_ground(data: Mapping[str, Any]) -> GroundReading:
+    legs = _table(data, "legs")
+    count = _number(data, "legs_in_contact")
+    return GroundReading(
+        t_s=_number(data, "t"),
+        legs={
+            str(name): parse_leg(str(name), leg)
+            for name, leg in legs.items()
+            if isinstance(leg, dict)
+        },
+        total_force_N=_number(data, "total_force_N"),
+        weight_N=_number(data, "weight_N"),
+        residual_N=_number(data, "residual_N"),
+        legs_in_contact=None if count is None else int(count),
+        complete=data.get("complete") is True,
+    )
+
+
+def parse_status(data: Mapping[str, Any]) -> StatusReading:
+    bus = _table(data, "bus")
+    frames = _table(data, "frames")
+    dropped = _table(data, "dropped")
+    healthy = data.get("healthy")
+    reason = bus.get("reason")
+    return StatusReading(
+        t_s=_number(data, "t"),
+        uptime_s=_number(data, "uptime_s"),
+        bus_state=str(bus.get("state") or "unknown"),
+        bus_interface=str(bus.get("interface") or ""),
+        bus_channel=str(bus.get("channel") or ""),
+        bus_reason=str(reason) if reason else None,
+        bus_reopens=_count(bus, "reopens"),
+        frames_per_s=_number(data, "frames_per_s"),
+        frames_received=_count(frames, "received"),
+        frames_bad=_count(frames, "bad"),
+        dropped=sum(_count(dropped, name) for name in dropped),
+        healthy=healthy if isinstance(healthy, bool) else None,
+    )
+
+
+def parse_metrics(data: Mapping[str, Any]) -> MetricsReading:
+    legs = _table(data, "legs")
+    return MetricsReading(
+        t_s=_number(data, "t"),
+        legs={
+            str(name): LegMetrics(
+                peak_pressure_Pa=_number(leg, "peak_pressure_Pa"),
+                near_constant_pressure_Pa=_number(leg, "near_constant_pressure_Pa"),
+                time_above_limit_s=_number(leg, "time_above_limit_s"),
+            )
+            for name, leg in legs.items()
+            if isinstance(leg, dict)
+        },
+    )
+
+
+def _number(data: Mapping[str, Any], name: str) -> float | None:
+    value = data.get(name)
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return None
+    return float(value) if math.isfinite(value) else None
+
+
+def _count(data: Mapping[str, Any], name: str) -> int:
+    value = _number(data, name)
+    return 0 if value is None else int(value)
+
+
+def _table(data: Mapping[str, Any], name: str) -> Mapping[str, Any]:
+    value = data.get(name)
+    return value if isinstance(value, dict) else {}

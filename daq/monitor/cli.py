@@ -1,0 +1,50 @@
+"""``portal-daq monitor --config FILE [--plain] [--duration S] [--connect EP] ...``.
+
+Exit status: 0 after SIGINT/SIGTERM, ``q``, or ``--duration``; 2 for a bad
+config (one line on stderr); 1 when the Zenoh session cannot be opened.
+"""
+
+import argparse
+import sys
+from collections.abc import Sequence
+
+from daq.errors import ConfigError, DbcError, PortalDaqError
+from daq.live.command import add_viewer_arguments, fail, load_viewer, setup_logging, stop_on_signals
+from daq.live.feed import LiveFeed
+from daq.live.session import open_viewer_session
+from daq.monitor.app import run_curses, run_plain
+
+COMMAND = "monitor"
+
+
+def monitor_main(args: Sequence[str]) -> int:
+    parser = argparse.ArgumentParser(
+        prog=f"portal-daq {COMMAND}",
+        description="Live terminal view of the service from Zenoh: per leg force, contact "
+        "pressure against the limit, contact and validity; the service's status.",
+    )
+    add_viewer_arguments(parser)
+    parser.add_argument(
+        "--plain", action="store_true", help="one plain text line per second (no curses)"
+    )
+    options = parser.parse_args(args)
+    setup_logging(options.log_level)
+    try:
+        viewer = load_viewer(options)
+    except (ConfigError, DbcError) as exc:
+        return fail(COMMAND, exc, 2)
+    if not options.plain and not sys.stdout.isatty():
+        return fail(COMMAND, "standard output is not a terminal: use --plain", 2)
+    stop = stop_on_signals()
+    try:
+        with (
+            open_viewer_session(viewer.zenoh) as session,
+            LiveFeed(session, viewer.config.prefix) as feed,
+        ):
+            if options.plain:
+                run_plain(viewer.config, feed, stop, sys.stdout, duration_s=options.duration)
+            else:
+                run_curses(viewer.config, feed, stop, duration_s=options.duration)
+    except PortalDaqError as exc:
+        return fail(COMMAND, exc, 1)
+    return 0

@@ -1,0 +1,114 @@
+"""``portal-daq monitor`` and ``portal-daq dashboard`` as processes: exit codes, one-line
+errors, clean SIGINT/SIGTERM."""
+
+from __future__ import annotations
+
+import signal
+import socket
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from tests.daq.service_support import WAIT_S, free_port, write_service_config
+from tests.helpers import EXAMPLE_CONFIG, ROOT
+
+COMMANDS = ("monitor", "dashboard")
+
+
+def run(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "daq", *args], capture_output=True, text=True, timeout=60, cwd=ROOT
+    )
+
+
+def assert_one_line(result: subprocess.CompletedProcess[str], status: int, prefix: str) -> str:
+    assert result.returncode == status, result.stderr
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(prefix), result.stderr
+    assert "Traceback" not in result.stderr
+    return lines[0]
+
+
+@pytest.mark.parametrize("command", COMMANDS)
+def test_bad_config_exits_2_with_one_line(command: str, tmp_path: Path) -> None:
+    path = write_service_config(tmp_path, port=free_port())
+    path.write_text(path.read_text().replace('mode = "peer"', 'mode = "mesh"'))
+    line = assert_one_line(run(command, "--config", str(path)), 2, f"portal-daq {command}: ")
+    assert f"{path}: zenoh.mode: must be one of" in line
+
+
+@pytest.mark.parametrize("command", COMMANDS)
+def test_missing_config_exits_2(command: str) -> None:
+    line = assert_one_line(
+        run(command, "--config", "/nonexistent.toml"), 2, f"portal-daq {command}: "
+    )
+    assert "no such file" in line
+
+
+@pytest.mark.parametrize("command", COMMANDS)
+def test_bad_machine_value_exits_2(command: str, tmp_path: Path) -> None:
+    path = tmp_path / "bad.toml"
+    path.write_text(
+        EXAMPLE_CONFIG.read_text().replace(
+            "pressure_limit_Pa = 200000.0", "pressure_limit_Pa = -1.0"
+        )
+    )
+    line = assert_one_line(run(command, "--config", str(path)), 2, f"portal-daq {command}: ")
+    assert "estimator.pressure_limit_Pa" in line
+
+
+def test_monitor_without_a_terminal_asks_for_plain(tmp_path: Path) -> None:
+    path = write_service_config(tmp_path, port=free_port())
+    line = assert_one_line(run("monitor", "--config", str(path)), 2, "portal-daq monitor: ")
+    assert "--plain" in line
+
+
+def test_dashboard_bad_http_address_exits_2(tmp_path: Path) -> None:
+    path = write_service_config(tmp_path, port=free_port())
+    result = run("dashboard", "--config", str(path), "--http", "localhost")
+    assert "expected HOST:PORT" in assert_one_line(result, 2, "portal-daq dashboard: --http: ")
+
+
+def test_dashboard_taken_http_port_exits_1(tmp_path: Path) -> None:
+    path = write_service_config(tmp_path, port=free_port())
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        result = run("dashboard", "--config", str(path), "--http", f"127.0.0.1:{port}")
+    line = assert_one_line(result, 1, "portal-daq dashboard: HTTP: cannot listen on ")
+    assert "in use" in line
+
+
+@pytest.mark.parametrize(
+    ("command", "signum"),
+    [("monitor", signal.SIGTERM), ("monitor", signal.SIGINT), ("dashboard", signal.SIGTERM)]
+    + [("dashboard", signal.SIGINT)],
+)
+def test_signals_stop_cleanly_with_status_0(command: str, signum: int, tmp_path: Path) -> None:
+    path = write_service_config(tmp_path, port=free_port())
+    extra = ["--plain"] if command == "monitor" else ["--http", "127.0.0.1:0"]
+    process = subprocess.Popen(
+        [sys.executable, "-m", "daq", command, "--config", str(path), *extra],
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        assert process.stdout is not None
+        first = process.stdout.readline()  # the first line: it is running
+        assert first.strip(), process.stderr.read() if process.stderr else ""
+        process.send_signal(signum)
+        assert process.wait(timeout=WAIT_S) == 0
+    finally:
+        if process.poll() is None:
+            process.kill()
+        _, stderr = process.communicate()
+    assert stderr == ""
+    if command == "dashboard":
+        assert first.startswith("dashboard of portal/pam-proto-1 on http://127.0.0.1:")
+    else:
+        assert "waiting for portal/pam-proto-1/status" in first
