@@ -15,8 +15,11 @@ import threading
 from collections.abc import Sequence
 from pathlib import Path
 
+from daq.dashboard.cli import dashboard_main
 from daq.errors import ConfigError, DbcError, PortalDaqError
+from daq.monitor.cli import monitor_main
 from daq.replay import replay
+from daq.report import report_main
 from daq.runner import run_service
 from daq.service_config import load_service_config
 
@@ -27,6 +30,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = list(sys.argv[1:] if argv is None else argv)
     if args[:1] == ["replay"]:
         return replay_main(args[1:])
+    if args[:1] == ["report"]:
+        return report_main(args[1:])
+    if args[:1] == ["monitor"]:
+        return monitor_main(args[1:])
+    if args[:1] == ["dashboard"]:
+        return dashboard_main(args[1:])
     parser = argparse.ArgumentParser(
         prog=PROG,
         description="CAN-bus DAQ and soil-pressure estimation; `portal-daq replay -h` "

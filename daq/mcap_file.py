@@ -8,6 +8,8 @@ Topics, each with a JSON Schema (``jsonschema``) and JSON messages:
 ``/signals/<MESSAGE>``   the decoded signals of each good frame
 ``/leg/<LEG>/ground``    each leg estimate
 ``/daq/bus``             bus state changes (:data:`BUS_TOPIC`)
+``/sim/truth``           simulation ground truth, when a simulator bridge
+                         publishes it (:data:`TRUTH_TOPIC`)
 =======================  ===================================================
 
 The file also carries the configuration and the DBC as attachments, so that a
@@ -29,6 +31,7 @@ RAW_TOPIC = "/can/raw"
 BUS_TOPIC = "/daq/bus"
 SIGNALS_TOPIC = "/signals/{message}"
 LEG_TOPIC = "/leg/{leg}/ground"
+TRUTH_TOPIC = "/sim/truth"
 #: MCAP profile: none of the standard ones (ros1, ros2) fits JSON messages.
 PROFILE = ""
 #: Attachment names of the configuration and the DBC.
@@ -157,6 +160,13 @@ class McapFile:
             schemas.BUS_EVENT,
             _ns(event.t_s),
             payloads.bus_event(event),
+        )
+
+    def write_truth(self, sample: payloads.JsonObject) -> None:
+        """A simulation truth sample (see :func:`daq.sim_truth.truth_payload`), logged at
+        its frame time ``t_unix_s``."""
+        self._write(
+            TRUTH_TOPIC, "portal_daq.SimTruth", schemas.SIM_TRUTH, _ns(sample["t_unix_s"]), sample
         )
 
     def _write(

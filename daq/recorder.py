@@ -6,7 +6,10 @@ is dropped and counted. The recorder thread serialises to JSON, writes through
 :class:`~daq.mcap_file.McapFile`, writes the chunk in progress out every
 ``flush_period_s`` and starts a new file when one reaches ``max_bytes`` or spans
 ``max_duration_s`` of frame time. Files are named
-``<machine>_<UTC start, YYYYmmddTHHMMSS.mmmZ>.mcap``.
+``<machine>_<UTC start, YYYYmmddTHHMMSS.mmmZ>.mcap``. Simulation truth samples
+(:class:`~daq.sim_truth.TruthRecord`, from a simulator bridge) are submitted the same
+way and written to ``/sim/truth``; one that is not a valid sample is counted
+(:attr:`Recorder.rejected`) and skipped.
 
 A write error (disk full, directory gone) is logged and counted, the file is
 abandoned and a new one tried after :data:`RETRY_AFTER_S`; it never stops the
@@ -29,6 +32,7 @@ from daq.frames import BusEvent
 from daq.mcap_file import CountingFile, McapFile
 from daq.pipeline import FrameResult
 from daq.service_config import RecordingSettings
+from daq.sim_truth import TruthRecord, truth_payload
 
 logger = logging.getLogger(__name__)
 
@@ -37,7 +41,7 @@ RETRY_AFTER_S = 5.0
 #: On close, queued items are still written for at most this long.
 DRAIN_S = 0.5
 
-Item = FrameResult | BusEvent
+Item = FrameResult | BusEvent | TruthRecord
 
 
 def file_name(machine_id: str, t_s: float) -> str:
@@ -85,6 +89,8 @@ class Recorder:
         self.dropped = 0
         #: Write errors.
         self.errors = 0
+        #: Truth samples skipped because they were not valid samples.
+        self.rejected = 0
         #: Files begun, and the current one.
         self.paths: list[Path] = []
 
@@ -180,6 +186,14 @@ class Recorder:
         assert mcap is not None
         if isinstance(item, FrameResult):
             self._guarded(lambda: mcap.write_result(item))
+        elif isinstance(item, TruthRecord):
+            sample = truth_payload(item)
+            if sample is None:
+                self.rejected += 1
+                if self.rejected == 1:
+                    logger.warning("skipping a truth sample that is not valid (counting them)")
+                return
+            self._guarded(lambda: mcap.write_truth(sample))
         else:
             self._guarded(lambda: mcap.write_event(item))
 

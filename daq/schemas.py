@@ -74,6 +74,32 @@ BUS_EVENT = _object(
 )
 
 
+_LEG_TRUTH = {
+    "type": "object",
+    "properties": {
+        "force_true_N": _NUMBER | {"description": "true vertical foot force"},
+        "p_piston_Pa": _NUMBER | {"description": "simulated piston chamber pressure"},
+        "p_rod_Pa": _NUMBER | {"description": "simulated rod chamber pressure"},
+        "pressure_true_Pa": _NUMBER | {"description": "force_true_N / A_foot_m2"},
+    },
+}
+
+#: ``/sim/truth``: a simulator bridge sample as published on ``<prefix>/sim/truth``
+#: (same name and fields as the bridge's own ``--truth-mcap`` channel).
+SIM_TRUTH: Schema = {
+    "$schema": "https://json-schema.org/draft/2020-12/schema",
+    "title": "portal_daq.SimTruth",
+    "type": "object",
+    "properties": {
+        "t_unix_s": {"type": "number", "description": "frame time of the sample, Unix seconds"},
+        "t_cycle_s": {"type": "number", "description": "time since the cycle started, s"},
+        "cycle": {"type": "integer", "description": "completed cycles"},
+        "legs": {"type": "object", "additionalProperties": _LEG_TRUTH},
+    },
+    "required": ["t_unix_s", "legs"],
+}
+
+
 def signals_schema(message: Message) -> Schema:
     """Schema of ``/signals/<MESSAGE>``: the message's signals by name."""
     signal_types: dict[str, Any] = {}

@@ -7,6 +7,7 @@ session and a temporary directory). Data path::
 
     bus --recv--> BusReader --queue--> Consumer (Pipeline) --queue--> ZenohPublisher
                                                          \\--queue--> Recorder (MCAP)
+    Zenoh <prefix>/sim/truth --> TruthSubscriber --queue--> Recorder (/sim/truth)
 
 :meth:`Service.run` is the main thread's loop: READY=1 once the bus is open
 (the session is open before the service exists), ``<prefix>/status`` and
@@ -39,6 +40,7 @@ from daq.publisher import ZenohPublisher
 from daq.recorder import Recorder
 from daq.sd_notify import SdNotifier
 from daq.service_config import ServiceConfig
+from daq.sim_truth import TRUTH_KEY, TruthSubscriber
 
 logger = logging.getLogger(__name__)
 
@@ -68,6 +70,11 @@ class Service:
             session, config.zenoh.key_prefix, queue_size=config.publish.queue_size
         )
         self.recorder = recorder
+        #: Records the simulator bridge's truth, if any is published (``[recording] truth``).
+        self.truth: TruthSubscriber | None = None
+        if recorder is not None and config.recording.truth:
+            key = f"{config.zenoh.key_prefix}/{TRUTH_KEY}"
+            self.truth = TruthSubscriber(session, key, recorder.submit)
         self.notifier = notifier or SdNotifier(None)
         self.reader = BusReader(
             open_bus, self.inbox, channel=config.bus.channel, link_up=link_up, now=now
@@ -102,6 +109,8 @@ class Service:
         self.publisher.start()
         if self.recorder is not None:
             self.recorder.start()
+        if self.truth is not None:
+            self.truth.start()
         self.consumer.start()
         self.reader.start()
 
@@ -113,6 +122,8 @@ class Service:
         self.reader.close()
         self.consumer.close()
         self.publisher.close()
+        if self.truth is not None:
+            self.truth.close()
         if self.recorder is not None:
             self.recorder.close()
 

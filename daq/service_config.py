@@ -94,6 +94,9 @@ class RecordingSettings:
     flush_period_s: float = 1.0
     #: Results waiting for the recorder thread; beyond, they are dropped and counted.
     queue_size: int = 20_000
+    #: Also record the simulator bridge's ground truth (``<prefix>/sim/truth`` on
+    #: Zenoh) on the ``/sim/truth`` channel, whenever a bridge publishes it.
+    truth: bool = True
 
 
 @dataclass(frozen=True)
@@ -223,4 +226,5 @@ def _recording(table: TomlTable, config_dir: Path) -> RecordingSettings:
         chunk_size=chunk_size,
         flush_period_s=_positive(table, "flush_period_s", defaults.flush_period_s),
         queue_size=_positive_int(table, "queue_size", defaults.queue_size),
+        truth=table.boolean("truth", defaults.truth),
     )

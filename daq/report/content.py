@@ -1,0 +1,124 @@
+"""What a report says about one recording: cycles, metrics, deviations; and line gaps.
+
+Pure: :func:`analyse` turns a :class:`~daq.report.tracks.Recording` into a
+:class:`ReportContent`, which the figures (:mod:`daq.report.figures`) and the page
+(:mod:`daq.report.page`) only draw.
+"""
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from daq.report.cycles import (
+    Cycle,
+    CycleMetrics,
+    PhaseSpan,
+    cycle_metrics,
+    phase_spans,
+    split_cycles,
+)
+from daq.report.deviation import (
+    DeviationStats,
+    LegComparison,
+    compare,
+    deviation_stats,
+    most_loaded,
+    sample_period_s,
+)
+from daq.report.tracks import BoolArray, FloatArray, Recording
+from estimator.settings import EstimatorSettings
+
+#: Without a machine configuration, a step longer than this many sample periods of a
+#: leg is drawn as a gap (the service's own default staleness is 3 cycle times).
+GAP_PERIODS = 3.0
+
+
+@dataclass(frozen=True)
+class ReportContent:
+    """Everything the report shows, computed."""
+
+    recording: Recording
+    #: The estimator settings the metrics use (the machine's, or the defaults).
+    settings: EstimatorSettings
+    cycles: list[Cycle]
+    phases: list[PhaseSpan]
+    #: Per cycle, per leg.
+    metrics: list[CycleMetrics]
+    #: Leg -> a step between two estimates longer than this is a gap (and, in the
+    #: metrics, adds at most this to the time above the limit).
+    gap_after_s: Mapping[str, float]
+    #: Only with truth in the recording: leg -> matched samples, and their statistics.
+    comparisons: Mapping[str, LegComparison]
+    deviations: Mapping[str, DeviationStats]
+    #: The leg with the highest mean true force (for Figure 5), if any.
+    most_loaded: str | None
+
+
+def gap_after_s(recording: Recording) -> dict[str, float]:
+    """Per leg: the machine's staleness time, else :data:`GAP_PERIODS` sample periods."""
+    machine = recording.machine
+    gaps: dict[str, float] = {}
+    for leg, track in recording.legs.items():
+        if machine is not None and leg in machine.legs:
+            cycles = machine.estimator.stale_after_cycles
+            gaps[leg] = cycles * machine.legs[leg].cycle_time_s
+        else:
+            gaps[leg] = GAP_PERIODS * sample_period_s(track.t_s)
+    return gaps
+
+
+def analyse(recording: Recording) -> ReportContent:
+    """Split into cycles, compute each cycle's metrics and, with truth, the deviations."""
+    machine = recording.machine
+    settings = machine.estimator if machine is not None else EstimatorSettings()
+    cycles = split_cycles(recording.state, recording.start_t_s, recording.end_t_s)
+    gaps = gap_after_s(recording)
+    metrics = cycle_metrics(
+        recording.legs,
+        cycles,
+        limit_Pa=settings.pressure_limit_Pa,
+        window_s=settings.near_constant_window_s,
+        max_gap_s={leg: gap for leg, gap in gaps.items() if math.isfinite(gap)},
+    )
+    comparisons = {}
+    if len(recording.truth):
+        comparisons = compare(recording.legs, recording.truth, settings.median_window)
+    deviations = {leg: deviation_stats(c) for leg, c in comparisons.items()}
+    return ReportContent(
+        recording=recording,
+        settings=settings,
+        cycles=cycles,
+        phases=phase_spans(recording.state, recording.end_t_s),
+        metrics=metrics,
+        gap_after_s=gaps,
+        comparisons=comparisons,
+        deviations=deviations,
+        most_loaded=most_loaded(deviations),
+    )
+
+
+def with_gaps(
+    t_s: FloatArray, values: FloatArray, valid: BoolArray | None, gap_after_s: float
+) -> tuple[FloatArray, FloatArray]:
+    """``values`` ready to draw as a line: NaN where not ``valid``, and a NaN point
+    inserted wherever two samples are more than ``gap_after_s`` apart.
+
+    >>> import numpy as np
+    >>> t, v = with_gaps(np.array([0.0, 0.01, 0.1, 0.11]), np.array([1.0, 2, 3, 4]),
+    ...                  np.array([True, False, True, True]), 0.03)
+    >>> t.tolist(), v.tolist()
+    ([0.0, 0.01, 0.055, 0.1, 0.11], [1.0, nan, nan, 3.0, 4.0])
+    """
+    shown = np.array(values, dtype=np.float64)
+    if valid is not None:
+        shown[~np.asarray(valid, dtype=np.bool_)] = np.nan
+    if not math.isfinite(gap_after_s) or t_s.size < 2:
+        return np.array(t_s, dtype=np.float64), shown
+    breaks = np.flatnonzero(np.diff(t_s) > gap_after_s) + 1
+    midpoints = (t_s[breaks - 1] + t_s[breaks]) / 2
+    return (
+        np.insert(t_s, breaks, midpoints).astype(np.float64),
+        np.insert(shown, breaks, np.nan).astype(np.float64),
+    )

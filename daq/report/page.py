@@ -1,0 +1,223 @@
+"""The report as one self-contained HTML page (pure: content and PNG bytes in, text out).
+
+Every picture is embedded as a base64 ``data:`` URI, so the page alone can be mailed or
+archived; each also links to its PNG file next to the page (relative ``href``) for
+full-size viewing. No scripts, fonts or style sheets from elsewhere.
+"""
+
+import base64
+import html
+import math
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from datetime import UTC, datetime
+
+from daq.report.content import ReportContent
+from daq.report.figures import PAPER_ABS50_N, PAPER_ABS95_N
+
+STYLE = """
+body { font-family: sans-serif; margin: 1.5em auto; max-width: 1400px; color: #222; }
+h1 { font-size: 1.4em; } h2 { font-size: 1.15em; margin-top: 1.8em; }
+table { border-collapse: collapse; margin: 0.6em 0; font-size: 0.9em; }
+th, td { border: 1px solid #ccc; padding: 0.2em 0.6em; text-align: right; }
+th { background: #f0f0f0; } td.text, th.text { text-align: left; }
+img { max-width: 100%; border: 1px solid #ddd; }
+.note { color: #555; font-size: 0.9em; }
+"""
+
+
+@dataclass(frozen=True, slots=True)
+class Picture:
+    """One PNG of the report: its file name (next to the page), caption and bytes."""
+
+    file_name: str
+    caption: str
+    png: bytes
+
+
+def _number(value: float, scale: float = 1.0, digits: int = 1) -> str:
+    return f"{value / scale:.{digits}f}" if math.isfinite(value) else "n/a"
+
+
+def _time(t_s: float) -> str:
+    return f"{datetime.fromtimestamp(t_s, UTC):%Y-%m-%d %H:%M:%S.%f}"[:-3] + " UTC"
+
+
+def _table(header: Sequence[str], rows: Iterable[Sequence[str]], text_columns: int = 1) -> str:
+    def row(cells: Sequence[str], tag: str) -> str:
+        return (
+            "<tr>"
+            + "".join(
+                f"<{tag}{' class=text' if i < text_columns else ''}>{html.escape(c)}</{tag}>"
+                for i, c in enumerate(cells)
+            )
+            + "</tr>"
+        )
+
+    body = "\n".join(row(cells, "td") for cells in rows)
+    return f"<table>\n{row(header, 'th')}\n{body}\n</table>"
+
+
+def _counts(counts: Mapping[str, int]) -> str:
+    return ", ".join(f"{name} {count}" for name, count in counts.items()) or "none"
+
+
+def _picture(picture: Picture) -> str:
+    data = base64.b64encode(picture.png).decode("ascii")
+    name = html.escape(picture.file_name, quote=True)
+    caption = html.escape(picture.caption)
+    return (
+        f'<figure><a href="{name}"><img src="data:image/png;base64,{data}" alt="{caption}">'
+        f'</a><figcaption class=note>{caption} (<a href="{name}">{name}</a>)</figcaption>'
+        "</figure>"
+    )
+
+
+def header_rows(content: ReportContent) -> list[tuple[str, str]]:
+    """(item, value) rows of the header table."""
+    recording = content.recording
+    counts = recording.counts
+    source = "recomputed from /can/raw (none recorded)" if recording.recomputed else "recorded"
+    return [
+        ("machine", recording.machine_id),
+        ("file", recording.name + ("" if recording.complete else " (cut short: no summary)")),
+        ("first frame", _time(recording.start_t_s)),
+        ("last frame", _time(recording.end_t_s)),
+        ("duration", f"{recording.duration_s:.2f} s"),
+        ("frames", str(counts.frames)),
+        ("decoded frames per message", _counts(counts.messages)),
+        ("bad frames by kind", _counts(counts.bad)),
+        ("leg estimates", f"{counts.estimates} ({source})"),
+        ("invalid estimates by reason", _counts(counts.invalid)),
+        ("bus state changes", str(counts.bus_events)),
+        ("simulation truth samples", str(counts.truth_samples)),
+        ("cycles", str(len(content.cycles))),
+    ]
+
+
+def metrics_rows(content: ReportContent) -> list[list[str]]:
+    t0 = content.recording.start_t_s
+    return [
+        [
+            row.cycle.label,
+            row.leg,
+            _number(row.metrics.peak_pressure_Pa, 1e3),
+            _number(row.metrics.peak_t_s - t0, digits=2),
+            _number(row.metrics.near_constant_pressure_Pa, 1e3),
+            _number(row.metrics.near_constant_t_s - t0, digits=2),
+            _number(row.metrics.time_above_limit_s, digits=2),
+            str(row.metrics.samples),
+        ]
+        for row in content.metrics
+    ]
+
+
+def deviation_rows(content: ReportContent) -> list[list[str]]:
+    rows = []
+    for leg, stats in content.deviations.items():
+        within = stats.abs50_N <= PAPER_ABS50_N and stats.abs95_N <= PAPER_ABS95_N
+        rows.append(
+            [
+                leg,
+                str(stats.samples),
+                _number(stats.median_N, 1e3, 3),
+                _number(stats.mean_N, 1e3, 3),
+                _number(stats.abs50_N, 1e3, 3),
+                _number(stats.abs95_N, 1e3, 3),
+                _number(stats.max_abs_N, 1e3, 3),
+                _number(stats.mean_true_N, 1e3, 1),
+                ("yes" if within else "no") if stats.samples else "n/a",
+                _number(stats.published_abs95_N, 1e3, 3),
+            ]
+        )
+    return rows
+
+
+def render_page(content: ReportContent, pictures: Mapping[str, Picture]) -> str:
+    """The HTML page; ``pictures`` by role: ``pressure``, ``force``, ``cycles`` and, with
+    truth, ``comparison`` and ``deviation``."""
+    recording = content.recording
+    settings = content.settings
+    t0 = recording.start_t_s
+    parts = [
+        "<!DOCTYPE html>",
+        '<html lang="en"><head><meta charset="utf-8">',
+        f"<title>{html.escape(recording.machine_id)}: {html.escape(recording.name)}</title>",
+        f"<style>{STYLE}</style></head><body>",
+        f"<h1>Test run report: {html.escape(recording.machine_id)}, "
+        f"{html.escape(recording.name)}</h1>",
+        _table(("item", "value"), header_rows(content), text_columns=2),
+        "<h2>Contact pressure and ground force per foot</h2>",
+        "<p class=note>Filtered estimates (running median of eq. 4; pressure = force / foot "
+        "area) as recorded; invalid samples and missing frames are gaps. Shaded: movement "
+        "phases; dotted vertical lines: cycle starts.</p>",
+    ]
+    parts += [_picture(pictures[role]) for role in ("pressure", "force") if role in pictures]
+    parts += [
+        "<h2>Soil pressure per cycle</h2>",
+        "<p class=note>Cycles from MACHINE_STATE (Machine_CycleCount); without it the whole "
+        f"recording is one. Near-constant: the highest mean over a sliding "
+        f"{settings.near_constant_window_s:g} s window (needs a cycle of at least that "
+        f"long); time above the limit of {settings.pressure_limit_Pa / 1e3:g} kPa. Times "
+        "in s since the first frame.</p>",
+        _table(
+            ("cycle", "start / s", "end / s", "duration / s"),
+            (
+                [
+                    c.label,
+                    _number(c.start_s - t0, digits=2),
+                    _number(c.end_s - t0, digits=2),
+                    _number(c.duration_s, digits=2),
+                ]
+                for c in content.cycles
+            ),
+        ),  # fmt: skip
+        _table(
+            (
+                "cycle",
+                "leg",
+                "peak / kPa",
+                "at / s",
+                "near-constant / kPa",
+                "window end / s",
+                "above limit / s",
+                "valid samples",
+            ),
+            metrics_rows(content),
+            text_columns=2,
+        ),
+    ]
+    if "cycles" in pictures:
+        parts.append(_picture(pictures["cycles"]))
+    parts.append("<h2>Calculated vs. simulated ground force</h2>")
+    if content.deviations:
+        parts += [
+            "<p class=note>Each valid estimate matched to the simulation truth sample "
+            "nearest in time (within half a truth sample period); deviation = calculated - "
+            "true force. Calculated: eq. (4) with the median centred on the frame, like the "
+            "paper's offline filter (the running median "
+            f"{(settings.median_window - 1) // 2} samples later). The paper (section 3.4) "
+            f"finds, for the legs on the ground, 50 % within ±{PAPER_ABS50_N / 1e3:g} kN and "
+            f"95 % within ±{PAPER_ABS95_N / 1e3:g} kN. Last column: the same for the values "
+            "as published live, which lag by the filter's delay.</p>",
+            _table(
+                (
+                    "leg",
+                    "samples",
+                    "median / kN",
+                    "mean / kN",
+                    "50 % |dev| <= kN",
+                    "95 % |dev| <= kN",
+                    "max |dev| / kN",
+                    "mean true force / kN",
+                    "within paper bounds",
+                    "95 % |dev| as published <= kN",
+                ),
+                deviation_rows(content),
+            ),
+        ]
+        parts += [_picture(pictures[r]) for r in ("comparison", "deviation") if r in pictures]
+    else:
+        parts.append("<p class=note>No simulation truth (/sim/truth) in this recording.</p>")
+    parts.append("</body></html>")
+    return "\n".join(parts) + "\n"

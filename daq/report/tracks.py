@@ -1,0 +1,299 @@
+"""What a report needs from one recording, as arrays: legs, machine state, truth, counts.
+
+Pure: :class:`RecordingCollector` takes the recording's messages one by one (topic and
+JSON payload, as :mod:`daq.mcap_file` wrote them) and builds a :class:`Recording`.
+Opening the file is :mod:`daq.report.loading`'s job.
+
+All times are frame times, Unix seconds (``t_s``). A recorded ``null`` (NaN) stays NaN.
+"""
+
+import json
+from collections import Counter, defaultdict
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from daq.machine import MachineConfig
+from daq.mcap_file import BUS_TOPIC, RAW_TOPIC, TRUTH_TOPIC
+from daq.pipeline import COUNTER_FAULT, CRC_FAULT
+
+FloatArray = npt.NDArray[np.float64]
+BoolArray = npt.NDArray[np.bool_]
+IntArray = npt.NDArray[np.int64]
+
+#: The message whose signals delimit movement cycles, and those signals.
+STATE_TOPIC = "/signals/MACHINE_STATE"
+CYCLE_COUNT = "Machine_CycleCount"
+CYCLE_TIME = "Machine_CycleTime"
+PHASE = "Machine_Phase"
+
+#: (t, force_N, pressure_Pa, valid), (t, count, cycle time, phase), (t, {leg: force}).
+LegRow = tuple[float, float, float, bool]
+StateRow = tuple[float, int, float, str]
+TruthRow = tuple[float, dict[str, float]]
+
+SIGNALS_PREFIX = "/signals/"
+LEG_PREFIX, LEG_SUFFIX = "/leg/", "/ground"
+
+
+def _number(value: Any) -> float:
+    """A JSON number as float; null (a NaN on the way in) and anything else as NaN."""
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return float("nan")
+    return float(value)
+
+
+@dataclass(frozen=True)
+class LegTrack:
+    """One leg's recorded estimates, in time order."""
+
+    leg: str
+    t_s: FloatArray
+    #: Running median of the valid raw forces (eq. 4); NaN before the first valid sample.
+    force_N: FloatArray
+    #: Eq. (5) on ``force_N``.
+    pressure_Pa: FloatArray
+    valid: BoolArray
+
+    @staticmethod
+    def row(payload: Mapping[str, Any]) -> LegRow:
+        """What a track keeps of one ``/leg/<LEG>/ground`` payload."""
+        return (
+            _number(payload["t"]),
+            _number(payload["force_N"]),
+            _number(payload["pressure_Pa"]),
+            bool(payload["valid"]),
+        )
+
+    @classmethod
+    def of(cls, leg: str, rows: Iterable[LegRow]) -> "LegTrack":
+        ordered = sorted(rows, key=lambda row: row[0])
+        columns = list(zip(*ordered, strict=True)) if ordered else [(), (), (), ()]
+        return cls(
+            leg=leg,
+            t_s=np.array(columns[0], dtype=np.float64),
+            force_N=np.array(columns[1], dtype=np.float64),
+            pressure_Pa=np.array(columns[2], dtype=np.float64),
+            valid=np.array(columns[3], dtype=np.bool_),
+        )
+
+
+@dataclass(frozen=True)
+class StateTrack:
+    """``MACHINE_STATE`` frames whose CRC was fine, in time order."""
+
+    t_s: FloatArray
+    #: Completed movement cycles (``Machine_CycleCount``).
+    cycle_count: IntArray
+    #: Time since the cycle started (``Machine_CycleTime``), s.
+    cycle_time_s: FloatArray
+    #: Movement phase name (``Machine_Phase``), or its number as text.
+    phase: tuple[str, ...]
+
+    @staticmethod
+    def row(payload: Mapping[str, Any]) -> StateRow | None:
+        """What a track keeps of one ``/signals/MACHINE_STATE`` payload; None for a frame
+        whose CRC failed or that has no cycle count."""
+        signals = payload["signals"]
+        count = signals.get(CYCLE_COUNT)
+        if not payload.get("crc_ok", True) or not isinstance(count, int | float):
+            return None
+        return (
+            _number(payload["t"]),
+            int(count),
+            _number(signals.get(CYCLE_TIME)),
+            str(signals.get(PHASE, "")),
+        )
+
+    @classmethod
+    def of(cls, rows: Iterable[StateRow]) -> "StateTrack":
+        ordered = sorted(rows, key=lambda row: row[0])
+        columns = list(zip(*ordered, strict=True)) if ordered else [(), (), (), ()]
+        return cls(
+            t_s=np.array(columns[0], dtype=np.float64),
+            cycle_count=np.array(columns[1], dtype=np.int64),
+            cycle_time_s=np.array(columns[2], dtype=np.float64),
+            phase=tuple(columns[3]),
+        )
+
+    def __len__(self) -> int:
+        return int(self.t_s.size)
+
+
+@dataclass(frozen=True)
+class TruthTrack:
+    """Simulation truth samples (``/sim/truth``), in time order."""
+
+    #: Frame time of each sample: when its frames went onto the bus.
+    t_s: FloatArray
+    #: Leg -> true vertical foot force per sample (NaN: unknown).
+    force_true_N: Mapping[str, FloatArray]
+
+    @staticmethod
+    def row(payload: Mapping[str, Any]) -> TruthRow:
+        """What a track keeps of one ``/sim/truth`` payload: time, true force per leg."""
+        legs = payload["legs"]
+        return (
+            _number(payload["t_unix_s"]),
+            {leg: _number((legs[leg] or {}).get("force_true_N")) for leg in legs},
+        )
+
+    @classmethod
+    def of(cls, rows: Iterable[TruthRow]) -> "TruthTrack":
+        ordered = sorted(rows, key=lambda row: row[0])
+        legs = sorted({leg for _, forces in ordered for leg in forces})
+        nan = float("nan")
+        return cls(
+            t_s=np.array([t_s for t_s, _ in ordered], dtype=np.float64),
+            force_true_N={
+                leg: np.array([forces.get(leg, nan) for _, forces in ordered], dtype=np.float64)
+                for leg in legs
+            },
+        )
+
+    def __len__(self) -> int:
+        return int(self.t_s.size)
+
+
+@dataclass(frozen=True)
+class RecordingCounts:
+    """What went by in the recording, for the report's header."""
+
+    #: Frames recorded (``/can/raw``), bad ones included.
+    frames: int = 0
+    #: Decoded frames per message (``/signals/<MESSAGE>``).
+    messages: Mapping[str, int] = field(default_factory=dict)
+    #: Bad frames by kind, as the service counts them: ``unknown_id``, ``wrong_dlc``,
+    #: ``decode_error``, ``error_frame``, ``remote_frame``, and ``crc`` / ``counter`` for
+    #: decoded frames whose protection failed.
+    bad: Mapping[str, int] = field(default_factory=dict)
+    #: Leg estimates, and the invalid ones by reason.
+    estimates: int = 0
+    invalid: Mapping[str, int] = field(default_factory=dict)
+    #: Bus state changes (``/daq/bus``) and truth samples (``/sim/truth``).
+    bus_events: int = 0
+    truth_samples: int = 0
+
+
+@dataclass(frozen=True)
+class Recording:
+    """Everything a report shows of one recording."""
+
+    #: File name of the recording (for the header).
+    name: str
+    machine_id: str
+    #: The machine configuration (``--config``, or the one embedded); None if neither.
+    machine: MachineConfig | None
+    #: First and last frame time in the recording.
+    start_t_s: float
+    end_t_s: float
+    legs: Mapping[str, LegTrack]
+    state: StateTrack
+    truth: TruthTrack
+    counts: RecordingCounts
+    #: The estimates were recomputed from ``/can/raw`` (none were recorded).
+    recomputed: bool = False
+    #: The file ended with its summary (False: cut short, read to its last chunk).
+    complete: bool = True
+
+    @property
+    def duration_s(self) -> float:
+        return max(0.0, self.end_t_s - self.start_t_s)
+
+
+class RecordingCollector:
+    """Gathers a recording's messages; :meth:`recording` builds the :class:`Recording`."""
+
+    def __init__(self) -> None:
+        self._legs: dict[str, list[LegRow]] = defaultdict(list)
+        self._state: list[StateRow] = []
+        self._truth: list[TruthRow] = []
+        self._frames = 0
+        self._messages: Counter[str] = Counter()
+        self._bad: Counter[str] = Counter()
+        self._invalid: Counter[str] = Counter()
+        self._bus_events = 0
+        self._first_s = float("inf")
+        self._last_s = float("-inf")
+
+    @property
+    def has_estimates(self) -> bool:
+        return bool(self._legs)
+
+    @property
+    def frames(self) -> int:
+        return self._frames
+
+    def add(self, topic: str, data: bytes) -> None:
+        """One recorded message (its JSON bytes); topics a report does not use are skipped."""
+        if topic == RAW_TOPIC:
+            raw = json.loads(data)
+            self._frames += 1
+            self._seen(raw["t"])
+            if raw.get("error") is not None:
+                self._bad[raw["error"]] += 1
+        elif topic.startswith(SIGNALS_PREFIX):
+            signals = json.loads(data)
+            self._messages[topic.removeprefix(SIGNALS_PREFIX)] += 1
+            if not signals.get("crc_ok", True):
+                self._bad[CRC_FAULT] += 1
+            elif not signals.get("counter_ok", True):
+                self._bad[COUNTER_FAULT] += 1
+            state = StateTrack.row(signals) if topic == STATE_TOPIC else None
+            if state is not None:
+                self._state.append(state)
+        elif topic.startswith(LEG_PREFIX) and topic.endswith(LEG_SUFFIX):
+            self.add_estimate(json.loads(data))
+        elif topic == TRUTH_TOPIC:
+            self._truth.append(TruthTrack.row(json.loads(data)))
+        elif topic == BUS_TOPIC:
+            self._bus_events += 1
+
+    def add_estimate(self, payload: dict[str, Any]) -> None:
+        """One leg estimate in the shape of :func:`daq.payloads.leg_ground`."""
+        self._legs[payload["leg"]].append(LegTrack.row(payload))
+        self._seen(payload["t"])
+        self._invalid.update(payload["reasons"])
+
+    def _seen(self, t_s: Any) -> None:
+        t = _number(t_s)
+        if t == t:  # not NaN
+            self._first_s = min(self._first_s, t)
+            self._last_s = max(self._last_s, t)
+
+    def recording(
+        self,
+        name: str,
+        machine: MachineConfig | None,
+        *,
+        machine_id: str,
+        recomputed: bool = False,
+        complete: bool = True,
+    ) -> Recording:
+        legs = list(machine.legs) if machine is not None else []
+        legs += sorted(leg for leg in self._legs if leg not in legs)
+        first, last = (self._first_s, self._last_s) if self._last_s >= self._first_s else (0, 0)
+        return Recording(
+            name=name,
+            machine_id=machine_id,
+            machine=machine,
+            start_t_s=float(first),
+            end_t_s=float(last),
+            legs={leg: LegTrack.of(leg, self._legs.get(leg, ())) for leg in legs},
+            state=StateTrack.of(self._state),
+            truth=TruthTrack.of(self._truth),
+            counts=RecordingCounts(
+                frames=self._frames,
+                messages=dict(sorted(self._messages.items())),
+                bad=dict(self._bad.most_common()),
+                estimates=sum(len(rows) for rows in self._legs.values()),
+                invalid=dict(self._invalid.most_common()),
+                bus_events=self._bus_events,
+                truth_samples=len(self._truth),
+            ),
+            recomputed=recomputed,
+            complete=complete,
+        )
