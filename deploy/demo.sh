@@ -32,7 +32,8 @@ trap 'kill $service 2>/dev/null || true' EXIT
     --duration "$cycle_s" &
 monitor=$!
 "$PY" -m sim_bridge --config deploy/machine.example.toml --channel vcan0 --speed "$SPEED" \
-    --cycles 1 --zenoh --mode peer --connect "$endpoint" --no-multicast-scouting \
+    --cycles 1 --zenoh --mode peer --connect "$endpoint" --listen tcp/127.0.0.1:0 \
+    --no-multicast-scouting \
     --truth-csv "$work/truth.csv" -q
 wait "$monitor" || true
 kill -TERM "$service" && wait "$service" || true
@@ -41,5 +42,5 @@ trap - EXIT
 recording=$(ls "$work"/recordings/*.mcap | head -n 1)
 "$PY" -m daq report "$recording" --out "$work/report" >/dev/null
 echo "demo: recording $recording"
-echo "demo: report    $work/report/index.html"
+echo "demo: report    $work/report/report.html"
 echo "demo: truth     $work/truth.csv"
