@@ -3,6 +3,13 @@
 Pure computation: bytes and a time stamp in, a :class:`DecodedFrame` out, or a
 :class:`~daq.errors.FrameError` the caller counts. The only state is each
 protected message's last counter value.
+
+Two paths give the same frames: the precompiled one (:mod:`daq._compiled_codec`:
+shifts and masks compiled once per message from the DBC layout, a table-driven
+CRC), used by default, and the reference one (cantools' ``Message.decode`` and
+:func:`daq.protection.payload_crc`), ``FrameDecoder(..., compiled=False)``, which
+also serves the messages the compiler leaves out (multiplexed, container, float
+signals). The tests decode random frames both ways and compare.
 """
 
 from collections.abc import Mapping
@@ -10,10 +17,16 @@ from dataclasses import dataclass
 
 from cantools.database.can import Database, Message
 from cantools.database.namedsignalvalue import NamedSignalValue
+from crc import Crc8
 
+from daq._compiled_codec import CompiledMessage, TableCrc8
 from daq.errors import FrameLengthError, SignalDecodeError, UnknownFrameError
 from daq.machine import Protection
 from daq.protection import CounterCheck, payload_crc
+
+_J1850 = Crc8.SAEJ1850.value
+#: The CRC of daq.protection (CRC-8 SAE J1850), table-driven.
+_TABLE_CRC8 = TableCrc8(_J1850.polynomial, _J1850.init_value, _J1850.final_xor_value)
 
 #: A decoded signal: its physical value in the DBC's unit, or its value-table name.
 SignalValue = float | int | str
@@ -35,10 +48,12 @@ class DecodedFrame:
 
 
 class _MessageCodec:
-    """Decoding and protection of one DBC message."""
+    """Decoding and protection of one DBC message (precompiled unless ``compiled`` is off)."""
 
-    def __init__(self, message: Message, protection: Protection | None) -> None:
+    def __init__(self, message: Message, protection: Protection | None, compiled: bool) -> None:
         self.message = message
+        self.compiled = CompiledMessage.compile(message) if compiled else None
+        self.payload_crc = _TABLE_CRC8.payload_crc if compiled else payload_crc
         self.crc_byte: int | None = None
         self.counter: CounterCheck | None = None
         if protection is not None:
@@ -55,6 +70,20 @@ class _MessageCodec:
                 arbitration_id,
                 f"{message.name} has DLC {len(data)}, the DBC says {message.length}",
             )
+        signals = (
+            self.compiled.decode(data)
+            if self.compiled is not None
+            else self._decode_reference(arbitration_id, data)
+        )
+        crc_ok = counter_ok = True
+        if self.crc_byte is not None and self.counter is not None:
+            crc_ok = self.payload_crc(data, self.crc_byte) == data[self.crc_byte]
+            if crc_ok:
+                counter_ok = self.counter.update(int(signals[self.counter_signal]))
+        return DecodedFrame(message.name, t_s, signals, crc_ok, counter_ok)
+
+    def _decode_reference(self, arbitration_id: int, data: bytes) -> dict[str, SignalValue]:
+        message = self.message
         try:
             decoded = message.decode(data, decode_choices=True, scaling=True)
         except Exception as exc:  # cantools raises several types; every one is a bad frame
@@ -63,31 +92,33 @@ class _MessageCodec:
             raise SignalDecodeError(
                 arbitration_id, f"{message.name}: container messages unsupported"
             )
-        signals: dict[str, SignalValue] = {
+        return {
             name: value.name if isinstance(value, NamedSignalValue) else value
             for name, value in decoded.items()
             if isinstance(value, (int, float, str, NamedSignalValue))
         }
-        crc_ok = counter_ok = True
-        if self.crc_byte is not None and self.counter is not None:
-            crc_ok = payload_crc(data, self.crc_byte) == data[self.crc_byte]
-            if crc_ok:
-                counter_ok = self.counter.update(int(signals[self.counter_signal]))
-        return DecodedFrame(message.name, t_s, signals, crc_ok, counter_ok)
 
 
 class FrameDecoder:
     """Decodes frames of the messages in ``database``; checks the protected ones.
+
+    ``compiled=False`` decodes every message with cantools (the reference path).
 
     >>> decoder = FrameDecoder(database, config.protection)  # doctest: +SKIP
     >>> decoder.decode(0x100, frame_bytes, t_s=1.5).signals["SB1_F1_pPiston"]  # doctest: +SKIP
     12345000
     """
 
-    def __init__(self, database: Database, protection: Mapping[str, Protection]) -> None:
+    def __init__(
+        self,
+        database: Database,
+        protection: Mapping[str, Protection],
+        *,
+        compiled: bool = True,
+    ) -> None:
         self._codecs = {
             (message.frame_id, bool(message.is_extended_frame)): _MessageCodec(
-                message, protection.get(message.name)
+                message, protection.get(message.name), compiled
             )
             for message in database.messages
         }

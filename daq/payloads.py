@@ -20,9 +20,21 @@ from estimator.metrics import SoilMetrics
 JsonObject = dict[str, Any]
 
 
+#: One compact encoder for every payload (``json.dumps`` with options builds one per call).
+_ENCODER = json.JSONEncoder(separators=(",", ":"), allow_nan=False)
+
+
 def json_bytes(payload: Mapping[str, Any]) -> bytes:
-    """Compact UTF-8 JSON; NaN and +-inf become ``null``."""
-    return json.dumps(_finite(payload), separators=(",", ":"), allow_nan=False).encode()
+    """Compact UTF-8 JSON; NaN and +-inf become ``null``. Keys are strings.
+
+    Hot path (every message published and recorded): the payload is encoded as it
+    is, and only when that fails (a NaN or infinity somewhere, or a Mapping that is
+    not a dict) rebuilt with :func:`_finite`; the bytes are the same either way.
+    """
+    try:
+        return _ENCODER.encode(payload).encode()
+    except (ValueError, TypeError):
+        return _ENCODER.encode(_finite(payload)).encode()
 
 
 def _finite(value: Any) -> Any:

@@ -95,9 +95,8 @@ class Pipeline:
             self.bad[CRC_FAULT] += 1
         elif not decoded.counter_ok:
             self.bad[COUNTER_FAULT] += 1
-        estimates = tuple(
-            self.estimator.update(leg, sample) for leg, sample in self.sampler.samples(decoded)
-        )
+        update = self.estimator.update
+        estimates = tuple([update(leg, sample) for leg, sample in self.sampler.samples(decoded)])
         return FrameResult(frame, decoded, None, estimates)
 
     def reset_counters(self) -> None:

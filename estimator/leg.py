@@ -115,7 +115,7 @@ class LegEstimator:
             contact = self._contact.update(force_N)
         pressure_Pa = contact_pressure_Pa(force_N, self.leg.A_foot_m2)
         if not reasons:
-            self._metrics.update(sample.t_s, pressure_Pa)
+            self._metrics.add(sample.t_s, pressure_Pa)
         self._last = LegEstimate(
             leg=self.name,
             t_s=sample.t_s,

@@ -31,6 +31,8 @@ class SoilMetricsTracker:
 
     ``max_gap_s`` caps the time one sample-to-sample step may add above the
     limit, so that a sensor outage is not counted as time above the limit.
+    The running values are plain attributes; :attr:`metrics` builds the frozen
+    :class:`SoilMetrics` from them when asked (once per change), not per sample.
     """
 
     def __init__(self, limit_Pa: float, window_s: float, max_gap_s: float = math.inf) -> None:
@@ -41,7 +43,13 @@ class SoilMetricsTracker:
 
     def reset(self) -> None:
         """Start afresh, e.g. at the beginning of a movement cycle."""
-        self._metrics = SoilMetrics()
+        self._peak_Pa = NAN
+        self._peak_t_s = NAN
+        self._near_Pa = NAN
+        self._near_t_s = NAN
+        self._above_s = 0.0
+        self._samples = 0
+        self._metrics: SoilMetrics | None = SoilMetrics()
         self._window: deque[tuple[float, float]] = deque()
         self._window_sum_Pa = 0.0
         self._first_t_s = NAN
@@ -49,20 +57,32 @@ class SoilMetricsTracker:
 
     @property
     def metrics(self) -> SoilMetrics:
-        return self._metrics
+        metrics = self._metrics
+        if metrics is None:
+            metrics = self._metrics = SoilMetrics(
+                peak_pressure_Pa=self._peak_Pa,
+                peak_t_s=self._peak_t_s,
+                near_constant_pressure_Pa=self._near_Pa,
+                near_constant_t_s=self._near_t_s,
+                time_above_limit_s=self._above_s,
+                samples=self._samples,
+            )
+        return metrics
 
     def update(self, t_s: float, pressure_Pa: float) -> SoilMetrics:
         """Add one valid filtered contact pressure at frame time ``t_s``."""
-        m = self._metrics
-        peak_Pa, peak_t_s = m.peak_pressure_Pa, m.peak_t_s
-        if not pressure_Pa <= peak_Pa:  # also true while the peak is still NaN
-            peak_Pa, peak_t_s = pressure_Pa, t_s
+        self.add(t_s, pressure_Pa)
+        return self.metrics
 
-        above_s = m.time_above_limit_s
+    def add(self, t_s: float, pressure_Pa: float) -> None:
+        """:meth:`update` without building the :class:`SoilMetrics` (the per-frame path)."""
+        if not pressure_Pa <= self._peak_Pa:  # also true while the peak is still NaN
+            self._peak_Pa, self._peak_t_s = pressure_Pa, t_s
+
         if self._previous is not None:
             previous_t_s, previous_Pa = self._previous
             if previous_Pa > self.limit_Pa:
-                above_s += min(t_s - previous_t_s, self.max_gap_s)
+                self._above_s += min(t_s - previous_t_s, self.max_gap_s)
         self._previous = (t_s, pressure_Pa)
 
         if math.isnan(self._first_t_s):
@@ -71,18 +91,10 @@ class SoilMetricsTracker:
         self._window_sum_Pa += pressure_Pa
         while self._window[0][0] <= t_s - self.window_s:
             self._window_sum_Pa -= self._window.popleft()[1]
-        near_Pa, near_t_s = m.near_constant_pressure_Pa, m.near_constant_t_s
         if t_s - self._first_t_s >= self.window_s:
             mean_Pa = self._window_sum_Pa / len(self._window)
-            if not mean_Pa <= near_Pa:
-                near_Pa, near_t_s = mean_Pa, t_s
+            if not mean_Pa <= self._near_Pa:
+                self._near_Pa, self._near_t_s = mean_Pa, t_s
 
-        self._metrics = SoilMetrics(
-            peak_pressure_Pa=peak_Pa,
-            peak_t_s=peak_t_s,
-            near_constant_pressure_Pa=near_Pa,
-            near_constant_t_s=near_t_s,
-            time_above_limit_s=above_s,
-            samples=m.samples + 1,
-        )
-        return self._metrics
+        self._samples += 1
+        self._metrics = None

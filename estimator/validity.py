@@ -36,6 +36,15 @@ def sample_faults(
     settings: EstimatorSettings,
 ) -> tuple[str, ...]:
     """The reasons a freshly received sample is invalid; empty when it is valid."""
+    low, high = settings.pressure_min_Pa, settings.pressure_max_Pa
+    if (
+        crc_ok
+        and counter_ok
+        and status == settings.status_ok
+        and low <= p_piston_Pa <= high
+        and low <= p_rod_Pa <= high
+    ):
+        return ()  # the usual case, first (per frame): the same checks as below
     reasons: list[str] = []
     if not crc_ok:
         reasons.append("crc")

@@ -1,0 +1,1 @@
+"""Benchmarks of portal-daq (``bench/run.py``: the service pipeline against a naive baseline)."""

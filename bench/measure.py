@@ -1,0 +1,133 @@
+"""One measurement: offer frames to a system, wait for every estimate, report.
+
+A system under test (:class:`Target`) takes frames (``send``, which stamps and
+returns the frame time), says how many it processed and how long its publish and
+record queues are. :func:`measure` offers a slice of frames in one of two modes:
+
+- **throughput** (``rate_hz=None``): as fast as the system takes them; the sender
+  waits while more than ``window`` frames are unprocessed or a queue is that long,
+  so nothing is dropped. frames/s = frames / (first send until the last estimate
+  reached the probe and the queues are empty).
+- **paced**: frame ``i`` due at ``start + i / rate_hz``.
+
+Latency is per leg estimate: from the frame's time stamp to the probe's arrival
+time. In paced mode it is also reported from each frame's *due* time (a frame
+the sender could only send late, because it shares the CPU, was "on the wire"
+since then, as a kernel time stamp would say).
+"""
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+import can
+import numpy as np
+
+from bench.cpu import ForeignLoad, cpu_us_per_frame, thread_cpu_ns
+from bench.probe import ProbeProcess
+from bench.sender import Sent, send_backpressured, send_paced
+from bench.stats import latency_stats_ms
+
+
+class Target(Protocol):
+    def send(self, message: can.Message) -> float: ...
+    def processed(self) -> int: ...
+    def queued(self) -> int: ...
+    def wait_processed(self, count: int, timeout_s: float) -> float: ...
+    def counters(self) -> dict[str, Any]: ...
+
+
+@dataclass(frozen=True)
+class Plan:
+    """What one system gets: frame counts, the paced rate, the backlog limit."""
+
+    warmup: int
+    throughput_frames: int
+    paced_frames: int
+    rate_hz: float
+    window: int
+
+
+def measure(
+    target: Target,
+    probe: ProbeProcess,
+    frames: Sequence[can.Message],
+    leg_ids: set[int],
+    *,
+    rate_hz: float | None,
+    window: int,
+    timeout_s: float = 30.0,
+) -> dict[str, Any]:
+    """Offer ``frames`` (paced at ``rate_hz``, or as fast as taken), wait until every
+    estimate arrived, and report frames/s, latency and CPU time per frame."""
+    base = target.processed()
+    expected_legs = sum(1 for frame in frames if frame.arbitration_id in leg_ids)
+    cpu_before = thread_cpu_ns()
+    foreign = ForeignLoad(("self", probe.pid))
+    if rate_hz is None:
+
+        def busy(sent: int) -> bool:
+            return sent - (target.processed() - base) > window or target.queued() > window
+
+        sent: Sent = send_backpressured(target.send, frames, busy)
+    else:
+        sent = send_paced(target.send, frames, rate_hz)
+    done_s = target.wait_processed(base + len(frames), timeout_s)
+    cpu_per_frame = cpu_us_per_frame(cpu_before, thread_cpu_ns(), len(frames))
+    foreign_pct = foreign.percent()
+    received = probe.collect(expected_legs, timeout_s)
+    pairs = np.array(received["leg_samples"], dtype=np.float64).reshape(-1, 2)
+    stamps, arrivals = pairs[:, 0], pairs[:, 1]
+    end_s = max(done_s, float(arrivals.max())) if arrivals.size else done_s
+    elapsed_s = end_s - sent.start_s
+    result: dict[str, Any] = {
+        "mode": "throughput" if rate_hz is None else "paced",
+        "offered_rate_hz": rate_hz,
+        "frames": len(frames),
+        "sent_rate_hz": round(sent.rate_hz, 1),
+        "elapsed_s": round(elapsed_s, 4),
+        "frames_per_s": round(len(frames) / elapsed_s, 1),
+        "processed": target.processed() - base,
+        "leg_estimates_expected": expected_legs,
+        "leg_estimates_received": int(arrivals.size),
+        "other_messages_received": received["other_samples"],
+        "latency_ms": latency_stats_ms(arrivals - stamps),
+    }
+    if sent.due_by_stamp is not None:
+        due = np.array([sent.due_by_stamp.get(stamp, np.nan) for stamp in stamps.tolist()])
+        result["latency_from_due_ms"] = latency_stats_ms((arrivals - due)[~np.isnan(due)])
+        result["late_sends"] = sent.late_frames
+        result["max_send_lateness_ms"] = round(sent.max_lateness_s * 1e3, 3)
+    result["cpu_us_per_frame"] = cpu_per_frame
+    result["other_processes_cpu_pct"] = foreign_pct
+    return result
+
+
+def run_system(
+    target: Target,
+    probe: ProbeProcess,
+    frames: Sequence[can.Message],
+    leg_ids: set[int],
+    plan: Plan,
+) -> dict[str, Any]:
+    """Warm-up, throughput, paced: on consecutive slices of ``frames`` (the rolling
+    counters run on, so every frame passes its checks)."""
+
+    def run(chunk: Sequence[can.Message], rate_hz: float | None) -> dict[str, Any]:
+        return measure(target, probe, chunk, leg_ids, rate_hz=rate_hz, window=plan.window)
+
+    warmup = run(frames[: plan.warmup], None)
+    at = plan.warmup
+    throughput = run(frames[at : at + plan.throughput_frames], None)
+    at += plan.throughput_frames
+    paced = run(frames[at : at + plan.paced_frames], plan.rate_hz)
+    measured = (warmup, throughput, paced)
+    return {
+        "throughput": throughput,
+        "paced": paced,
+        "offered": {
+            "frames": sum(result["frames"] for result in measured),
+            "leg_frames": sum(result["leg_estimates_expected"] for result in measured),
+        },
+        "counters": target.counters(),
+    }

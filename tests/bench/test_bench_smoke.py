@@ -1,0 +1,84 @@
+"""The benchmark runs end to end on a few frames and reports in the documented shape.
+
+No timing is asserted: this only checks that the benchmark works (real service
+threads, Zenoh on loopback, the probe process, MCAP into a temporary directory).
+"""
+
+import json
+from pathlib import Path
+
+import pytest
+
+from bench.report import markdown_table
+from bench.run import main, run_benchmark
+
+MODES = ("throughput", "paced")
+LATENCY_KEYS = {"count", "median", "p90", "p99", "p99_9", "mean", "max"}
+
+
+@pytest.fixture(scope="module")
+def results() -> dict:
+    return run_benchmark(throughput_frames=300, paced_s=0.05, rate_hz=2000.0, warmup=50, pin=False)
+
+
+def test_every_system_and_mode_is_reported(results: dict) -> None:
+    for system in ("pipeline", "pipeline_tuned", "baseline"):
+        for mode in MODES:
+            r = results[system][mode]
+            assert r["mode"] == mode
+            assert r["processed"] == r["frames"] > 0
+            assert r["frames_per_s"] > 0
+            assert r["leg_estimates_received"] == r["leg_estimates_expected"] > 0
+            assert set(r["latency_ms"]) == LATENCY_KEYS
+            assert r["latency_ms"]["count"] == r["leg_estimates_received"]
+            assert r["cpu_us_per_frame"]["total"] > 0
+        assert set(results[system]["paced"]["latency_from_due_ms"]) == LATENCY_KEYS
+
+
+def test_the_service_checked_and_recorded_everything(results: dict) -> None:
+    for system in ("pipeline", "pipeline_tuned"):
+        counters = results[system]["counters"]
+        assert counters["bad"] == {}  # every simulated frame passes its CRC and counter
+        assert not any(counters["dropped"].values())
+        assert counters["frames_processed"] == 50 + 300 + 100
+        recording = results[system]["recording"]
+        assert recording["files"] == 1 and recording["bytes"] > 0
+        offered = results[system]["offered"]
+        assert offered["frames"] == 450
+        assert recording["messages"]["can"] == recording["messages"]["signals"] == 450
+        assert recording["messages"]["leg"] == offered["leg_frames"]
+    assert results["pipeline_tuned"]["chunk_size"] == 128 * 1024
+    assert results["pipeline_tuned"]["switch_interval_s"] == 0.001
+
+
+def test_machine_setup_ratio_and_targets(results: dict) -> None:
+    machine = results["machine"]
+    assert machine["cpu"] and machine["cores"] >= 1 and machine["python"].startswith("3.")
+    assert results["setup"]["pinned_cpu"] is None  # pin=False
+    assert results["setup"]["frame_mix"]["LEG_SB1_F1"] > 0
+    assert results["ratio_frames_per_s"] > 0 and results["ratio_frames_per_s_tuned"] > 0
+    assert set(results["targets_tuned"]) == set(results["targets"])
+    assert set(results["targets"]) == {
+        "keeps_up_with_saturated_bus",
+        "p99_latency_under_2ms_at_rate",
+        "at_least_5x_baseline",
+    }
+    assert all(isinstance(met, bool) for met in results["targets"].values())
+    json.dumps(results)  # what bench/results.json holds
+
+
+def test_markdown_table_has_a_row_per_system_and_mode(results: dict) -> None:
+    table = markdown_table(results)
+    rows = [line for line in table.splitlines() if line.startswith("| ") and "---" not in line]
+    assert len(rows) == 1 + 3 * len(MODES)
+    assert "Machine: " in table and "x the baseline's frames/s" in table
+
+
+def test_command_line_writes_the_results_file(tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]
+    out = tmp_path / "results.json"
+    argv = ["--throughput-frames", "100", "--paced-s", "0.02", "--rate", "2000", "--warmup", "20"]
+    assert main([*argv, "--no-pin", "--no-tuned", "--out", str(out)]) == 0
+    written = json.loads(out.read_text())
+    assert "pipeline_tuned" not in written
+    assert written["pipeline"]["paced"]["frames"] == 40
+    assert "| service pipeline |" in capsys.readouterr().out
