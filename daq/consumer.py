@@ -25,6 +25,12 @@ logger = logging.getLogger(__name__)
 #: On close, queued frames are still processed for at most this long.
 DRAIN_S = 0.5
 
+#: Staleness is judged against the bus, not only the wall clock: a leg is stale when
+#: newer frames of other messages went by without its own (or, on a silent bus, when
+#: the wall clock is this far past the newest frame). Processing that lags the bus by
+#: less than this (a slow moment, a burst) therefore never makes fresh legs "stale".
+LAG_TOLERANCE_S = 0.5
+
 
 class Publisher(Protocol):
     def submit(self, suffix: str, payload: payloads.JsonObject) -> None: ...
@@ -53,6 +59,8 @@ class Consumer:
         self._publisher = publisher
         self._recorder = recorder
         self._now = now
+        #: Kernel time stamp of the newest frame handled so far.
+        self._newest_frame_t_s = float("-inf")
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         #: time.monotonic() of the thread's last loop turn (for the watchdog).
@@ -92,6 +100,7 @@ class Consumer:
                 self._recorder.submit(item)
             return None
         result = self.pipeline.process(item)
+        self._newest_frame_t_s = max(self._newest_frame_t_s, item.t_s)
         if self._recorder is not None:
             self._recorder.submit(result)
         publisher = self._publisher
@@ -104,6 +113,10 @@ class Consumer:
                 )
         return result
 
+    def judged_at(self) -> float:
+        """The time at which legs are judged stale: see :data:`LAG_TOLERANCE_S`."""
+        return max(self._newest_frame_t_s, self._now() - LAG_TOLERANCE_S)
+
     def _run(self) -> None:
         ground_period_s = 1.0 / self._settings.ground_rate_hz
         metrics_period_s = self._settings.status_period_s
@@ -113,7 +126,7 @@ class Consumer:
             self.heartbeat = now = time.monotonic()
             if self._publisher is not None and now >= next_ground:
                 next_ground = max(next_ground + ground_period_s, now)
-                snapshot = self.pipeline.snapshot(self._now())
+                snapshot = self.pipeline.snapshot(self.judged_at())
                 self._publisher.submit("ground", payloads.machine_ground(snapshot))
             if self._publisher is not None and now >= next_metrics:
                 next_metrics = max(next_metrics + metrics_period_s, now)
