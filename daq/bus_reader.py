@@ -32,6 +32,7 @@ from pathlib import Path
 
 import can
 
+from daq._worker import Worker
 from daq.errors import BusError
 from daq.frames import BUS_ABSENT, BUS_CLOSED, BUS_DOWN, BUS_UP, BusEvent, RawFrame
 from daq.frames import from_can_message as _raw
@@ -77,8 +78,13 @@ def sysfs_link_probe(channel: str) -> LinkProbe:
     return link_up
 
 
-class BusReader:
-    """Receives from the bus in a thread of its own and enqueues into ``inbox``."""
+class BusReader(Worker):
+    """Receives from the bus in a thread of its own and enqueues into ``inbox``.
+
+    ``close`` stops the thread and shuts the bus down.
+    """
+
+    thread_name = "can-reader"
 
     def __init__(
         self,
@@ -90,14 +96,13 @@ class BusReader:
         recv_timeout_s: float = 0.1,
         now: Callable[[], float] = time.time,
     ) -> None:
+        super().__init__()
         self._open_bus = open_bus
         self._inbox = inbox
         self.channel = channel
         self._link_up = link_up
         self._recv_timeout_s = recv_timeout_s
         self._now = now
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
         self._bus: can.BusABC | None = None
         self._pending: BusEvent | None = None
         #: The bus was opened at least once (the service reports READY then).
@@ -112,27 +117,7 @@ class BusReader:
         #: time.monotonic() of the thread's last loop turn (for the watchdog).
         self.heartbeat = time.monotonic()
 
-    def __enter__(self) -> "BusReader":
-        self.start()
-        return self
-
-    def __exit__(self, *exc_info: object) -> None:
-        self.close()
-
-    @property
-    def alive(self) -> bool:
-        return self._thread is not None and self._thread.is_alive()
-
-    def start(self) -> None:
-        if self._thread is None:
-            self._thread = threading.Thread(target=self._run, name="can-reader", daemon=True)
-            self._thread.start()
-
-    def close(self) -> None:
-        """Stop the thread and shut the bus down. Idempotent."""
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join()
+    def _after_stop(self) -> None:
         self._shutdown_bus()
         self.state, self.reason = BUS_CLOSED, "closed"
 

@@ -10,12 +10,12 @@ all-legs ground message at ``ground_rate_hz`` and the soil metrics every
 
 import logging
 import queue
-import threading
 import time
 from collections.abc import Callable
 from typing import Protocol
 
 from daq import payloads
+from daq._worker import Worker
 from daq.frames import BusEvent, RawFrame
 from daq.pipeline import FrameResult, Pipeline
 from daq.service_config import PublishSettings
@@ -40,8 +40,13 @@ class Recording(Protocol):
     def submit(self, item: FrameResult | BusEvent) -> None: ...
 
 
-class Consumer:
-    """Drains ``inbox`` in a thread of its own; the constructor starts nothing."""
+class Consumer(Worker):
+    """Drains ``inbox`` in a thread of its own; the constructor starts nothing.
+
+    ``close`` processes what is queued (for at most :data:`DRAIN_S`) and stops.
+    """
+
+    thread_name = "consumer"
 
     def __init__(
         self,
@@ -53,6 +58,7 @@ class Consumer:
         recorder: Recording | None = None,
         now: Callable[[], float] = time.time,
     ) -> None:
+        super().__init__()
         self.pipeline = pipeline
         self._inbox = inbox
         self._settings = settings
@@ -61,34 +67,10 @@ class Consumer:
         self._now = now
         #: Kernel time stamp of the newest frame handled so far.
         self._newest_frame_t_s = float("-inf")
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
         #: time.monotonic() of the thread's last loop turn (for the watchdog).
         self.heartbeat = time.monotonic()
         #: Bus events seen that reset the rolling counters.
         self.resets = 0
-
-    def __enter__(self) -> "Consumer":
-        self.start()
-        return self
-
-    def __exit__(self, *exc_info: object) -> None:
-        self.close()
-
-    @property
-    def alive(self) -> bool:
-        return self._thread is not None and self._thread.is_alive()
-
-    def start(self) -> None:
-        if self._thread is None:
-            self._thread = threading.Thread(target=self._run, name="consumer", daemon=True)
-            self._thread.start()
-
-    def close(self) -> None:
-        """Process what is queued (at most :data:`DRAIN_S`), stop. Idempotent."""
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join()
 
     def handle(self, item: RawFrame | BusEvent) -> FrameResult | None:
         """Process one item (the thread's work; callable directly in tests)."""

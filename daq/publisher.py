@@ -20,6 +20,7 @@ from typing import Any
 
 import zenoh
 
+from daq._worker import Worker
 from daq.payloads import JsonObject, json_bytes
 
 logger = logging.getLogger(__name__)
@@ -29,7 +30,7 @@ DRAIN_S = 0.3
 JSON = zenoh.Encoding.APPLICATION_JSON
 
 
-class ZenohPublisher:
+class ZenohPublisher(Worker):
     """Publishes JSON payloads under ``prefix``; answers queries from the latest values.
 
     The constructor declares nothing; :meth:`start` declares the queryable and
@@ -37,12 +38,13 @@ class ZenohPublisher:
     (the session stays open: its owner closes it).
     """
 
+    thread_name = "zenoh-publisher"
+
     def __init__(self, session: zenoh.Session, prefix: str, *, queue_size: int = 10_000) -> None:
+        super().__init__()
         self.session = session
         self.prefix = prefix
         self._queue: queue.Queue[tuple[str, JsonObject]] = queue.Queue(maxsize=queue_size)
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
         self._publishers: dict[str, zenoh.Publisher] = {}
         self._latest: dict[str, tuple[zenoh.KeyExpr, bytes]] = {}
         self._latest_lock = threading.Lock()
@@ -56,33 +58,18 @@ class ZenohPublisher:
         #: time.monotonic() of the thread's last loop turn (for the watchdog).
         self.heartbeat = 0.0
 
-    def __enter__(self) -> "ZenohPublisher":
-        self.start()
-        return self
-
-    def __exit__(self, *exc_info: object) -> None:
-        self.close()
-
     @property
     def depth(self) -> int:
         return self._queue.qsize()
 
-    @property
-    def alive(self) -> bool:
-        return self._thread is not None and self._thread.is_alive()
-
     def key(self, suffix: str) -> str:
         return f"{self.prefix}/{suffix}"
 
-    def start(self) -> None:
-        if self._thread is not None:
-            return
+    def _before_start(self) -> None:
         self._queryable = self.session.declare_queryable(
             self.key("**"), self._answer, complete=True
         )
         self._token = self.session.liveliness().declare_token(self.key("alive"))
-        self._thread = threading.Thread(target=self._run, name="zenoh-publisher", daemon=True)
-        self._thread.start()
 
     def submit(self, suffix: str, payload: JsonObject) -> None:
         """Queue ``payload`` for ``<prefix>/<suffix>``; never blocks (full: dropped, counted)."""
@@ -91,14 +78,11 @@ class ZenohPublisher:
         except queue.Full:
             self.dropped += 1
 
-    def close(self) -> None:
-        """Publish what is queued (at most :data:`DRAIN_S`), undeclare everything. Idempotent."""
+    def _after_stop(self) -> None:
+        """Undeclare everything (once); the thread published what was queued (:data:`DRAIN_S`)."""
         if self._closed:
             return
         self._closed = True
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join()
         for entity in (*self._publishers.values(), self._queryable, self._token):
             if entity is None:
                 continue

@@ -19,7 +19,6 @@ its summary; after a crash the file reads back up to its last written chunk.
 
 import logging
 import queue
-import threading
 import time
 from collections.abc import Callable, Mapping
 from datetime import UTC, datetime
@@ -27,6 +26,7 @@ from pathlib import Path
 
 from cantools.database.can import Database
 
+from daq._worker import Worker
 from daq.errors import RecordingError
 from daq.frames import BusEvent
 from daq.mcap_file import CountingFile, McapFile
@@ -54,12 +54,14 @@ def file_name(machine_id: str, t_s: float) -> str:
     return f"{machine_id}_{stamp:%Y%m%dT%H%M%S}.{stamp.microsecond // 1000:03d}Z.mcap"
 
 
-class Recorder:
+class Recorder(Worker):
     """Writes what it is handed to MCAP files under ``settings.directory``.
 
     The constructor opens nothing; :meth:`start` (or ``with``) creates the
     directory, opens the first file and starts the thread.
     """
+
+    thread_name = "recorder"
 
     def __init__(
         self,
@@ -72,6 +74,7 @@ class Recorder:
     ) -> None:
         if settings.directory is None:
             raise ValueError("settings.directory is None: recording is off")
+        super().__init__()
         self.directory: Path = settings.directory
         self.settings = settings
         self._database = database
@@ -79,8 +82,6 @@ class Recorder:
         self._attachments = dict(attachments)
         self._now = now
         self._queue: queue.Queue[Item] = queue.Queue(maxsize=settings.queue_size)
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
         self._file: McapFile | None = None
         self._stream: CountingFile | None = None
         self._last_flush = 0.0
@@ -94,17 +95,6 @@ class Recorder:
         #: Files begun, and the current one.
         self.paths: list[Path] = []
 
-    def __enter__(self) -> "Recorder":
-        self.start()
-        return self
-
-    def __exit__(self, *exc_info: object) -> None:
-        self.close()
-
-    @property
-    def alive(self) -> bool:
-        return self._thread is not None and self._thread.is_alive()
-
     @property
     def depth(self) -> int:
         return self._queue.qsize()
@@ -117,13 +107,11 @@ class Recorder:
     def current_bytes(self) -> int:
         return self._stream.count if self._stream is not None else 0
 
-    def start(self) -> None:
-        """Create the directory, open the first file, start the thread.
+    def _before_start(self) -> None:
+        """Create the directory and open the first file.
 
         Raises :class:`RecordingError` when the directory cannot be written.
         """
-        if self._thread is not None:
-            return
         try:
             self.directory.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
@@ -131,8 +119,6 @@ class Recorder:
                 self.directory, f"cannot create it: {exc.strerror or exc}"
             ) from exc
         self._open(self._now())
-        self._thread = threading.Thread(target=self._run, name="recorder", daemon=True)
-        self._thread.start()
 
     def submit(self, item: Item) -> None:
         """Queue ``item`` for writing; never blocks (a full queue drops and counts)."""
@@ -141,11 +127,8 @@ class Recorder:
         except queue.Full:
             self.dropped += 1
 
-    def close(self) -> None:
-        """Write what is queued (for at most :data:`DRAIN_S`), finish the file. Idempotent."""
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join()
+    def _after_stop(self) -> None:
+        """Finish the file; the thread wrote what was queued (for at most :data:`DRAIN_S`)."""
         self._close_file()
 
     # --- recorder thread ---------------------------------------------------
