@@ -47,8 +47,12 @@ def test_the_service_checked_and_recorded_everything(results: dict) -> None:
         assert offered["frames"] == 450
         assert recording["messages"]["can"] == recording["messages"]["signals"] == 450
         assert recording["messages"]["leg"] == offered["leg_frames"]
-    assert results["pipeline_tuned"]["chunk_size"] == 128 * 1024
-    assert results["pipeline_tuned"]["switch_interval_s"] == 0.001
+    # As deployed: the config's default chunks and the CLI's switch interval; the
+    # comparison variant: the earlier defaults.
+    assert results["pipeline"]["chunk_size"] == 128 * 1024
+    assert results["pipeline"]["switch_interval_s"] == 0.001
+    assert results["pipeline_tuned"]["chunk_size"] == 1024 * 1024
+    assert results["pipeline_tuned"]["switch_interval_s"] == 0.005
 
 
 def test_machine_setup_ratio_and_targets(results: dict) -> None:

@@ -159,9 +159,14 @@ def monitor(config: ServiceConfig, *args: str) -> list[str]:
 
 def test_monitor_shows_the_live_service_in_a_terminal(config: ServiceConfig, tmux: Tmux) -> None:
     rows = {leg: expected_row(config, leg) for leg in LEGS}
-    with live_service(config), sending_frames(config):
-        tmux.start(monitor(config))  # no --connect: found from the config's listen endpoint
-        screen = tmux.wait_for_screen(lambda s: all(row.search(s) for row in rows.values()))
+    stale_row = re.compile(r"^SB1_F1\s+83\.3\s+252\.5\s.*INVALID stale$", re.MULTILINE)
+    with live_service(config):
+        with sending_frames(config):
+            tmux.start(monitor(config))  # no --connect: found from the config's listen endpoint
+            screen = tmux.wait_for_screen(lambda s: all(row.search(s) for row in rows.values()))
+        # Frames stop: once the bus has been silent for LAG_TOLERANCE_S, the service
+        # judges every leg stale, and the monitor shows it with the last values.
+        stale_screen = tmux.wait_for_screen(lambda s: stale_row.search(s) is not None)
     # SB1_F1 at 252.5 kPa: 25 of 30 cells, 20 below the limit, 5 above.
     assert "[####################!!!!!.....]  126%  ground" in screen
     assert re.search(r"^SB2_F3 .*\[#\.{19}\|\.{9}\]\s+7%\s+air\s", screen, re.MULTILINE)
@@ -171,10 +176,9 @@ def test_monitor_shows_the_live_service_in_a_terminal(config: ServiceConfig, tmu
         r"bus up \(virtual test-\w+\), \d+ frames/s, 0 bad, 0 dropped, healthy", lines[1]
     )
     assert "5 legs in contact, complete" in lines[2]
-    # Frames stop (the service judges the legs stale), then the service stops: the
-    # monitor says so and keeps the last values in view.
-    screen = tmux.wait_for_screen(lambda s: "STALE: no status" in s)
-    assert re.search(r"^SB1_F1\s+83\.3\s+252\.5\s.*INVALID stale$", screen, re.MULTILINE)
+    assert "SB2_F3" in stale_screen
+    # Then the service stops: the monitor says so and keeps the last values in view.
+    tmux.wait_for_screen(lambda s: "STALE: no status" in s and stale_row.search(s) is not None)
     tmux.run("send-keys", "C-c")
     assert tmux.exit_status() == 0
     assert tmux.stderr_file.read_text() == ""
