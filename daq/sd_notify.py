@@ -30,6 +30,8 @@ class SdNotifier:
         self.watchdog_s = watchdog_usec / 1e6 if watchdog_usec else None
         self._socket: socket.socket | None = None
         self._warned = False
+        #: Messages dropped because the notify socket's queue was full.
+        self.dropped = 0
 
     @classmethod
     def from_environment(cls, environ: Mapping[str, str] = os.environ) -> "SdNotifier":
@@ -70,7 +72,13 @@ class SdNotifier:
             return False
         target = "\0" + self.address[1:] if self.address.startswith("@") else self.address
         try:
-            self._socket.sendto("\n".join(lines).encode(), target)
+            # Never block the service's main loop on a notify socket whose reader is
+            # slow or gone: a full queue drops the message (the next one follows soon).
+            self._socket.sendto("\n".join(lines).encode(), socket.MSG_DONTWAIT, target)
+        except BlockingIOError:
+            self.dropped += 1
+            logger.debug("notify socket %s is full: message dropped", self.address)
+            return False
         except OSError as exc:
             if not self._warned:
                 self._warned = True

@@ -50,3 +50,19 @@ def test_watchdog_interval_from_environment() -> None:
     env = {"NOTIFY_SOCKET": "/x", "WATCHDOG_USEC": "3000000", "WATCHDOG_PID": str(os.getpid())}
     assert SdNotifier.from_environment(env).watchdog_s == 3.0
     assert SdNotifier.from_environment(env | {"WATCHDOG_PID": "1"}).watchdog_s is None
+
+
+def test_a_full_notify_socket_never_blocks_the_service(tmp_path: Path) -> None:
+    """A reader that stopped reading (queue full) must not hang the main loop."""
+    address = str(tmp_path / "full.sock")
+    with socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM) as receiver:
+        receiver.bind(address)
+        notifier = SdNotifier(address)
+        notifier.open()
+        try:
+            results = [notifier.status(f"message {i}") for i in range(2000)]
+        finally:
+            notifier.close()
+    assert results[0] is True
+    assert results[-1] is False and notifier.dropped > 0
+    assert results.count(True) + notifier.dropped == 2000
