@@ -42,7 +42,6 @@ problem (a missing column, a non-numeric cell, time not increasing) raises
 
 import csv
 import math
-import tomllib
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -53,6 +52,7 @@ from scipy.io.matlab import MatReadError
 
 from daq._toml_table import TomlTable
 from daq.errors import ConfigError
+from daq.machine import read_toml
 from sim_bridge.result import BASES, LEGS, PHASES, FloatArray, SimulationResult
 
 TIME_UNITS = {"s": 1.0, "ms": 1e-3}
@@ -65,7 +65,7 @@ Columns = Mapping[str, FloatArray]
 
 def load_external(data_path: str | Path, mapping_path: str | Path) -> SimulationResult:
     """Read an export and its mapping into a :class:`SimulationResult`."""
-    mapping = _read_toml(mapping_path)
+    mapping = read_toml(mapping_path)
     columns = read_columns(data_path)
     return build_result(columns, mapping, str(mapping_path), str(data_path))
 
@@ -78,18 +78,6 @@ def read_columns(path: str | Path) -> dict[str, FloatArray]:
     if suffix == ".csv":
         return _read_csv(path)
     raise ConfigError(path, "", f"unknown input format {suffix!r}; give a .csv or a .mat file")
-
-
-def _read_toml(path: str | Path) -> dict[str, Any]:
-    try:
-        with open(path, "rb") as file:
-            return tomllib.load(file)
-    except FileNotFoundError as exc:
-        raise ConfigError(path, "", "no such file") from exc
-    except OSError as exc:
-        raise ConfigError(path, "", f"cannot read it: {exc.strerror or exc}") from exc
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(path, "", f"not valid TOML: {exc}") from exc
 
 
 def _read_csv(path: str | Path) -> dict[str, FloatArray]:
