@@ -5,6 +5,7 @@ passed into :class:`~daq.service.Service`.
 """
 
 import logging
+import socket
 import threading
 from pathlib import Path
 
@@ -44,14 +45,38 @@ def bus_factory(settings: BusSettings, frame_ids: list[tuple[int, bool]]) -> Bus
     filters = kernel_filters(frame_ids) if settings.kernel_filters else None
 
     def open_bus() -> can.BusABC:
-        return can.Bus(
+        bus = can.Bus(
             interface=settings.interface,
             channel=settings.channel,
             receive_own_messages=settings.receive_own_messages,
             can_filters=filters,
         )
+        _enlarge_receive_buffer(bus)
+        return bus
 
     return open_bus
+
+
+#: Kernel receive buffer of the CAN socket: ~5,000 frames (a CAN skb takes ~800 bytes),
+#: half a second of a saturated bus, so a burst or a slow moment loses nothing.
+RECEIVE_BUFFER_BYTES = 4 * 1024 * 1024
+
+
+def _enlarge_receive_buffer(bus: can.BusABC) -> None:
+    sock = getattr(bus, "socket", None)
+    if not isinstance(sock, socket.socket):
+        return  # not SocketCAN (virtual bus in tests): nothing to size
+    # SO_RCVBUFFORCE passes net.core.rmem_max but needs CAP_NET_ADMIN; without it
+    # SO_RCVBUF gets as much as rmem_max allows.
+    for option in (getattr(socket, "SO_RCVBUFFORCE", None), socket.SO_RCVBUF):
+        if option is None:
+            continue
+        try:
+            sock.setsockopt(socket.SOL_SOCKET, option, RECEIVE_BUFFER_BYTES)
+            return
+        except OSError:
+            continue
+    logger.warning("could not enlarge the CAN socket's receive buffer")
 
 
 def recording_attachments(config: ServiceConfig) -> dict[str, bytes]:
