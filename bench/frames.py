@@ -14,8 +14,8 @@ from pathlib import Path
 
 import can
 
-from daq.encoding import FrameEncoder
-from daq.machine import load_machine_config
+from dbc.encoding import FrameEncoder
+from dbc.machine import load_machine_config
 from estimator.geometry import LegGeometry
 from sim_bridge.frames import FrameBuilder
 from sim_bridge.model import simulate

@@ -22,13 +22,13 @@ from typing import Any
 
 from bench.frames import EXAMPLE_CONFIG, simulated_frames
 from daq.consumer import Consumer
-from daq.decoding import FrameDecoder
 from daq.frames import RawFrame
-from daq.machine import load_machine_config
 from daq.mcap_file import McapFile
 from daq.payloads import JsonObject, json_bytes
 from daq.pipeline import FrameResult, Pipeline
 from daq.service_config import PublishSettings
+from dbc.decoding import FrameDecoder
+from dbc.machine import load_machine_config
 
 
 class _Collect:

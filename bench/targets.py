@@ -25,13 +25,13 @@ from cantools.database.can import Database
 from mcap.reader import make_reader
 
 from bench.frames import EXAMPLE_CONFIG
-from daq.decoding import FrameDecoder
 from daq.frames import RawFrame
-from daq.machine import MachineConfig
 from daq.recorder import Recorder
 from daq.runner import bus_factory, recording_attachments
 from daq.service import Service
 from daq.service_config import ServiceConfig, load_service_config
+from dbc.decoding import FrameDecoder
+from dbc.machine import MachineConfig
 
 #: How the service gets its frames: through the virtual bus and its reader thread,
 #: or put (as RawFrames stamped with time.time()) straight into the reader's queue.

@@ -16,12 +16,12 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from daq.dashboard.cli import dashboard_main
-from daq.errors import ConfigError, DbcError, PortalDaqError
 from daq.monitor.cli import monitor_main
 from daq.replay import replay
 from daq.report import report_main
 from daq.runner import run_service
 from daq.service_config import load_service_config
+from dbc.errors import ConfigError, DbcError, PortalDaqError
 
 PROG = "portal-daq"
 

@@ -10,9 +10,9 @@ import math
 from collections.abc import Mapping
 from typing import Any
 
-from daq.decoding import DecodedFrame
 from daq.frames import BusEvent
 from daq.pipeline import FrameResult
+from dbc.decoding import DecodedFrame
 from estimator.leg import LegEstimate
 from estimator.machine import MachineSnapshot
 from estimator.metrics import SoilMetrics

@@ -11,11 +11,11 @@ from dataclasses import dataclass, field
 
 from cantools.database.can import Database
 
-from daq.decoding import DecodedFrame, FrameDecoder
-from daq.errors import ErrorFrameError, FrameError, RemoteFrameError
 from daq.frames import RawFrame
-from daq.machine import MachineConfig
-from daq.samples import LegSampler
+from dbc.decoding import DecodedFrame, FrameDecoder
+from dbc.errors import ErrorFrameError, FrameError, RemoteFrameError
+from dbc.machine import MachineConfig
+from dbc.samples import LegSampler
 from estimator.leg import LegEstimate
 from estimator.machine import MachineEstimator, MachineSnapshot
 from estimator.metrics import SoilMetrics

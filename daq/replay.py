@@ -25,13 +25,14 @@ from typing import IO
 import can
 from cantools.database.can import Database
 
-from daq.database import load_database_string
-from daq.errors import ConfigError, RecordingError
+from daq.errors import RecordingError
 from daq.frames import BusEvent, RawFrame, from_can_message
-from daq.machine import MachineConfig, load_machine_config, parse_machine_config
 from daq.mcap_file import BUS_TOPIC, CONFIG_ATTACHMENT, DBC_ATTACHMENT, RAW_TOPIC
 from daq.mcap_reading import RecordedAttachment, RecordedMessage, RecordingStream
 from daq.pipeline import Pipeline
+from dbc.database import load_database_string
+from dbc.errors import ConfigError
+from dbc.machine import MachineConfig, load_machine_config, parse_machine_config
 from estimator.leg import LegEstimate
 
 logger = logging.getLogger(__name__)

@@ -13,7 +13,6 @@ import can
 from can.typechecking import CanFilter
 
 from daq.bus_reader import BusFactory, sysfs_link_probe
-from daq.decoding import FrameDecoder
 from daq.errors import RecordingError
 from daq.mcap_file import CONFIG_ATTACHMENT, DBC_ATTACHMENT
 from daq.recorder import Recorder
@@ -21,6 +20,7 @@ from daq.sd_notify import SdNotifier
 from daq.service import Service
 from daq.service_config import BusSettings, ServiceConfig
 from daq.zenoh_session import open_session
+from dbc.decoding import FrameDecoder
 
 logger = logging.getLogger(__name__)
 

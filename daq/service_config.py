@@ -1,7 +1,7 @@
 """The service configuration: bus, Zenoh, publishing and recording, next to the machine's.
 
 One TOML file holds both parts (example: ``deploy/portal-daq.example.toml``): the
-machine tables read by :mod:`daq.machine` and the service tables ``[bus]``,
+machine tables read by :mod:`dbc.machine` and the service tables ``[bus]``,
 ``[zenoh]``, ``[publish]`` and ``[recording]`` read here. Every service table is
 optional; left-out keys take the defaults of the dataclasses below. Relative
 paths are relative to the config file. Unknown keys are refused like in the
@@ -19,8 +19,8 @@ from typing import Any
 import can
 from cantools.database.can import Database
 
-from daq._toml_table import TomlTable
-from daq.machine import MachineConfig, machine_from_toml, read_toml
+from dbc.machine import MachineConfig, machine_from_toml, read_toml
+from dbc.toml_table import TomlTable
 
 #: A Zenoh key expression without wildcards: chunks joined by '/'.
 KEY_PREFIX_PATTERN = r"[^/*$?#\s]+(/[^/*$?#\s]+)*"

@@ -9,8 +9,9 @@ import re
 
 import zenoh
 
-from daq.errors import ConfigError, ZenohError
+from daq.errors import ZenohError
 from daq.service_config import ZenohSettings
+from dbc.errors import ConfigError
 
 
 def zenoh_config(settings: ZenohSettings, source: str = "") -> zenoh.Config:

@@ -23,9 +23,9 @@ from typing import IO, Any
 
 import can
 
-from daq.encoding import FrameEncoder
-from daq.errors import ConfigError, PortalDaqError
-from daq.machine import MachineConfig, load_machine_config
+from dbc.encoding import FrameEncoder
+from dbc.errors import ConfigError, PortalDaqError
+from dbc.machine import MachineConfig, load_machine_config
 from sim_bridge._args import BridgeOptions, PlotOptions, SourceOptions, ZenohOptions, parse_args
 from sim_bridge.emitter import Emitter, EmitterStats, end_of_run_ns
 from sim_bridge.faults import FaultConfig, FaultInjector

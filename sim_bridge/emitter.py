@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 
 import can
 
-from daq.encoding import EncodedFrame
+from dbc.encoding import EncodedFrame
 from sim_bridge.playout import Playout, PlayoutCounts
 from sim_bridge.schedule import NS_PER_S, check_speed, instants, schedule
 from sim_bridge.truth import TruthSink, truth_sample

@@ -50,9 +50,9 @@ import numpy as np
 import scipy.io
 from scipy.io.matlab import MatReadError
 
-from daq._toml_table import TomlTable
-from daq.errors import ConfigError
-from daq.machine import read_toml
+from dbc.errors import ConfigError
+from dbc.machine import read_toml
+from dbc.toml_table import TomlTable
 from sim_bridge.result import BASES, LEGS, PHASES, FloatArray, SimulationResult
 
 TIME_UNITS = {"s": 1.0, "ms": 1e-3}

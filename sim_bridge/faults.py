@@ -48,7 +48,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from daq.errors import ConfigError
+from dbc.errors import ConfigError
 from sim_bridge.frames import LegOverride
 from sim_bridge.result import LEGS, SimulationResult
 from sim_bridge.schedule import NS_PER_S

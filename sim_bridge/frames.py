@@ -11,7 +11,7 @@ Pure computation. Which signal carries what:
   ``Machine_Phase`` (value-table name), ``Machine_CycleCount`` (completed cycles) and
   ``Machine_CycleTime`` (time since the cycle started).
 - Counter and CRC signals (``[protection.<MESSAGE>]``) are left to the
-  :class:`~daq.encoding.FrameEncoder`. A signal nobody supplies is sent as 0 (clipped into
+  :class:`~dbc.encoding.FrameEncoder`. A signal nobody supplies is sent as 0 (clipped into
   its range) and listed in :attr:`FrameBuilder.defaulted`; a periodic message none of whose
   signals is supplied is not sent at all (:attr:`FrameBuilder.skipped`).
 
@@ -28,9 +28,9 @@ from dataclasses import dataclass
 
 from cantools.database.can import Database, Message, Signal
 
-from daq.decoding import SignalValue
-from daq.errors import ConfigError
-from daq.machine import MachineConfig
+from dbc.decoding import SignalValue
+from dbc.errors import ConfigError
+from dbc.machine import MachineConfig
 from sim_bridge.result import BASES, LEGS, PHASES, SimulationResult
 from sim_bridge.schedule import NS_PER_MS, NS_PER_S, MessageCycle
 

@@ -2,7 +2,7 @@
 
 Pure computation (no bus, no clock): combines the :class:`~sim_bridge.frames.Timeline`,
 the :class:`~sim_bridge.frames.FrameBuilder`, the :class:`~sim_bridge.faults.FaultInjector`
-and the :class:`~daq.encoding.FrameEncoder`. The emitter only times and sends the result.
+and the :class:`~dbc.encoding.FrameEncoder`. The emitter only times and sends the result.
 
 The rolling counter of each message is kept here and handed to the encoder explicitly,
 so a frozen counter can repeat the last value sent.
@@ -11,7 +11,7 @@ so a frozen counter can repeat the last value sent.
 from collections import Counter
 from dataclasses import dataclass, field
 
-from daq.encoding import EncodedFrame, FrameEncoder
+from dbc.encoding import EncodedFrame, FrameEncoder
 from sim_bridge.faults import FaultConfig, FaultInjector, FaultTargets
 from sim_bridge.frames import FrameBuilder, Position, Timeline
 from sim_bridge.result import SimulationResult

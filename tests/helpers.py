@@ -2,7 +2,7 @@
 
 from pathlib import Path
 
-from daq.machine import load_machine_config
+from dbc.machine import load_machine_config
 
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLE_CONFIG = ROOT / "deploy" / "machine.example.toml"

@@ -10,9 +10,9 @@ import sys
 from collections.abc import Sequence
 
 from daq.dashboard.server import Dashboard
-from daq.errors import ConfigError, DbcError, PortalDaqError
 from daq.live.command import add_viewer_arguments, fail, load_viewer, setup_logging, stop_on_signals
 from daq.live.session import open_viewer_session
+from dbc.errors import ConfigError, DbcError, PortalDaqError
 
 COMMAND = "dashboard"
 DEFAULT_HTTP = "127.0.0.1:8080"

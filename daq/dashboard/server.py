@@ -29,11 +29,11 @@ import zenoh
 
 from daq.dashboard.api import history_document, latest_document
 from daq.dashboard.history import PressureHistory
-from daq.errors import PortalDaqError
 from daq.live.feed import LiveFeed, apply_item
 from daq.live.state import LiveState
 from daq.live.viewer import ViewerConfig
 from daq.payloads import json_bytes
+from dbc.errors import PortalDaqError
 
 logger = logging.getLogger(__name__)
 

@@ -22,9 +22,10 @@ from typing import Any
 
 import zenoh
 
-from daq.errors import ConfigError, ZenohError
+from daq.errors import ZenohError
 from daq.service_config import ZenohSettings
 from daq.zenoh_session import zenoh_config
+from dbc.errors import ConfigError
 
 #: The viewer's own listener when none is given.
 VIEWER_LISTEN = "tcp/127.0.0.1:0"

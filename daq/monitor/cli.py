@@ -8,11 +8,11 @@ import argparse
 import sys
 from collections.abc import Sequence
 
-from daq.errors import ConfigError, DbcError, PortalDaqError
 from daq.live.command import add_viewer_arguments, fail, load_viewer, setup_logging, stop_on_signals
 from daq.live.feed import LiveFeed
 from daq.live.session import open_viewer_session
 from daq.monitor.app import run_curses, run_plain
+from dbc.errors import ConfigError, DbcError, PortalDaqError
 
 COMMAND = "monitor"
 

@@ -13,7 +13,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from daq.errors import ConfigError, DbcError, PortalDaqError
+from dbc.errors import ConfigError, DbcError, PortalDaqError
 
 PROG = "portal-daq"
 

@@ -16,12 +16,13 @@ import re
 from pathlib import Path
 from typing import IO
 
-from daq.errors import ConfigError, DbcError, RecordingError
-from daq.machine import MachineConfig, load_machine_config
+from daq.errors import RecordingError
 from daq.mcap_reading import RecordedAttachment, RecordingStream
 from daq.payloads import leg_ground
 from daq.replay import Machine, _embedded_machine, _mcap_estimates
 from daq.report.tracks import Recording, RecordingCollector
+from dbc.errors import ConfigError, DbcError
+from dbc.machine import MachineConfig, load_machine_config
 
 logger = logging.getLogger(__name__)
 

@@ -16,9 +16,9 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from daq.machine import MachineConfig
 from daq.mcap_file import BUS_TOPIC, RAW_TOPIC, TRUTH_TOPIC
 from daq.pipeline import COUNTER_FAULT, CRC_FAULT
+from dbc.machine import MachineConfig
 
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]

@@ -18,8 +18,8 @@ from typing import Any
 import can
 import zenoh
 
-from daq.encoding import FrameEncoder
-from daq.machine import MachineConfig
+from dbc.encoding import FrameEncoder
+from dbc.machine import MachineConfig
 from estimator.equations import foot_force_N
 from tests.helpers import EXAMPLE_CONFIG, LEGS
 

@@ -16,7 +16,7 @@ import pytest
 import zenoh
 from mcap.reader import make_reader
 
-from daq.encoding import FrameEncoder
+from dbc.encoding import FrameEncoder
 from tests.daq.service_support import (
     WAIT_S,
     free_port,

@@ -4,10 +4,10 @@ the bus by a moment does not call fresh legs stale, while a silent sensor still 
 import queue
 
 from daq.consumer import LAG_TOLERANCE_S, Consumer
-from daq.encoding import FrameEncoder
 from daq.frames import RawFrame
 from daq.pipeline import Pipeline
 from daq.service_config import PublishSettings
+from dbc.encoding import FrameEncoder
 from tests.helpers import LEGS, example_machine
 
 CONFIG, DATABASE = example_machine()

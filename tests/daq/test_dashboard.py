@@ -18,9 +18,9 @@ from daq.dashboard.api import history_document, latest_document
 from daq.dashboard.cli import http_address
 from daq.dashboard.history import PressureHistory
 from daq.dashboard.server import Dashboard
-from daq.errors import ConfigError, PortalDaqError
 from daq.live.state import LiveState, parse_ground
 from daq.live.viewer import ViewerConfig
+from dbc.errors import ConfigError, PortalDaqError
 from tests.daq.live_support import (
     ground_payload,
     leg_payload,

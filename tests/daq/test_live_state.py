@@ -9,8 +9,6 @@ from pathlib import Path
 import pytest
 
 from daq import payloads
-from daq.encoding import FrameEncoder
-from daq.errors import ConfigError
 from daq.frames import RawFrame
 from daq.live.feed import Item, apply_item
 from daq.live.session import reachable, viewer_connect, viewer_zenoh_config
@@ -18,6 +16,8 @@ from daq.live.state import LiveState, Received
 from daq.live.viewer import viewer_config
 from daq.pipeline import Pipeline
 from daq.service_config import ZenohSettings, load_service_config
+from dbc.encoding import FrameEncoder
+from dbc.errors import ConfigError
 from estimator.equations import foot_force_N
 from tests.daq.live_support import ground_payload, leg_payload, status_payload
 from tests.daq.service_support import leg_signals, write_service_config

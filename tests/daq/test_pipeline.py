@@ -3,10 +3,10 @@
 import json
 import math
 
-from daq.encoding import FrameEncoder
 from daq.frames import RawFrame
 from daq.payloads import json_bytes, leg_ground
 from daq.pipeline import Pipeline
+from dbc.encoding import FrameEncoder
 from estimator.equations import foot_force_N
 from tests.daq.service_support import leg_signals
 from tests.helpers import example_machine

@@ -6,13 +6,13 @@ from pathlib import Path
 
 from mcap.reader import NonSeekingReader, make_reader
 
-from daq.encoding import FrameEncoder
 from daq.frames import BusEvent, RawFrame
 from daq.mcap_file import CountingFile, McapFile
 from daq.mcap_reading import RecordedMessage, RecordingStream
 from daq.pipeline import Pipeline
 from daq.recorder import Recorder, file_name
 from daq.service_config import RecordingSettings
+from dbc.encoding import FrameEncoder
 from tests.daq.service_support import leg_signals
 from tests.helpers import example_machine
 

@@ -22,12 +22,12 @@ import can
 import pytest
 import zenoh
 
-from daq.encoding import FrameEncoder
 from daq.report import ReportOptions, report
 from daq.report.content import ReportContent, analyse
 from daq.report.loading import load_recording
 from daq.service import Service
 from daq.service_config import ServiceConfig, load_service_config
+from dbc.encoding import FrameEncoder
 from sim_bridge.emitter import Emitter, EmitterStats
 from sim_bridge.frames import FrameBuilder
 from sim_bridge.model import simulate

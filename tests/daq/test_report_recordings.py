@@ -19,13 +19,13 @@ import pytest
 from mcap.reader import make_reader
 from mcap.writer import Writer
 
-from daq.errors import ConfigError
 from daq.frames import RawFrame
 from daq.mcap_file import CONFIG_ATTACHMENT, DBC_ATTACHMENT, McapFile
 from daq.pipeline import Pipeline
 from daq.report import ReportOptions, report
 from daq.report.content import analyse
 from daq.report.loading import load_recording
+from dbc.errors import ConfigError
 from sim_bridge.faults import FaultConfig, FaultWindow
 from sim_bridge.schedule import instants, schedule
 from sim_bridge.truth import truth_sample

@@ -20,10 +20,10 @@ import pytest
 import zenoh
 from mcap.reader import make_reader
 
-from daq.errors import ConfigError
 from daq.recorder import Recorder
 from daq.service_config import RecordingSettings, ServiceConfig, load_service_config
 from daq.sim_truth import TruthRecord, TruthSubscriber, truth_payload
+from dbc.errors import ConfigError
 from sim_bridge.truth import LegTruth, TruthSample, ZenohTruthPublisher
 from tests.daq.service_support import (
     WAIT_S,

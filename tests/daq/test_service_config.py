@@ -4,10 +4,10 @@ from pathlib import Path
 
 import pytest
 
-from daq.errors import ConfigError
-from daq.machine import load_machine_config
 from daq.service_config import load_service_config
 from daq.zenoh_session import zenoh_config
+from dbc.errors import ConfigError
+from dbc.machine import load_machine_config
 from tests.helpers import ROOT
 
 EXAMPLE = ROOT / "deploy" / "portal-daq.example.toml"

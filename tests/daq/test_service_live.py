@@ -18,8 +18,6 @@ import zenoh
 from mcap.reader import make_reader
 
 from daq.bus_reader import BusReader
-from daq.decoding import FrameDecoder
-from daq.encoding import FrameEncoder
 from daq.frames import BusEvent, RawFrame
 from daq.recorder import Recorder
 from daq.replay import replay
@@ -27,6 +25,8 @@ from daq.runner import bus_factory, recording_attachments
 from daq.service import Service
 from daq.service_config import ServiceConfig, load_service_config
 from daq.zenoh_session import zenoh_config
+from dbc.decoding import FrameDecoder
+from dbc.encoding import FrameEncoder
 from tests.daq.service_support import (
     WAIT_S,
     Collector,

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from daq.machine import load_machine_config
+from dbc.machine import load_machine_config
 from estimator import LegGeometry, contact_pressure_Pa, cylinder_force_N, foot_force_N
 from tests.helpers import FILES, LEGS
 

@@ -2,7 +2,7 @@
 
 import pytest
 
-from daq.machine import G_M_S2
+from dbc.machine import G_M_S2
 from estimator import EstimatorSettings, LegGeometry, LegSample, MachineEstimator
 from tests.estimator.test_equations import DEFAULT
 from tests.estimator.test_leg import pressures_for

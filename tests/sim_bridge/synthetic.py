@@ -12,9 +12,9 @@ from pathlib import Path
 import numpy as np
 from cantools.database.can import Database
 
-from daq.decoding import DecodedFrame, FrameDecoder
-from daq.encoding import FrameEncoder
-from daq.machine import MachineConfig
+from dbc.decoding import DecodedFrame, FrameDecoder
+from dbc.encoding import FrameEncoder
+from dbc.machine import MachineConfig
 from estimator import foot_force_N
 from sim_bridge.faults import FaultConfig, FaultInjector
 from sim_bridge.frames import FrameBuilder

@@ -13,7 +13,7 @@ import can
 import pytest
 from mcap.reader import make_reader
 
-from daq.decoding import FrameDecoder
+from dbc.decoding import FrameDecoder
 from sim_bridge.__main__ import cli
 from sim_bridge._args import BridgeOptions, parse_args
 from sim_bridge.faults import FaultWindow

@@ -7,7 +7,7 @@ from collections.abc import Iterator
 import can
 import pytest
 
-from daq.decoding import FrameDecoder
+from dbc.decoding import FrameDecoder
 from sim_bridge.emitter import Emitter, end_of_run_ns
 from sim_bridge.result import SimulationResult
 from sim_bridge.truth import TruthSample

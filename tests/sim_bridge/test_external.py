@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import scipy.io
 
-from daq.errors import ConfigError
+from dbc.errors import ConfigError
 from sim_bridge.external import load_external
 from sim_bridge.result import LEGS
 

@@ -2,8 +2,8 @@
 
 import pytest
 
-from daq.errors import ConfigError
-from daq.samples import LegSampler
+from dbc.errors import ConfigError
+from dbc.samples import LegSampler
 from estimator import LegEstimator
 from sim_bridge.faults import FaultConfig, FaultInjector, FaultTargets, FaultWindow
 from sim_bridge.result import LEGS, SimulationResult

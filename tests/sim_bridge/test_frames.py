@@ -5,10 +5,10 @@ import tomllib
 import numpy as np
 import pytest
 
-from daq.decoding import FrameDecoder
-from daq.encoding import FrameEncoder
-from daq.errors import ConfigError
-from daq.machine import parse_machine_config
+from dbc.decoding import FrameDecoder
+from dbc.encoding import FrameEncoder
+from dbc.errors import ConfigError
+from dbc.machine import parse_machine_config
 from sim_bridge.frames import FrameBuilder, LegOverride, Timeline
 from sim_bridge.result import BASES, LEGS, PHASES, SimulationResult
 from tests.helpers import EXAMPLE_CONFIG

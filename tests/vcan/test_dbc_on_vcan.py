@@ -6,10 +6,10 @@ import subprocess
 import can
 import pytest
 
-from daq.decoding import FrameDecoder
-from daq.encoding import FrameEncoder
-from daq.protection import crc8_sae_j1850
-from daq.samples import LegSampler
+from dbc.decoding import FrameDecoder
+from dbc.encoding import FrameEncoder
+from dbc.protection import crc8_sae_j1850
+from dbc.samples import LegSampler
 from tests.helpers import LEGS, example_machine
 
 pytestmark = pytest.mark.vcan

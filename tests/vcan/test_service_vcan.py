@@ -23,10 +23,10 @@ import can
 import pytest
 from mcap.reader import NonSeekingReader
 
-from daq.encoding import FrameEncoder
 from daq.mcap_reading import RecordedMessage, RecordingStream
 from daq.replay import replay
 from daq.service_config import ServiceConfig, load_service_config
+from dbc.encoding import FrameEncoder
 from tests.daq.service_support import (
     Collector,
     assert_estimates_match,

@@ -10,10 +10,10 @@ container, float signals) are left to cantools: :meth:`CompiledMessage.compile`
 returns None for them.
 
 :class:`TableCrc8` computes the frame's CRC with a 256-entry table built from the CRC's
-parameters; :mod:`daq.protection` (the ``crc`` package) stays the reference.
+parameters; :mod:`dbc.protection` (the ``crc`` package) stays the reference.
 
 Both are checked against the reference path (cantools, ``payload_crc``) on random
-frames in ``tests/daq/test_compiled_codec.py``.
+frames in ``tests/dbc/test_compiled_codec.py``.
 """
 
 from cantools.database.can import Message
@@ -26,7 +26,7 @@ from cantools.database.conversion import (
 )
 from cantools.database.namedsignalvalue import NamedSignalValue
 
-#: A decoded signal value (as :data:`daq.decoding.SignalValue`).
+#: A decoded signal value (as :data:`dbc.decoding.SignalValue`).
 Value = float | int | str
 #: name, big-endian, shift, mask, sign bit (0: unsigned), value table, scale, offset
 #: (scale None: the raw value as it is).
@@ -128,5 +128,5 @@ class TableCrc8:
         return register ^ self._final_xor
 
     def payload_crc(self, data: bytes, crc_byte: int) -> int:
-        """As :func:`daq.protection.payload_crc`: the CRC with byte ``crc_byte`` left out."""
+        """As :func:`dbc.protection.payload_crc`: the CRC with byte ``crc_byte`` left out."""
         return self.checksum(data[:crc_byte] + data[crc_byte + 1 :])

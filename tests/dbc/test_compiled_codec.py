@@ -5,9 +5,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from daq._compiled_codec import CompiledMessage, TableCrc8
-from daq.decoding import FrameDecoder
-from daq.protection import crc8_sae_j1850, payload_crc
+from dbc._compiled_codec import CompiledMessage, TableCrc8
+from dbc.decoding import FrameDecoder
+from dbc.protection import crc8_sae_j1850, payload_crc
 from tests.helpers import example_machine
 
 CONFIG, DATABASE = example_machine()

@@ -4,10 +4,10 @@ Pure computation: bytes and a time stamp in, a :class:`DecodedFrame` out, or a
 :class:`~daq.errors.FrameError` the caller counts. The only state is each
 protected message's last counter value.
 
-Two paths give the same frames: the precompiled one (:mod:`daq._compiled_codec`:
+Two paths give the same frames: the precompiled one (:mod:`dbc._compiled_codec`:
 shifts and masks compiled once per message from the DBC layout, a table-driven
 CRC), used by default, and the reference one (cantools' ``Message.decode`` and
-:func:`daq.protection.payload_crc`), ``FrameDecoder(..., compiled=False)``, which
+:func:`dbc.protection.payload_crc`), ``FrameDecoder(..., compiled=False)``, which
 also serves the messages the compiler leaves out (multiplexed, container, float
 signals). The tests decode random frames both ways and compare.
 """
@@ -19,13 +19,13 @@ from cantools.database.can import Database, Message
 from cantools.database.namedsignalvalue import NamedSignalValue
 from crc import Crc8
 
-from daq._compiled_codec import CompiledMessage, TableCrc8
-from daq.errors import FrameLengthError, SignalDecodeError, UnknownFrameError
-from daq.machine import Protection
-from daq.protection import CounterCheck, payload_crc
+from dbc._compiled_codec import CompiledMessage, TableCrc8
+from dbc.errors import FrameLengthError, SignalDecodeError, UnknownFrameError
+from dbc.machine import Protection
+from dbc.protection import CounterCheck, payload_crc
 
 _J1850 = Crc8.SAEJ1850.value
-#: The CRC of daq.protection (CRC-8 SAE J1850), table-driven.
+#: The CRC of dbc.protection (CRC-8 SAE J1850), table-driven.
 _TABLE_CRC8 = TableCrc8(_J1850.polynomial, _J1850.init_value, _J1850.final_xor_value)
 
 #: A decoded signal: its physical value in the DBC's unit, or its value-table name.

@@ -6,7 +6,7 @@ import cantools
 from cantools.database.can import Database
 from cantools.database.errors import UnsupportedDatabaseFormatError
 
-from daq.errors import DbcError
+from dbc.errors import DbcError
 
 
 def load_database(path: str | Path) -> Database:

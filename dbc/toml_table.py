@@ -5,7 +5,7 @@ import re
 from collections.abc import Callable, Iterable, Mapping
 from typing import Any, TypeVar
 
-from daq.errors import ConfigError
+from dbc.errors import ConfigError
 
 T = TypeVar("T")
 

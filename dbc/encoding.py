@@ -9,9 +9,9 @@ from dataclasses import dataclass
 
 from cantools.database.can import Database
 
-from daq.decoding import SignalValue
-from daq.machine import Protection
-from daq.protection import payload_crc
+from dbc.decoding import SignalValue
+from dbc.machine import Protection
+from dbc.protection import payload_crc
 
 
 @dataclass(frozen=True, slots=True)

@@ -5,8 +5,8 @@ from pathlib import Path
 
 import pytest
 
-from daq.errors import ConfigError, DbcError
-from daq.machine import G_M_S2, load_machine_config
+from dbc.errors import ConfigError, DbcError
+from dbc.machine import G_M_S2, load_machine_config
 from tests.helpers import EXAMPLE_CONFIG, LEGS
 
 EXAMPLE = EXAMPLE_CONFIG.read_text()

@@ -5,11 +5,11 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from daq.decoding import FrameDecoder
-from daq.encoding import FrameEncoder
-from daq.errors import FrameError, FrameLengthError, SignalDecodeError, UnknownFrameError
-from daq.protection import CounterCheck, crc8_sae_j1850, payload_crc
-from daq.samples import LegSampler
+from dbc.decoding import FrameDecoder
+from dbc.encoding import FrameEncoder
+from dbc.errors import FrameError, FrameLengthError, SignalDecodeError, UnknownFrameError
+from dbc.protection import CounterCheck, crc8_sae_j1850, payload_crc
+from dbc.samples import LegSampler
 from estimator import foot_force_N
 from tests.helpers import LEGS, example_machine
 

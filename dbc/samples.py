@@ -2,8 +2,8 @@
 
 from collections.abc import Mapping
 
-from daq.decoding import DecodedFrame
-from daq.machine import LegConfig
+from dbc.decoding import DecodedFrame
+from dbc.machine import LegConfig
 from estimator.leg import LegSample
 
 

@@ -21,10 +21,10 @@ from typing import Any
 
 from cantools.database.can import Database, Message
 
-from daq._toml_table import TomlTable
-from daq.database import load_database
-from daq.errors import ConfigError
 from dbc import DEFAULT_DBC_PATH
+from dbc.database import load_database
+from dbc.errors import ConfigError
+from dbc.toml_table import TomlTable
 from estimator.geometry import LegGeometry
 from estimator.settings import EstimatorSettings
 
