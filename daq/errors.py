@@ -1,9 +1,9 @@
 """The service's branches of the one exception tree (rooted in :mod:`dbc.errors`).
 
-    PortalDaqError (dbc.errors)
-    ├── BusError           the CAN bus cannot be opened or read (retried, never fatal)
-    ├── ZenohError         the Zenoh session cannot be opened (fatal at start)
-    └── RecordingError     an MCAP recording cannot be written or read
+PortalDaqError (dbc.errors)
+├── BusError           the CAN bus cannot be opened or read (retried, never fatal)
+├── ZenohError         the Zenoh session cannot be opened (fatal at start)
+└── RecordingError     an MCAP recording cannot be written or read
 """
 
 from pathlib import Path
