@@ -1,9 +1,13 @@
 """The consumer thread: the one place where frames are decoded and estimated.
 
-It takes frames and bus events from the reader's queue, runs each frame
-through the :class:`~daq.pipeline.Pipeline`, and hands the results to the
-publisher and the recorder through their own bounded queues (``submit`` never
-blocks). It owns the estimator, so it also builds the timed messages: the
+It takes frames and bus events from the reader's queue, everything queued in one go
+(at most :data:`~daq.can_batch.MAX_FRAMES`), runs each frame through the
+:class:`~daq.pipeline.Pipeline`, and hands the results on through bounded queues
+(``submit`` never blocks): to the recorder one :class:`~daq.mcap_file.RecordBatch`
+per run of frames (a bus event between frames is handed on in its place), to the
+publisher each leg estimate (JSON encoded once, the same bytes the recorder writes)
+and the decoded signals of each message at most ``[publish] signals_max_rate_hz``
+(by frame time). It owns the estimator, so it also builds the timed messages: the
 all-legs ground message at ``ground_rate_hz`` and the soil metrics every
 ``status_period_s``.
 """
@@ -11,14 +15,17 @@ all-legs ground message at ``ground_rate_hz`` and the soil metrics every
 import logging
 import queue
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Protocol
 
 from daq import payloads
 from daq._worker import Worker
+from daq.can_batch import MAX_FRAMES
 from daq.frames import BusEvent, RawFrame
-from daq.pipeline import FrameResult, Pipeline
+from daq.mcap_file import RecordBatch
+from daq.pipeline import Pipeline
 from daq.service_config import PublishSettings
+from dbc.decoding import DecodedFrame
 
 logger = logging.getLogger(__name__)
 
@@ -33,11 +40,11 @@ LAG_TOLERANCE_S = 0.5
 
 
 class Publisher(Protocol):
-    def submit(self, suffix: str, payload: payloads.JsonObject) -> None: ...
+    def submit(self, suffix: str, payload: payloads.JsonObject | bytes) -> None: ...
 
 
 class Recording(Protocol):
-    def submit(self, item: FrameResult | BusEvent) -> None: ...
+    def submit(self, item: RecordBatch | BusEvent) -> None: ...
 
 
 class Consumer(Worker):
@@ -56,6 +63,7 @@ class Consumer(Worker):
         *,
         publisher: Publisher | None = None,
         recorder: Recording | None = None,
+        record_signals: bool = False,
         now: Callable[[], float] = time.time,
     ) -> None:
         super().__init__()
@@ -64,7 +72,12 @@ class Consumer(Worker):
         self._settings = settings
         self._publisher = publisher
         self._recorder = recorder
+        self._record_signals = record_signals
         self._now = now
+        rate_hz = settings.signals_max_rate_hz
+        self._signals_period_s = 1.0 / rate_hz if rate_hz > 0 else 0.0
+        #: Frame time of the signals last published, by message.
+        self._signals_published_t_s: dict[str, float] = {}
         #: Kernel time stamp of the newest frame handled so far.
         self._newest_frame_t_s = float("-inf")
         #: time.monotonic() of the thread's last loop turn (for the watchdog).
@@ -72,28 +85,56 @@ class Consumer(Worker):
         #: Bus events seen that reset the rolling counters.
         self.resets = 0
 
-    def handle(self, item: RawFrame | BusEvent) -> FrameResult | None:
-        """Process one item (the thread's work; callable directly in tests)."""
-        if isinstance(item, BusEvent):
-            if item.reset_counters:
-                self.pipeline.reset_counters()
-                self.resets += 1
-            if self._recorder is not None:
-                self._recorder.submit(item)
-            return None
-        result = self.pipeline.process(item)
-        self._newest_frame_t_s = max(self._newest_frame_t_s, item.t_s)
+    def handle(self, item: RawFrame | BusEvent) -> None:
+        """Process one item (callable directly in tests)."""
+        self.handle_batch((item,))
+
+    def handle_batch(self, items: Sequence[RawFrame | BusEvent]) -> None:
+        """Process what was taken from the queue in one go (the thread's work): each run
+        of frames is one batch, events keep their place."""
+        start = 0
+        for at, item in enumerate(items):
+            if isinstance(item, BusEvent):
+                self._frames(items[start:at])  # type: ignore[arg-type]  # frames only
+                self._event(item)
+                start = at + 1
+        self._frames(items[start:])  # type: ignore[arg-type]
+
+    def _event(self, event: BusEvent) -> None:
+        if event.reset_counters:
+            self.pipeline.reset_counters()
+            self.resets += 1
         if self._recorder is not None:
-            self._recorder.submit(result)
+            self._recorder.submit(event)
+
+    def _frames(self, frames: Sequence[RawFrame]) -> None:
+        if not frames:
+            return
+        process = self.pipeline.process
+        results = [process(frame) for frame in frames]
+        self._newest_frame_t_s = max(self._newest_frame_t_s, frames[-1].t_s)
+        batch = RecordBatch.of(results, signals=self._record_signals)
+        if self._recorder is not None:
+            self._recorder.submit(batch)
         publisher = self._publisher
-        if publisher is not None:
-            for estimate in result.estimates:
-                publisher.submit(f"leg/{estimate.leg}/ground", payloads.leg_ground(estimate))
-            if self._settings.signals and result.decoded is not None:
-                publisher.submit(
-                    f"signals/{result.decoded.message}", payloads.signals(result.decoded)
-                )
-        return result
+        if publisher is None:
+            return
+        for leg, _, data in batch.estimates:
+            publisher.submit(f"leg/{leg}/ground", data)
+        if self._settings.signals:
+            for result in results:
+                if result.decoded is not None and self._signals_due(result.decoded):
+                    publisher.submit(
+                        f"signals/{result.decoded.message}", payloads.signals(result.decoded)
+                    )
+
+    def _signals_due(self, decoded: DecodedFrame) -> bool:
+        """At most one message's signals per ``signals_max_rate_hz`` (by frame time)."""
+        last_t_s = self._signals_published_t_s.get(decoded.message, float("-inf"))
+        if not decoded.t_s - last_t_s >= self._signals_period_s:
+            return False
+        self._signals_published_t_s[decoded.message] = decoded.t_s
+        return True
 
     def judged_at(self) -> float:
         """The time at which legs are judged stale: see :data:`LAG_TOLERANCE_S`."""
@@ -120,21 +161,30 @@ class Consumer(Worker):
             if self._publisher is not None:
                 wait_s = max(0.0, min(timeout_s, next_ground - time.monotonic()))
             try:
-                item = self._inbox.get(timeout=wait_s)
+                items = [self._inbox.get(timeout=wait_s)]
             except queue.Empty:
                 continue
-            self._handle_guarded(item)
+            self._handle_guarded(self._drain(items))
         deadline = time.monotonic() + DRAIN_S
         while time.monotonic() < deadline:
-            try:
-                item = self._inbox.get_nowait()
-            except queue.Empty:
+            items = self._drain([])
+            if not items:
                 break
-            self._handle_guarded(item)
+            self._handle_guarded(items)
 
-    def _handle_guarded(self, item: RawFrame | BusEvent) -> None:
+    def _drain(self, items: list[RawFrame | BusEvent]) -> list[RawFrame | BusEvent]:
+        """``items`` and what else is queued, up to :data:`MAX_FRAMES` in all."""
+        get = self._inbox.get_nowait
         try:
-            self.handle(item)
+            while len(items) < MAX_FRAMES:
+                items.append(get())
+        except queue.Empty:
+            pass
+        return items
+
+    def _handle_guarded(self, items: list[RawFrame | BusEvent]) -> None:
+        try:
+            self.handle_batch(items)
         except Exception:  # noqa: BLE001 -- a bug on one frame must not stop the service
             self.pipeline.bad["internal_error"] += 1
-            logger.exception("processing %r failed", item)
+            logger.exception("processing a batch of %d items failed", len(items))

@@ -1,12 +1,18 @@
-"""One MCAP recording file: channels and JSON schemas of the service, written through mcap.
+"""One MCAP recording file: channels and schemas of the service, written through mcap.
 
 The stream is passed in (opened by :mod:`daq.recorder`, or a ``BytesIO`` in tests).
-Topics, each with a JSON Schema (``jsonschema``) and JSON messages:
+What is written comes in :class:`RecordBatch` es (one per batch of frames the
+consumer processed). Topics: ``/can/raw`` in the binary layout of
+:mod:`daq.can_batch` (its schema in the file), the others with a JSON Schema
+(``jsonschema``) and JSON messages:
 
 =======================  ===================================================
-``/can/raw``             every frame, bad ones included (:data:`RAW_TOPIC`)
-``/signals/<MESSAGE>``   the decoded signals of each good frame
-``/leg/<LEG>/ground``    each leg estimate
+``/can/raw``             every frame, bad ones included, a batch per message
+                         (:data:`RAW_TOPIC`)
+``/signals/<MESSAGE>``   the decoded signals of each good frame, only with
+                         ``[recording] signals = true`` (replay and report
+                         derive them from ``/can/raw`` otherwise)
+``/leg/<LEG>/ground``    each leg estimate (the bytes published on Zenoh)
 ``/daq/bus``             bus state changes (:data:`BUS_TOPIC`)
 ``/sim/truth``           simulation ground truth, when a simulator bridge
                          publishes it (:data:`TRUTH_TOPIC`)
@@ -17,15 +23,17 @@ recording replays without the files it was made with.
 """
 
 import json
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
 from typing import IO, Any, cast
 
 from cantools.database.can import Database
 from mcap.writer import CompressionType, Writer
 
-from daq import payloads, schemas
-from daq.frames import BusEvent
+from daq import can_batch, payloads, schemas
+from daq.frames import BusEvent, RawFrame
 from daq.pipeline import FrameResult
+from dbc.decoding import DecodedFrame
 
 RAW_TOPIC = "/can/raw"
 BUS_TOPIC = "/daq/bus"
@@ -42,6 +50,33 @@ COMPRESSION = {
     "lz4": CompressionType.LZ4,
     "none": CompressionType.NONE,
 }
+
+
+@dataclass(frozen=True, slots=True)
+class RecordBatch:
+    """What one batch of frames gave, as the recorder writes it."""
+
+    #: Every frame, bad ones included, in the order processed.
+    frames: Sequence[RawFrame]
+    #: (leg, frame time in Unix seconds, JSON of :func:`daq.payloads.leg_ground`): the
+    #: bytes published on Zenoh, encoded once.
+    estimates: Sequence[tuple[str, float, bytes]]
+    #: The decoded frames, when signals are recorded (``[recording] signals``).
+    decoded: Sequence[DecodedFrame] = ()
+
+    @classmethod
+    def of(cls, results: Iterable[FrameResult], *, signals: bool) -> "RecordBatch":
+        """The batch of ``results`` (estimates encoded here; signals kept if ``signals``)."""
+        results = list(results)
+        return cls(
+            [result.frame for result in results],
+            [
+                (estimate.leg, estimate.t_s, payloads.json_bytes(payloads.leg_ground(estimate)))
+                for result in results
+                for estimate in result.estimates
+            ],
+            [result.decoded for result in results if result.decoded is not None] if signals else (),
+        )
 
 
 class CountingFile:
@@ -129,32 +164,28 @@ class McapFile:
             )
         self._started = True
 
-    def write_result(self, result: FrameResult) -> None:
-        """The raw frame, its signals and its leg estimates."""
-        t_ns = _ns(result.frame.t_s)
-        self._write(
-            RAW_TOPIC, "portal.RawFrame", schemas.RAW_FRAME, t_ns, payloads.raw_frame(result)
-        )
-        if result.decoded is not None:
-            name = result.decoded.message
-            self._write(
-                SIGNALS_TOPIC.format(message=name),
-                f"portal.signals.{name}",
-                None,
-                t_ns,
-                payloads.signals(result.decoded),
+    def write_batch(self, batch: RecordBatch) -> None:
+        """The batch's raw frames (one message), its estimates and signals (one each)."""
+        frames = batch.frames
+        if frames:
+            t_ns = _ns(frames[0].t_s)
+            channel = self._channels.get(RAW_TOPIC) or self._raw_channel()
+            self._add(channel, t_ns, can_batch.encode(frames))
+        for leg, t_s, data in batch.estimates:
+            topic = LEG_TOPIC.format(leg=leg)
+            channel = self._channels.get(topic) or self._json_channel(
+                topic, "portal.LegGround", schemas.LEG_GROUND
             )
-        for estimate in result.estimates:
-            self._write(
-                LEG_TOPIC.format(leg=estimate.leg),
-                "portal.LegGround",
-                schemas.LEG_GROUND,
-                t_ns,
-                payloads.leg_ground(estimate),
+            self._add(channel, _ns(t_s), data)
+        for decoded in batch.decoded:
+            topic = SIGNALS_TOPIC.format(message=decoded.message)
+            channel = self._channels.get(topic) or self._json_channel(
+                topic, f"portal.signals.{decoded.message}", None
             )
+            self._add(channel, _ns(decoded.t_s), payloads.json_bytes(payloads.signals(decoded)))
 
     def write_event(self, event: BusEvent) -> None:
-        self._write(
+        self._write_json(
             BUS_TOPIC,
             "portal.BusEvent",
             schemas.BUS_EVENT,
@@ -165,11 +196,11 @@ class McapFile:
     def write_truth(self, sample: payloads.JsonObject) -> None:
         """A simulation truth sample (see :func:`daq.sim_truth.truth_payload`), logged at
         its frame time ``t_unix_s``."""
-        self._write(
+        self._write_json(
             TRUTH_TOPIC, "portal_daq.SimTruth", schemas.SIM_TRUTH, _ns(sample["t_unix_s"]), sample
         )
 
-    def _write(
+    def _write_json(
         self,
         topic: str,
         schema_name: str,
@@ -177,29 +208,49 @@ class McapFile:
         t_ns: int,
         payload: payloads.JsonObject,
     ) -> None:
-        channel = self._channels.get(topic)
-        if channel is None:
-            channel = self._channels[topic] = self._register(topic, schema_name, schema)
-        self._writer.add_message(
-            channel_id=channel, log_time=t_ns, publish_time=t_ns, data=payloads.json_bytes(payload)
-        )
+        channel = self._channels.get(topic) or self._json_channel(topic, schema_name, schema)
+        self._add(channel, t_ns, payloads.json_bytes(payload))
+
+    def _add(self, channel: int, t_ns: int, data: bytes) -> None:
+        self._writer.add_message(channel_id=channel, log_time=t_ns, publish_time=t_ns, data=data)
         self.message_count += 1
         if self.first_log_time_ns is None:
             self.first_log_time_ns = t_ns
 
-    def _register(self, topic: str, schema_name: str, schema: schemas.Schema | None) -> int:
+    def _json_channel(self, topic: str, schema_name: str, schema: schemas.Schema | None) -> int:
+        if schema is None:  # a signals channel: the schema comes from the DBC
+            message = self._messages[schema_name.removeprefix("portal.signals.")]
+            schema = schemas.signals_schema(message)
+        return self._register(topic, schema_name, "jsonschema", json.dumps(schema).encode(), "json")
+
+    def _raw_channel(self) -> int:
+        return self._register(
+            RAW_TOPIC,
+            can_batch.SCHEMA_NAME,
+            can_batch.ENCODING,
+            can_batch.SCHEMA_TEXT.encode(),
+            can_batch.ENCODING,
+        )
+
+    def _register(
+        self,
+        topic: str,
+        schema_name: str,
+        schema_encoding: str,
+        schema_data: bytes,
+        message_encoding: str,
+    ) -> int:
         schema_id = self._schemas.get(schema_name)
         if schema_id is None:
-            if schema is None:  # a signals channel: the schema comes from the DBC
-                message = self._messages[schema_name.removeprefix("portal.signals.")]
-                schema = schemas.signals_schema(message)
             schema_id = self._writer.register_schema(
-                name=schema_name, encoding="jsonschema", data=json.dumps(schema).encode()
+                name=schema_name, encoding=schema_encoding, data=schema_data
             )
             self._schemas[schema_name] = schema_id
-        return self._writer.register_channel(
-            topic=topic, message_encoding="json", schema_id=schema_id
+        channel = self._writer.register_channel(
+            topic=topic, message_encoding=message_encoding, schema_id=schema_id
         )
+        self._channels[topic] = channel
+        return channel
 
     def flush(self) -> None:
         """Write out the chunk being built, so that a crash cannot lose it."""

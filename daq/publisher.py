@@ -44,7 +44,7 @@ class ZenohPublisher(Worker):
         super().__init__()
         self.session = session
         self.prefix = prefix
-        self._queue: queue.Queue[tuple[str, JsonObject]] = queue.Queue(maxsize=queue_size)
+        self._queue: queue.Queue[tuple[str, JsonObject | bytes]] = queue.Queue(maxsize=queue_size)
         self._publishers: dict[str, zenoh.Publisher] = {}
         self._latest: dict[str, tuple[zenoh.KeyExpr, bytes]] = {}
         self._latest_lock = threading.Lock()
@@ -71,8 +71,9 @@ class ZenohPublisher(Worker):
         )
         self._token = self.session.liveliness().declare_token(self.key("alive"))
 
-    def submit(self, suffix: str, payload: JsonObject) -> None:
-        """Queue ``payload`` for ``<prefix>/<suffix>``; never blocks (full: dropped, counted)."""
+    def submit(self, suffix: str, payload: JsonObject | bytes) -> None:
+        """Queue ``payload`` (or its JSON, already encoded) for ``<prefix>/<suffix>``; never
+        blocks (full: dropped, counted)."""
         try:
             self._queue.put_nowait((suffix, payload))
         except queue.Full:
@@ -122,9 +123,9 @@ class ZenohPublisher(Worker):
                 continue
             self._put(suffix, payload)
 
-    def _put(self, suffix: str, payload: JsonObject) -> None:
+    def _put(self, suffix: str, payload: JsonObject | bytes) -> None:
         key = self.key(suffix)
-        data = json_bytes(payload)
+        data = payload if isinstance(payload, bytes) else json_bytes(payload)
         try:
             publisher = self._publishers.get(key)
             if publisher is None:

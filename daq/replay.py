@@ -3,7 +3,8 @@
 Sources:
 
 - the service's MCAP files: the ``/can/raw`` channel (every frame, bad ones
-  included) and ``/daq/bus`` (gaps that reset the rolling counters), in file
+  included; batches of :mod:`daq.can_batch`, or one JSON frame per message in
+  recordings made before) and ``/daq/bus`` (gaps that reset the rolling counters), in file
   order, which is the order the live pipeline processed them. The machine
   configuration and DBC come from the file's attachments unless a config file
   is given. A file cut short by a crash replays up to its last complete chunk.
@@ -25,11 +26,12 @@ from typing import IO
 import can
 from cantools.database.can import Database
 
+from daq.can_batch import recorded_frames
 from daq.errors import RecordingError
 from daq.frames import BusEvent, RawFrame, from_can_message
 from daq.mcap_file import BUS_TOPIC, CONFIG_ATTACHMENT, DBC_ATTACHMENT, RAW_TOPIC
 from daq.mcap_reading import RecordedAttachment, RecordedMessage, RecordingStream
-from daq.pipeline import Pipeline
+from daq.pipeline import FrameResult, Pipeline
 from dbc.database import load_database_string
 from dbc.errors import ConfigError
 from dbc.machine import MachineConfig, load_machine_config, parse_machine_config
@@ -53,14 +55,20 @@ CSV_COLUMNS = (
 Machine = tuple[MachineConfig, Database]
 
 
-def estimates(pipeline: Pipeline, items: Iterable[RawFrame | BusEvent]) -> Iterator[LegEstimate]:
-    """Every leg estimate the frames give, in order; bus gaps reset the counters."""
+def results(pipeline: Pipeline, items: Iterable[RawFrame | BusEvent]) -> Iterator[FrameResult]:
+    """What each frame gives, in order; bus gaps reset the counters."""
     for item in items:
         if isinstance(item, BusEvent):
             if item.reset_counters:
                 pipeline.reset_counters()
             continue
-        yield from pipeline.process(item).estimates
+        yield pipeline.process(item)
+
+
+def estimates(pipeline: Pipeline, items: Iterable[RawFrame | BusEvent]) -> Iterator[LegEstimate]:
+    """Every leg estimate the frames give, in order; bus gaps reset the counters."""
+    for result in results(pipeline, items):
+        yield from result.estimates
 
 
 def write_csv(rows: Iterable[LegEstimate], out: IO[str]) -> int:
@@ -92,7 +100,8 @@ def replay(path: Path, out: IO[str], config_path: Path | None = None) -> int:
     machine = load_machine_config(config_path) if config_path is not None else None
     if path.suffix.lower() == ".mcap":
         with _open(path) as stream:
-            return write_csv(_mcap_estimates(stream, path, machine), out)
+            rows = (e for result in mcap_results(stream, path, machine) for e in result.estimates)
+            return write_csv(rows, out)
     if machine is None:
         raise ConfigError(path, "", "replaying a CAN log needs --config (the machine config)")
     pipeline = Pipeline.from_config(*machine)
@@ -117,9 +126,8 @@ def _open(path: Path) -> IO[bytes]:
         raise RecordingError(path, f"cannot open it: {exc.strerror or exc}") from exc
 
 
-def _mcap_estimates(
-    stream: IO[bytes], path: Path, machine: Machine | None
-) -> Iterator[LegEstimate]:
+def mcap_results(stream: IO[bytes], path: Path, machine: Machine | None) -> Iterator[FrameResult]:
+    """What the pipeline makes of every frame of an MCAP recording, in file order."""
     recording = RecordingStream(stream, str(path))
     attachments: dict[str, bytes] = {}
     pipeline: Pipeline | None = None
@@ -129,26 +137,19 @@ def _mcap_estimates(
             continue
         if pipeline is None:
             pipeline = Pipeline.from_config(*(machine or _embedded_machine(attachments, path)))
-        item = _item(record)
-        if item is not None:
-            yield from estimates(pipeline, (item,))
+        yield from results(pipeline, _items(record, path))
 
 
-def _item(record: RecordedMessage) -> RawFrame | BusEvent | None:
+def _items(record: RecordedMessage, path: Path) -> Iterable[RawFrame | BusEvent]:
     if record.topic == RAW_TOPIC:
-        raw = json.loads(record.data)
-        return RawFrame(
-            t_s=raw["t"],
-            arbitration_id=raw["id"],
-            is_extended_id=raw["extended"],
-            data=bytes.fromhex(raw["data"]),
-            is_error_frame=raw["error_frame"],
-            is_remote_frame=raw["remote_frame"],
-        )
+        try:
+            return list(recorded_frames(record.encoding, record.data))
+        except (ValueError, KeyError) as exc:  # BatchFormatError, JSON
+            raise RecordingError(path, f"a {RAW_TOPIC} message is unreadable: {exc}") from exc
     if record.topic == BUS_TOPIC:
         event = json.loads(record.data)
-        return BusEvent(event["t"], event["state"], event["reason"], event["reset_counters"])
-    return None
+        return (BusEvent(event["t"], event["state"], event["reason"], event["reset_counters"]),)
+    return ()
 
 
 def _embedded_machine(attachments: dict[str, bytes], path: Path) -> Machine:

@@ -85,6 +85,7 @@ class Service:
             config.publish,
             publisher=self.publisher,
             recorder=recorder,
+            record_signals=config.recording.signals,
             now=now,
         )
         self._started_monotonic = time.monotonic()

@@ -69,8 +69,13 @@ class PublishSettings:
 
     #: Rate of the all-legs ``<prefix>/ground`` message.
     ground_rate_hz: float = 10.0
-    #: Publish every decoded message on ``<prefix>/signals/<MESSAGE>``.
+    #: Publish decoded messages on ``<prefix>/signals/<MESSAGE>``.
     signals: bool = True
+    #: ... each message at most this often (by frame time); 0: every frame. 10 Hz is
+    #: what a dashboard or monitor shows (a screen refreshes no faster than a person
+    #: reads; the leg estimates go out with every frame regardless); every frame of a
+    #: saturated bus would cost the service about a third of its CPU (bench/).
+    signals_max_rate_hz: float = 10.0
     #: Period of ``<prefix>/status``, ``<prefix>/metrics`` and systemd's STATUS=.
     status_period_s: float = 1.0
     #: Messages waiting for the Zenoh thread; beyond, they are dropped and counted.
@@ -99,6 +104,10 @@ class RecordingSettings:
     #: Also record the simulator bridge's ground truth (``<prefix>/sim/truth`` on
     #: Zenoh) on the ``/sim/truth`` channel, whenever a bridge publishes it.
     truth: bool = True
+    #: Also record the decoded signals of every frame (``/signals/<MESSAGE>``, JSON).
+    #: Off: they are derivable from ``/can/raw`` (replay and report do), and writing
+    #: them costs about as much as everything else the recorder does (bench/).
+    signals: bool = False
 
 
 @dataclass(frozen=True)
@@ -145,6 +154,13 @@ def _positive(table: TomlTable, name: str, default: float) -> float:
     value = table.number(name, default)
     if value <= 0:
         raise table.error(name, f"must be > 0, got {value}")
+    return value
+
+
+def _not_negative(table: TomlTable, name: str, default: float) -> float:
+    value = table.number(name, default)
+    if value < 0:
+        raise table.error(name, f"must be >= 0, got {value}")
     return value
 
 
@@ -205,6 +221,9 @@ def _publish(table: TomlTable) -> PublishSettings:
     return PublishSettings(
         ground_rate_hz=_positive(table, "ground_rate_hz", defaults.ground_rate_hz),
         signals=table.boolean("signals", defaults.signals),
+        signals_max_rate_hz=_not_negative(
+            table, "signals_max_rate_hz", defaults.signals_max_rate_hz
+        ),
         status_period_s=_positive(table, "status_period_s", defaults.status_period_s),
         queue_size=_positive_int(table, "queue_size", defaults.queue_size),
     )
@@ -229,4 +248,5 @@ def _recording(table: TomlTable, config_dir: Path) -> RecordingSettings:
         flush_period_s=_positive(table, "flush_period_s", defaults.flush_period_s),
         queue_size=_positive_int(table, "queue_size", defaults.queue_size),
         truth=table.boolean("truth", defaults.truth),
+        signals=table.boolean("signals", defaults.signals),
     )

@@ -8,7 +8,10 @@ The machine configuration comes from ``config_path`` when given, else from the f
 embedded attachments; without either, the report still draws what was recorded (with
 the estimator's default settings). A recording without leg estimates but with
 ``/can/raw`` is replayed through :mod:`daq.replay`'s pipeline, which gives the
-estimates the live service would have recorded, bit for bit.
+estimates the live service would have recorded, bit for bit. So is a recording whose
+``/can/raw`` holds batches (:mod:`daq.can_batch`): they store the frames only, and the
+signals (machine state, message counts) and bad frames come from the replay, unless
+signals were recorded (``[recording] signals = true``).
 """
 
 import logging
@@ -16,10 +19,12 @@ import re
 from pathlib import Path
 from typing import IO
 
+from daq.can_batch import ENCODING as BATCH_ENCODING
+from daq.can_batch import recorded_frames
 from daq.errors import RecordingError
+from daq.mcap_file import RAW_TOPIC
 from daq.mcap_reading import RecordedAttachment, RecordingStream
-from daq.payloads import leg_ground
-from daq.replay import Machine, _embedded_machine, _mcap_estimates
+from daq.replay import Machine, _embedded_machine, mcap_results
 from daq.report.tracks import Recording, RecordingCollector
 from dbc.errors import ConfigError, DbcError
 from dbc.machine import MachineConfig, load_machine_config
@@ -57,11 +62,18 @@ def load_recording(path: Path, config_path: Path | None = None) -> Recording:
     machine: Machine | None = load_machine_config(config_path) if config_path else None
     collector = RecordingCollector()
     attachments: dict[str, bytes] = {}
+    batches = False
     with _open(path) as stream:
         reader = RecordingStream(stream, str(path))
         for record in reader:
             if isinstance(record, RecordedAttachment):
                 attachments[record.name] = record.data
+            elif record.topic == RAW_TOPIC and record.encoding == BATCH_ENCODING:
+                batches = True
+                try:
+                    collector.add_frames(recorded_frames(record.encoding, record.data))
+                except ValueError as exc:
+                    raise RecordingError(path, f"a {RAW_TOPIC} batch is unreadable: {exc}") from exc
             else:
                 collector.add(record.topic, record.data)
     if collector.frames == 0 and not collector.has_estimates and not attachments:
@@ -71,17 +83,16 @@ def load_recording(path: Path, config_path: Path | None = None) -> Recording:
             machine = _embedded_machine(attachments, path)
         except (ConfigError, DbcError) as exc:
             logger.warning("the configuration embedded in %s is unusable: %s", path, exc)
-    recomputed = False
-    if not collector.has_estimates and collector.frames:
+    recomputed = not collector.has_estimates and collector.frames > 0
+    derive_signals = batches and not collector.has_signals
+    if recomputed or batches:
         if machine is None:
-            raise ConfigError(
-                path, "", "no leg estimates recorded; recomputing them needs --config"
-            )
-        logger.info("%s has no leg estimates: recomputing them from /can/raw", path)
+            what = "leg estimates recorded; recomputing" if recomputed else "signals; deriving"
+            raise ConfigError(path, "", f"no {what} them needs --config")
+        logger.info("%s: deriving what was not recorded from /can/raw", path)
         with _open(path) as stream:
-            for estimate in _mcap_estimates(stream, path, machine):
-                collector.add_estimate(leg_ground(estimate))
-        recomputed = True
+            for result in mcap_results(stream, path, machine):
+                collector.derive(result, bad=batches, signals=derive_signals, estimates=recomputed)
     config: MachineConfig | None = machine[0] if machine is not None else None
     machine_id = config.machine_id if config else machine_id_from_name(path) or path.stem
     return collector.recording(

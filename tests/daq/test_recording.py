@@ -1,20 +1,20 @@
 """MCAP recording: rotation by size and time, reading back a file cut short by a crash."""
 
-import json
 import time
 from pathlib import Path
 
 from mcap.reader import NonSeekingReader, make_reader
 
+from daq.can_batch import recorded_frames
 from daq.frames import BusEvent, RawFrame
-from daq.mcap_file import CountingFile, McapFile
+from daq.mcap_file import CountingFile, McapFile, RecordBatch
 from daq.mcap_reading import RecordedMessage, RecordingStream
 from daq.pipeline import Pipeline
 from daq.recorder import Recorder, file_name
 from daq.service_config import RecordingSettings
 from dbc.encoding import FrameEncoder
 from tests.daq.service_support import leg_signals
-from tests.helpers import example_machine
+from tests.helpers import example_machine, recorded_raw_frames
 
 
 def results(count: int, t0: float = 1000.0, dt: float = 0.01):  # type: ignore[no-untyped-def]
@@ -27,12 +27,7 @@ def results(count: int, t0: float = 1000.0, dt: float = 0.01):  # type: ignore[n
 
 
 def raw_times(path: Path) -> list[float]:
-    with open(path, "rb") as file:
-        return [
-            json.loads(record.data)["t"]
-            for record in RecordingStream(file)
-            if isinstance(record, RecordedMessage) and record.topic == "/can/raw"
-        ]
+    return [frame.t_s for frame in recorded_raw_frames(path)]
 
 
 def wait_drained(recorder: Recorder) -> None:
@@ -47,7 +42,7 @@ def test_rotation_by_size_keeps_every_message_in_order(tmp_path: Path) -> None:
     clock = iter(range(10**6))
     with Recorder(settings, database, machine_id="m", now=lambda: float(next(clock))) as recorder:
         for result in results(400):
-            recorder.submit(result)
+            recorder.submit(RecordBatch.of([result], signals=True))
         wait_drained(recorder)
     assert len(recorder.paths) > 2 and recorder.dropped == 0 and recorder.errors == 0
     assert sorted(recorder.paths) == recorder.paths  # names sort by start time
@@ -64,7 +59,7 @@ def test_rotation_by_frame_time(tmp_path: Path) -> None:
     settings = RecordingSettings(directory=tmp_path, max_duration_s=1.0)
     with Recorder(settings, database, machine_id="m") as recorder:
         for result in results(35, dt=0.1):  # 3.4 s of frames
-            recorder.submit(result)
+            recorder.submit(RecordBatch.of([result], signals=True))
         recorder.submit(BusEvent(2000.0, "down", "test"))
         wait_drained(recorder)
     assert len(recorder.paths) == 4
@@ -84,7 +79,7 @@ def test_a_file_cut_short_reads_back_to_its_last_complete_chunk(tmp_path: Path) 
         mcap = McapFile(stream, database, chunk_size=1024)
         mcap.start({"a.txt": b"hello"})
         for i, result in enumerate(results(300)):
-            mcap.write_result(result)
+            mcap.write_batch(RecordBatch.of([result], signals=True))
             if i % 50 == 49:
                 mcap.flush()
                 sizes.append((stream.count, i + 1))
@@ -97,9 +92,10 @@ def test_a_file_cut_short_reads_back_to_its_last_complete_chunk(tmp_path: Path) 
                 stream_reader = RecordingStream(file)
                 records = list(stream_reader)
             times = [
-                json.loads(r.data)["t"]
+                frame.t_s
                 for r in records
                 if isinstance(r, RecordedMessage) and r.topic == "/can/raw"
+                for frame in recorded_frames(r.encoding, r.data)
             ]
             assert times[:frames] == [1000.0 + 0.01 * i for i in range(frames)]
             assert not stream_reader.complete and stream_reader.stopped_by

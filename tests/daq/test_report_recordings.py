@@ -20,7 +20,7 @@ from mcap.reader import make_reader
 from mcap.writer import Writer
 
 from daq.frames import RawFrame
-from daq.mcap_file import CONFIG_ATTACHMENT, DBC_ATTACHMENT, McapFile
+from daq.mcap_file import CONFIG_ATTACHMENT, DBC_ATTACHMENT, McapFile, RecordBatch
 from daq.pipeline import Pipeline
 from daq.report import ReportOptions, report
 from daq.report.content import analyse
@@ -70,7 +70,7 @@ def record(
                 if item.message == "MACHINE_STATE" and not machine_state:
                     continue
                 frame = RawFrame(t_s, item.frame.arbitration_id, False, item.frame.data)
-                mcap.write_result(pipeline.process(frame))
+                mcap.write_batch(RecordBatch.of([pipeline.process(frame)], signals=True))
             if truth and (position.cycle, position.row) != last_row:
                 last_row = (position.cycle, position.row)
                 mcap.write_truth(truth_sample(result, position, t_s, feet_m2).as_json())
@@ -95,7 +95,9 @@ def strip(source: Path, target: Path, *, keep: tuple[str, ...], attachments: boo
                 continue
             if channel.id not in channels:
                 schema_id = writer.register_schema(schema.name, schema.encoding, schema.data)  # type: ignore[union-attr]
-                channels[channel.id] = writer.register_channel(channel.topic, "json", schema_id)
+                channels[channel.id] = writer.register_channel(
+                    channel.topic, channel.message_encoding, schema_id
+                )
             writer.add_message(
                 channels[channel.id], message.log_time, message.data, message.log_time
             )

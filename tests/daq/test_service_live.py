@@ -17,8 +17,10 @@ import pytest
 import zenoh
 from mcap.reader import make_reader
 
+from daq import can_batch
 from daq.bus_reader import BusReader
 from daq.frames import BusEvent, RawFrame
+from daq.pipeline import Pipeline
 from daq.recorder import Recorder
 from daq.replay import replay
 from daq.runner import bus_factory, recording_attachments
@@ -39,7 +41,7 @@ from tests.daq.service_support import (
     subscriber_session,
     write_service_config,
 )
-from tests.helpers import LEGS
+from tests.helpers import LEGS, recorded_raw_frames
 
 FRAMES_PER_LEG = 25
 
@@ -106,11 +108,13 @@ def encoder_for(config: ServiceConfig) -> FrameEncoder:
 
 
 def recorded(path: Path) -> list[tuple[str, dict]]:
+    """The JSON messages of a recording (``/can/raw`` batches: :func:`recorded_raw_frames`)."""
     with open(path, "rb") as file:
         reader = make_reader(file)
         return [
             (channel.topic, json.loads(message.data))
             for _, channel, message in reader.iter_messages(log_time_order=False)
+            if channel.message_encoding == "json"
         ]
 
 
@@ -130,8 +134,12 @@ def test_published_estimates_match_equation_4_and_running_median(config: Service
             assert_estimates_match(config.machine, leg, sent, collector.of(key))
         encodings = {encoding for key, _, encoding in collector.samples}
         assert encodings == {"application/json"}
+        # 25 frames 10 ms apart, signals at most 10 Hz by default: frames 0, 10, 20
+        # (or 11 and 21, as frame times round)
         signals = collector.of(f"{prefix}/signals/LEG_SB1_F1")
-        assert len(signals) == FRAMES_PER_LEG and signals[0]["crc_ok"] is True
+        assert len(signals) == 3 and signals[0]["crc_ok"] is True
+        times = [s["t"] for s in signals]
+        assert all(0.1 <= b - a < 0.12 for a, b in zip(times, times[1:], strict=False))
 
         ground = collector.wait_for(
             f"{prefix}/ground", lambda p: p["legs"]["SB2_F3"]["force_N"] is not None
@@ -194,18 +202,23 @@ def test_bad_frames_are_counted_and_recorded_raw(config: ServiceConfig) -> None:
         leg = collector.of(f"{prefix}/leg/SB1_F1/ground")
         assert [m["reasons"] for m in leg] == [[], ["crc"], ["counter"]]
         path = service.recorder.paths[0]  # type: ignore[union-attr]
-    raw = [payload for topic, payload in recorded(path) if topic == "/can/raw"]
-    assert [(r["id"], r["error"]) for r in raw] == [
-        (0x100, None),
-        (0x7AB, "unknown_id"),
-        (0x100, "wrong_dlc"),
-        (0x1ABCDE, "unknown_id"),
-        (0x100, "remote_frame"),
-        (0x80, "error_frame"),
-        (0x100, None),
-        (0x100, None),
+    raw = recorded_raw_frames(path)  # the frames as received; replay derives the kinds
+    assert [r.arbitration_id for r in raw] == [0x100, 0x7AB, 0x100, 0x1ABCDE, 0x100, 0x80] + [
+        0x100
+    ] * 2
+    assert raw[1].data == bytes([1, 2]) and raw[3].is_extended_id and raw[2].dlc == 7
+    assert raw[4].is_remote_frame and raw[5].is_error_frame and not raw[0].is_remote_frame
+    pipeline = Pipeline.from_config(config.machine, config.database)
+    assert [pipeline.process(r).error_kind for r in raw] == [
+        None,
+        "unknown_id",
+        "wrong_dlc",
+        "unknown_id",
+        "remote_frame",
+        "error_frame",
+        None,
+        None,
     ]
-    assert raw[1]["data"] == "0102" and raw[3]["extended"] is True and raw[2]["dlc"] == 7
 
 
 def test_late_joiner_gets_the_latest_value_of_every_key(config: ServiceConfig) -> None:
@@ -298,7 +311,16 @@ def test_mcap_channels_and_schemas_are_readable(config: ServiceConfig) -> None:
         summary = reader.get_summary()
         assert summary is not None  # finished cleanly: summary present
         topics = {channel.topic: channel for channel in summary.channels.values()}
-        assert {"/can/raw", "/signals/LEG_SB1_F1", "/leg/SB1_F1/ground", "/daq/bus"} <= set(topics)
+        # signals are not recorded by default ([recording] signals = false)
+        assert set(topics) == {"/can/raw", "/daq/bus"} | {f"/leg/{leg}/ground" for leg in LEGS}
+        raw = topics.pop("/can/raw")
+        assert raw.message_encoding == can_batch.ENCODING
+        raw_schema = summary.schemas[raw.schema_id]
+        assert (
+            raw_schema.name == "portal.CanFrameBatch"
+            and raw_schema.encoding == raw.message_encoding
+        )
+        assert raw_schema.data.decode() == can_batch.SCHEMA_TEXT
         for channel in topics.values():
             assert channel.message_encoding == "json"
             schema = summary.schemas[channel.schema_id]
@@ -307,10 +329,15 @@ def test_mcap_channels_and_schemas_are_readable(config: ServiceConfig) -> None:
         assert summary.statistics is not None and summary.statistics.message_count > 0
         names = {a.name for a in reader.iter_attachments()}
         assert names == {"portal-daq.toml", "portal_sensors.dbc"}
-        for schema, _, message in reader.iter_messages():
+        frames = 0
+        for schema, channel, message in reader.iter_messages():
             assert schema is not None
+            if channel.topic == "/can/raw":
+                frames += len(list(can_batch.decode(message.data)))
+                continue
             payload = json.loads(message.data)
             assert set(json.loads(schema.data)["required"]) <= set(payload)
+        assert frames == 18
 
 
 def test_reader_never_blocks_and_counts_overflow() -> None:
