@@ -16,6 +16,7 @@ import threading
 import time
 import uuid
 from collections import Counter
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -47,21 +48,27 @@ channel = "{channel}"
 [zenoh]
 key_prefix = "{prefix}"
 
+[publish]
+{publish}
+
 [recording]
 directory = "{directory}"
+{recording}
 """
 
 
-def service_config(workdir: Path, prefix: str, chunk_size: int | None = None) -> ServiceConfig:
-    """The example machine with the service's defaults, a virtual bus and a recording dir
-    (and ``[recording] chunk_size`` when given)."""
+def service_config(workdir: Path, prefix: str, tables: Mapping[str, str] = {}) -> ServiceConfig:
+    """The example machine with the service's defaults, a virtual bus and a recording dir,
+    and the extra lines ``tables`` gives for ``publish`` and ``recording``."""
     path = workdir / "portal-daq.toml"
-    tables = _SERVICE_TABLES.format(
-        channel=f"bench-{uuid.uuid4().hex}", prefix=prefix, directory=workdir / "recordings"
+    text = _SERVICE_TABLES.format(
+        channel=f"bench-{uuid.uuid4().hex}",
+        prefix=prefix,
+        directory=workdir / "recordings",
+        publish=tables.get("publish", ""),
+        recording=tables.get("recording", ""),
     )
-    if chunk_size is not None:
-        tables += f"chunk_size = {chunk_size}\n"
-    path.write_text(tables + "\n" + EXAMPLE_CONFIG.read_text())
+    path.write_text(text + "\n" + EXAMPLE_CONFIG.read_text())
     return load_service_config(path)
 
 
