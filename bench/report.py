@@ -10,6 +10,7 @@ TARGET_NOMINAL_CPU_PCT = 2.0
 #: Systems in the order of the table, with their labels.
 LABELS = {
     "pipeline": "service (as deployed)",
+    "pipeline_threads": "service, four threads (event_loop = false)",
     "pipeline_tuned": "service, every frame's signals recorded and published (earlier defaults)",
     "baseline": "naive baseline",
 }
@@ -114,7 +115,11 @@ def markdown_table(results: dict[str, Any]) -> str:
         else "not pinned"
     )
     lines += [""]
-    for suffix, label in (("", "as deployed"), ("_tuned", "earlier defaults")):
+    for suffix, label in (
+        ("", "as deployed"),
+        ("_threads", "four threads"),
+        ("_tuned", "earlier defaults"),
+    ):
         if f"targets{suffix}" not in results:
             continue
         verdicts = ", ".join(
@@ -131,6 +136,6 @@ def markdown_table(results: dict[str, Any]) -> str:
         f"Machine: {machine['cpu']}, {machine['cores']} cores, Python {machine['python']}, "
         f"Linux {machine['kernel']}; {machine['date'][:10]}; load average "
         f"{machine['load_average'][0]:.1f} at the start; {pinned}; "
-        f"frames fed through the {setup['feed_description']}.",
+        "frames sent through python-can's virtual bus.",
     ]
     return "\n".join(lines)

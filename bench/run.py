@@ -15,8 +15,10 @@ Writes ``bench/results.json`` and prints a markdown table.
 4. Systems, one after the other, each with a warm-up, a throughput and a paced
    measurement, the paced one again while a CPU hog spins on the other CPU, and one
    at the DBC's nominal rate (:mod:`bench.measure`): the service as configured by
-   default (``pipeline``, as deployed: raw frames in batches, signals published at
-   most 10 Hz per message and not recorded, 1 ms GIL switch interval); with every
+   default (``pipeline``, as deployed: one thread receives, processes and publishes,
+   raw frames recorded in batches, signals published at most 10 Hz per message and
+   not recorded, 1 ms GIL switch interval); with reader and publisher in threads of
+   their own (``pipeline_threads``: ``[service] event_loop = false``); with every
    frame's signals recorded and published (``pipeline_tuned``, the earlier defaults:
    ``[recording] signals = true``, ``[publish] signals_max_rate_hz = 0``); and the
    naive baseline (:class:`~bench.targets.NaiveBaseline`).
@@ -41,7 +43,7 @@ from bench.measure import Plan, run_system
 from bench.probe import ProbeProcess
 from bench.report import markdown_table, targets_met
 from bench.subscriber import peer_config
-from bench.targets import FEEDS, NaiveBaseline, ServiceUnderTest, service_config
+from bench.targets import NaiveBaseline, ServiceUnderTest, service_config
 from daq.cli import GIL_SWITCH_INTERVAL_S
 from dbc.machine import load_machine_config
 
@@ -49,17 +51,16 @@ RESULTS = Path(__file__).resolve().parent / "results.json"
 #: The frame rate of a saturated 1 Mbit/s bus: an 8-byte standard frame is up to
 #: ~111 bits with stuff bits and the inter-frame space, i.e. ~111 us.
 SATURATED_RATE_HZ = 9000.0
-#: The variant with the earlier defaults, for comparison: every frame's signals
-#: recorded and published.
-TUNED_TABLES = {"recording": "signals = true", "publish": "signals_max_rate_hz = 0"}
+#: The variants for comparison: four threads instead of the event loop; and the
+#: earlier defaults, every frame's signals recorded and published.
+COMPARED = {
+    "pipeline_threads": {"service": "event_loop = false"},
+    "pipeline_tuned": {"recording": "signals = true", "publish": "signals_max_rate_hz = 0"},
+}
 #: Seconds of frames at the DBC's nominal rate.
 NOMINAL_S = 5.0
 PIPELINE_PREFIX = "bench/pipeline"
 BASELINE_PREFIX = "bench/baseline"
-FEED_DESCRIPTIONS = {
-    "bus": "python-can virtual bus and the service's reader thread",
-    "queue": "service's reader queue (RawFrames put there directly; virtual bus bypassed)",
-}
 
 
 def run_benchmark(
@@ -71,7 +72,6 @@ def run_benchmark(
     rate_hz: float = SATURATED_RATE_HZ,
     warmup: int = 2_000,
     window: int = 1_000,
-    feed: str = "bus",
     pin: bool = True,
     tuned: bool = True,
     rtol: float = 1e-3,
@@ -114,7 +114,6 @@ def run_benchmark(
                     nominal_rate_hz=nominal_hz,
                 ),
                 baseline_throughput_frames=baseline_throughput_frames,
-                feed=feed,
                 probe_cpu=probe_cpu,
                 tuned=tuned,
             )
@@ -126,7 +125,7 @@ def run_benchmark(
     baseline = results["baseline"]["throughput"]
     ratios = {
         name: round(results[name]["throughput"]["frames_per_s"] / baseline["frames_per_s"], 2)
-        for name in ("pipeline", "pipeline_tuned")
+        for name in ("pipeline", *COMPARED)
         if name in results
     }
     cpu_ratios = {
@@ -140,8 +139,6 @@ def run_benchmark(
     return {
         "machine": machine_info(),
         "setup": {
-            "feed": feed,
-            "feed_description": FEED_DESCRIPTIONS[feed],
             "pinned_cpu": cpu,
             "probe_cpu": probe_cpu,
             "rate_hz": rate_hz,
@@ -157,17 +154,16 @@ def run_benchmark(
         "ratio_frames_per_s": ratios["pipeline"],
         "ratio_cpu_per_frame": cpu_ratios["pipeline"],
         "targets": targets_met(results["pipeline"], results["baseline"], rate_hz),
-        **(
-            {
-                "ratio_frames_per_s_tuned": ratios["pipeline_tuned"],
-                "ratio_cpu_per_frame_tuned": cpu_ratios["pipeline_tuned"],
-                "targets_tuned": targets_met(
-                    results["pipeline_tuned"], results["baseline"], rate_hz
-                ),
-            }
-            if "pipeline_tuned" in results
-            else {}
-        ),
+        **{
+            key: value
+            for name in COMPARED
+            if name in results
+            for key, value in (
+                (f"ratio_frames_per_s{name[8:]}", ratios[name]),
+                (f"ratio_cpu_per_frame{name[8:]}", cpu_ratios[name]),
+                (f"targets{name[8:]}", targets_met(results[name], results["baseline"], rate_hz)),
+            )
+        },
         "wall_s": round(time.monotonic() - started, 1),
     }
 
@@ -177,7 +173,6 @@ def _run_systems(
     plan: Plan,
     *,
     baseline_throughput_frames: int,
-    feed: str,
     probe_cpu: int | None,
     tuned: bool,
 ) -> dict[str, Any]:
@@ -186,7 +181,7 @@ def _run_systems(
     # As deployed: the config's defaults and the CLI's GIL switch interval.
     variants: list[tuple[str, dict[str, str]]] = [("pipeline", {})]
     if tuned:
-        variants.append(("pipeline_tuned", TUNED_TABLES))
+        variants += COMPARED.items()
     results: dict[str, Any] = {}
     with tempfile.TemporaryDirectory(prefix="portal-bench-") as tmp:
         import zenoh  # only now: its runtime threads inherit the CPU mask
@@ -203,7 +198,7 @@ def _run_systems(
                     config.database.get_message_by_name(leg.message).frame_id
                     for leg in config.machine.legs.values()
                 }
-                service = ServiceUnderTest(config, session, feed)
+                service = ServiceUnderTest(config, session)
                 sys.setswitchinterval(GIL_SWITCH_INTERVAL_S)
                 try:
                     with service:
@@ -245,14 +240,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--rate", type=float, default=SATURATED_RATE_HZ, help="paced frames/s")
     parser.add_argument("--warmup", type=int, default=2_000, help="frames before measuring")
     parser.add_argument("--window", type=int, default=1_000, help="backlog limit, frames")
-    parser.add_argument(
-        "--feed",
-        choices=FEEDS,
-        default="bus",
-        help="how the service gets its frames (the baseline always has its virtual bus)",
-    )
     parser.add_argument("--no-pin", action="store_true", help="do not pin to one CPU")
-    parser.add_argument("--no-tuned", action="store_true", help="leave out the tuned variant")
+    parser.add_argument(
+        "--no-tuned", action="store_true", help="leave out the variants compared with"
+    )
     parser.add_argument("--out", type=Path, default=RESULTS)
     args = parser.parse_args(argv)
     results = run_benchmark(
@@ -263,7 +254,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         rate_hz=args.rate,
         warmup=args.warmup,
         window=args.window,
-        feed=args.feed,
         pin=not args.no_pin,
         tuned=not args.no_tuned,
     )
@@ -271,7 +261,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     print(markdown_table(results))
     busy = [
         f"{system} {mode}: {result['other_processes_cpu_pct']}%"
-        for system in ("pipeline", "pipeline_tuned", "baseline")
+        for system in ("pipeline", *COMPARED, "baseline")
         if system in results
         for mode, result in ((m, results[system][m]) for m in ("throughput", "paced", "nominal"))
         if result["elapsed_s"] >= 1.0 and result["other_processes_cpu_pct"] > 5

@@ -27,7 +27,6 @@ from mcap.reader import make_reader
 
 from bench.frames import EXAMPLE_CONFIG
 from daq.can_batch import recorded_frames
-from daq.frames import RawFrame
 from daq.mcap_file import RAW_TOPIC
 from daq.recorder import Recorder
 from daq.runner import bus_factory, recording_attachments
@@ -36,11 +35,10 @@ from daq.service_config import ServiceConfig, load_service_config
 from dbc.decoding import FrameDecoder
 from dbc.machine import MachineConfig
 
-#: How the service gets its frames: through the virtual bus and its reader thread,
-#: or put (as RawFrames stamped with time.time()) straight into the reader's queue.
-FEEDS = ("bus", "queue")
-
 _SERVICE_TABLES = """
+[service]
+{service}
+
 [bus]
 interface = "virtual"
 channel = "{channel}"
@@ -59,12 +57,13 @@ directory = "{directory}"
 
 def service_config(workdir: Path, prefix: str, tables: Mapping[str, str] = {}) -> ServiceConfig:
     """The example machine with the service's defaults, a virtual bus and a recording dir,
-    and the extra lines ``tables`` gives for ``publish`` and ``recording``."""
+    and the extra lines ``tables`` gives for ``service``, ``publish`` and ``recording``."""
     path = workdir / "portal-daq.toml"
     text = _SERVICE_TABLES.format(
         channel=f"bench-{uuid.uuid4().hex}",
         prefix=prefix,
         directory=workdir / "recordings",
+        service=tables.get("service", ""),
         publish=tables.get("publish", ""),
         recording=tables.get("recording", ""),
     )
@@ -73,13 +72,10 @@ def service_config(workdir: Path, prefix: str, tables: Mapping[str, str] = {}) -
 
 
 class ServiceUnderTest:
-    """The service running in threads of this process, fed through ``feed``."""
+    """The service running in threads of this process, fed through a virtual bus."""
 
-    def __init__(self, config: ServiceConfig, session: zenoh.Session, feed: str = "bus") -> None:
-        if feed not in FEEDS:
-            raise ValueError(f"feed must be one of {FEEDS}, got {feed!r}")
+    def __init__(self, config: ServiceConfig, session: zenoh.Session) -> None:
         self.config = config
-        self.feed = feed
         frame_ids = FrameDecoder(config.database, config.machine.protection).frame_ids
         self.recorder = Recorder(
             config.recording,
@@ -101,10 +97,9 @@ class ServiceUnderTest:
         self._thread.start()
         if not self.service.reader.opened.wait(10.0):
             raise RuntimeError("the service did not open its bus")
-        if self.feed == "bus":
-            self._bus = can.Bus(
-                interface="virtual", channel=self.config.bus.channel, preserve_timestamps=True
-            )
+        self._bus = can.Bus(
+            interface="virtual", channel=self.config.bus.channel, preserve_timestamps=True
+        )
         return self
 
     def __exit__(self, *exc_info: object) -> None:
@@ -114,15 +109,10 @@ class ServiceUnderTest:
             self._bus.shutdown()
 
     def send(self, message: can.Message) -> float:
-        """Put ``message`` on the bus (or into the reader's queue) now; its time stamp."""
-        stamp = time.time()
-        if self._bus is not None:
-            message.timestamp = stamp
-            self._bus.send(message)
-        else:
-            self.service.inbox.put(
-                RawFrame(stamp, message.arbitration_id, message.is_extended_id, message.data)
-            )
+        """Put ``message`` on the bus now; its time stamp."""
+        assert self._bus is not None
+        message.timestamp = stamp = time.time()
+        self._bus.send(message)
         return stamp
 
     def processed(self) -> int:

@@ -1,10 +1,14 @@
 """The reader thread: receives CAN frames and only enqueues them; reopens a lost bus.
 
 The bus is opened by a factory built in ``daq.__main__`` (python-can, from the
-``[bus]`` table), so the reader can reopen it. Its thread calls
-``bus.recv(timeout)`` and puts each frame, as a :class:`~daq.frames.RawFrame`,
-into a bounded queue with ``put_nowait``: a full queue drops the frame and
-counts it (``dropped``); the reader never blocks on the consumer.
+``[bus]`` table), so the reader can reopen it. :meth:`BusReader.poll` is one
+wake-up: it waits up to a timeout for a frame, then takes every frame already
+waiting (``recv(0)`` until there is none, i.e. until ``EAGAIN`` on a socket), as
+:class:`~daq.frames.RawFrame` s, with the bus events in their place. Either the
+consumer's event loop calls it (``threaded=False``, the default service), or the
+reader's own thread does and puts each item into a bounded queue with
+``put_nowait``: a full queue drops the frame and counts it (``dropped``); the
+reader never blocks on the consumer.
 
 Bus states (:mod:`daq.frames`), each change queued as a :class:`BusEvent` in
 order with the frames:
@@ -28,11 +32,13 @@ import queue
 import threading
 import time
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 
 import can
 
 from daq._worker import Worker
+from daq.can_batch import MAX_FRAMES
 from daq.errors import BusError
 from daq.frames import BUS_ABSENT, BUS_CLOSED, BUS_DOWN, BUS_UP, BusEvent, RawFrame
 from daq.frames import from_can_message as _raw
@@ -79,9 +85,10 @@ def sysfs_link_probe(channel: str) -> LinkProbe:
 
 
 class BusReader(Worker):
-    """Receives from the bus in a thread of its own and enqueues into ``inbox``.
+    """Receives from the bus in a thread of its own and enqueues into ``inbox``; or,
+    with ``threaded=False`` (no inbox), only when :meth:`poll` ed.
 
-    ``close`` stops the thread and shuts the bus down.
+    ``close`` stops the thread (if any) and shuts the bus down.
     """
 
     thread_name = "can-reader"
@@ -89,14 +96,16 @@ class BusReader(Worker):
     def __init__(
         self,
         open_bus: BusFactory,
-        inbox: Inbox,
+        inbox: Inbox | None,
         *,
         channel: str,
+        threaded: bool = True,
         link_up: LinkProbe | None = None,
         recv_timeout_s: float = 0.1,
         now: Callable[[], float] = time.time,
     ) -> None:
         super().__init__()
+        self.threaded = threaded
         self._open_bus = open_bus
         self._inbox = inbox
         self.channel = channel
@@ -105,6 +114,11 @@ class BusReader(Worker):
         self._now = now
         self._bus: can.BusABC | None = None
         self._pending: BusEvent | None = None
+        #: What the current :meth:`poll` returns (bus events are added in their place).
+        self._out: list[RawFrame | BusEvent] = []
+        self._retry_at = 0.0
+        self._backoff_s = BACKOFF_MIN_S
+
         #: The bus was opened at least once (the service reports READY then).
         self.opened = threading.Event()
         self.state = BUS_CLOSED
@@ -124,29 +138,48 @@ class BusReader(Worker):
     # --- reader thread -----------------------------------------------------
 
     def _run(self) -> None:
-        backoff_s = BACKOFF_MIN_S
         while not self._stop.is_set():
-            self.heartbeat = time.monotonic()
-            if self._bus is None:
-                if self._try_open():
-                    backoff_s = BACKOFF_MIN_S
-                else:
-                    self._stop.wait(backoff_s)
-                    backoff_s = min(2 * backoff_s, BACKOFF_MAX_S)
-                continue
-            try:
-                message = self._bus.recv(timeout=self._recv_timeout_s)
-            except can.CanOperationError as exc:
-                self._lost(exc)
-                continue
-            if message is None:
-                if self.state == BUS_DOWN and self._link_up is not None and self._link_up():
-                    self._set_state(BUS_UP, "interface up again", reset=True)
-                continue
-            self.received += 1
+            self._offer(self.poll(self._recv_timeout_s))
+
+    def poll(self, timeout_s: float) -> list[RawFrame | BusEvent]:
+        """One wake-up: the frames received within ``timeout_s`` and every one waiting
+        after the first (at most :data:`MAX_FRAMES`), bus events in their place. Opens and
+        reopens the bus (a retry waits out its backoff, at most ``timeout_s`` per call)."""
+        self.heartbeat = now = time.monotonic()
+        out: list[RawFrame | BusEvent] = []
+        self._out = out
+        if self._bus is None:
+            if now < self._retry_at:
+                self._stop.wait(min(timeout_s, self._retry_at - now))
+            elif self._try_open():
+                self._backoff_s = BACKOFF_MIN_S
+            else:
+                self._retry_at = now + self._backoff_s
+                self._backoff_s = min(2 * self._backoff_s, BACKOFF_MAX_S)
+            return out
+        bus = self._bus
+        messages: list[can.Message] = []
+        error: can.CanOperationError | None = None
+        try:
+            message = bus.recv(timeout=timeout_s)
+            while message is not None:
+                messages.append(message)
+                if len(messages) == MAX_FRAMES:
+                    break
+                message = bus.recv(timeout=0.0)
+        except can.CanOperationError as exc:
+            error = exc
+        if messages:
+            self.received += len(messages)
             if self.state != BUS_UP:
                 self._set_state(BUS_UP, "frames again", reset=True)
-            self._offer(_raw(message))
+            out += [_raw(message) for message in messages]
+        elif error is None:
+            if self.state == BUS_DOWN and self._link_up is not None and self._link_up():
+                self._set_state(BUS_UP, "interface up again", reset=True)
+        if error is not None:
+            self._lost(error)
+        return out
 
     def _try_open(self) -> bool:
         try:
@@ -180,22 +213,29 @@ class BusReader(Worker):
         self.state, self.reason = state, reason
         if changed:
             logger.log(log, "CAN bus %s: %s (%s)", self.channel, state, reason)
-            # An event still waiting for room keeps its reset request.
-            reset = reset or (self._pending is not None and self._pending.reset_counters)
-            self._pending = BusEvent(self._now(), state, reason, reset)
-            self._offer(None)
+            self._out.append(BusEvent(self._now(), state, reason, reset))
 
-    def _offer(self, frame: RawFrame | None) -> None:
+    def _offer(self, items: list[RawFrame | BusEvent]) -> None:
         """Enqueue without blocking; a pending bus event goes first, and is never lost."""
-        try:
-            if self._pending is not None:
-                self._inbox.put_nowait(self._pending)
-                self._pending = None
-            if frame is not None:
-                self._inbox.put_nowait(frame)
-        except queue.Full:
-            if frame is not None:
-                self.dropped += 1
+        assert self._inbox is not None, "a reader without a thread is polled, not offered"
+        for item in items:
+            frame = None
+            if isinstance(item, BusEvent):
+                # An event still waiting for room keeps its reset request.
+                if self._pending is not None and self._pending.reset_counters:
+                    item = replace(item, reset_counters=True)
+                self._pending = item
+            else:
+                frame = item
+            try:
+                if self._pending is not None:
+                    self._inbox.put_nowait(self._pending)
+                    self._pending = None
+                if frame is not None:
+                    self._inbox.put_nowait(frame)
+            except queue.Full:
+                if frame is not None:
+                    self.dropped += 1
 
     def _shutdown_bus(self) -> None:
         bus, self._bus = self._bus, None

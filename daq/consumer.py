@@ -22,7 +22,7 @@ from daq import payloads
 from daq._worker import Worker
 from daq.can_batch import MAX_FRAMES
 from daq.frames import BusEvent, RawFrame
-from daq.mcap_file import RecordBatch
+from daq.mcap_file import RecordBatch, decoded_frames, encoded_estimates
 from daq.pipeline import Pipeline
 from daq.service_config import PublishSettings
 from dbc.decoding import DecodedFrame
@@ -31,6 +31,10 @@ logger = logging.getLogger(__name__)
 
 #: On close, queued frames are still processed for at most this long.
 DRAIN_S = 0.5
+#: The recorder is handed what was processed at most this often (a frame's batch
+#: waits at most this long): one hand-off per period, not per wake-up, however the
+#: frames trickle in (at the DBC's rate one wake-up carries a frame or two).
+RECORD_PERIOD_S = 0.05
 
 #: Staleness is judged against the bus, not only the wall clock: a leg is stale when
 #: newer frames of other messages went by without its own (or, on a silent bus, when
@@ -47,8 +51,35 @@ class Recording(Protocol):
     def submit(self, item: RecordBatch | BusEvent) -> None: ...
 
 
+class Source(Protocol):
+    """Where the frames come from: one call is one wake-up's worth (see :meth:`poll`)."""
+
+    def poll(self, timeout_s: float) -> Sequence[RawFrame | BusEvent]:
+        """What arrived within ``timeout_s``: everything there after the first item."""
+        ...
+
+
+class QueueSource:
+    """The reader thread's queue as a :class:`Source`: waits for one item, then drains."""
+
+    def __init__(self, inbox: "queue.Queue[RawFrame | BusEvent]") -> None:
+        self._inbox = inbox
+
+    def poll(self, timeout_s: float) -> list[RawFrame | BusEvent]:
+        items: list[RawFrame | BusEvent] = []
+        get = self._inbox.get_nowait
+        try:
+            items.append(self._inbox.get(timeout=timeout_s) if timeout_s > 0 else get())
+            while len(items) < MAX_FRAMES:
+                items.append(get())
+        except queue.Empty:
+            pass
+        return items
+
+
 class Consumer(Worker):
-    """Drains ``inbox`` in a thread of its own; the constructor starts nothing.
+    """Polls ``source`` (a :class:`Source`, e.g. the bus reader in the event loop, or the
+    reader thread's queue) in a thread of its own; the constructor starts nothing.
 
     ``close`` processes what is queued (for at most :data:`DRAIN_S`) and stops.
     """
@@ -58,7 +89,7 @@ class Consumer(Worker):
     def __init__(
         self,
         pipeline: Pipeline,
-        inbox: "queue.Queue[RawFrame | BusEvent]",
+        source: "Source | queue.Queue[RawFrame | BusEvent]",
         settings: PublishSettings,
         *,
         publisher: Publisher | None = None,
@@ -68,7 +99,7 @@ class Consumer(Worker):
     ) -> None:
         super().__init__()
         self.pipeline = pipeline
-        self._inbox = inbox
+        self._source = QueueSource(source) if isinstance(source, queue.Queue) else source
         self._settings = settings
         self._publisher = publisher
         self._recorder = recorder
@@ -84,6 +115,10 @@ class Consumer(Worker):
         self.heartbeat = time.monotonic()
         #: Bus events seen that reset the rolling counters.
         self.resets = 0
+        #: Batches processed but not yet handed to the recorder, and when they are due.
+        self._unrecorded: list[RecordBatch] = []
+        self._unrecorded_frames = 0
+        self._record_due = float("inf")
 
     def handle(self, item: RawFrame | BusEvent) -> None:
         """Process one item (callable directly in tests)."""
@@ -105,7 +140,27 @@ class Consumer(Worker):
             self.pipeline.reset_counters()
             self.resets += 1
         if self._recorder is not None:
+            self._hand_over()
             self._recorder.submit(event)
+
+    def _hand_over(self) -> None:
+        """Hand the recorder what was processed since the last time, as one batch."""
+        batches = self._unrecorded
+        if self._recorder is None or not batches:
+            return
+        self._unrecorded = []
+        self._unrecorded_frames = 0
+        self._record_due = float("inf")
+        if len(batches) == 1:
+            self._recorder.submit(batches[0])
+            return
+        self._recorder.submit(
+            RecordBatch(
+                [frame for batch in batches for frame in batch.frames],
+                [estimate for batch in batches for estimate in batch.estimates],
+                [decoded for batch in batches for decoded in batch.decoded],
+            )
+        )
 
     def _frames(self, frames: Sequence[RawFrame]) -> None:
         if not frames:
@@ -113,20 +168,29 @@ class Consumer(Worker):
         process = self.pipeline.process
         results = [process(frame) for frame in frames]
         self._newest_frame_t_s = max(self._newest_frame_t_s, frames[-1].t_s)
-        batch = RecordBatch.of(results, signals=self._record_signals)
-        if self._recorder is not None:
-            self._recorder.submit(batch)
         publisher = self._publisher
-        if publisher is None:
+        signals = publisher is not None and self._settings.signals
+        estimates: list[tuple[str, float, bytes]] = []
+        for result in results:  # each frame's messages in its place: signals not last
+            if result.estimates:
+                encoded = encoded_estimates(result)
+                estimates += encoded
+                if publisher is not None:
+                    for leg, _, data in encoded:
+                        publisher.submit(f"leg/{leg}/ground", data)
+            if signals and result.decoded is not None and self._signals_due(result.decoded):
+                assert publisher is not None  # signals is False without one
+                message = result.decoded.message
+                publisher.submit(f"signals/{message}", payloads.signals(result.decoded))
+        if self._recorder is None:
             return
-        for leg, _, data in batch.estimates:
-            publisher.submit(f"leg/{leg}/ground", data)
-        if self._settings.signals:
-            for result in results:
-                if result.decoded is not None and self._signals_due(result.decoded):
-                    publisher.submit(
-                        f"signals/{result.decoded.message}", payloads.signals(result.decoded)
-                    )
+        decoded = decoded_frames(results) if self._record_signals else ()
+        if not self._unrecorded:
+            self._record_due = time.monotonic() + RECORD_PERIOD_S
+        self._unrecorded.append(RecordBatch(frames, estimates, decoded))
+        self._unrecorded_frames += len(frames)
+        if self._unrecorded_frames >= MAX_FRAMES or time.monotonic() >= self._record_due:
+            self._hand_over()
 
     def _signals_due(self, decoded: DecodedFrame) -> bool:
         """At most one message's signals per ``signals_max_rate_hz`` (by frame time)."""
@@ -155,34 +219,26 @@ class Consumer(Worker):
                 next_metrics = max(next_metrics + metrics_period_s, now)
                 metrics = payloads.soil_metrics(self._now(), self.pipeline.metrics())
                 self._publisher.submit("metrics", metrics)
+            if now >= self._record_due:
+                self._hand_over()
             if self._stop.is_set():
                 break
-            wait_s = timeout_s
+            wait_s = min(timeout_s, self._record_due - now)
             if self._publisher is not None:
-                wait_s = max(0.0, min(timeout_s, next_ground - time.monotonic()))
-            try:
-                items = [self._inbox.get(timeout=wait_s)]
-            except queue.Empty:
-                continue
-            self._handle_guarded(self._drain(items))
+                wait_s = min(wait_s, next_ground - now)
+            wait_s = max(0.0, wait_s - (time.monotonic() - now))
+            self._handle_guarded(self._source.poll(wait_s))
         deadline = time.monotonic() + DRAIN_S
         while time.monotonic() < deadline:
-            items = self._drain([])
+            items = self._source.poll(0.0)
             if not items:
                 break
             self._handle_guarded(items)
+        self._hand_over()
 
-    def _drain(self, items: list[RawFrame | BusEvent]) -> list[RawFrame | BusEvent]:
-        """``items`` and what else is queued, up to :data:`MAX_FRAMES` in all."""
-        get = self._inbox.get_nowait
-        try:
-            while len(items) < MAX_FRAMES:
-                items.append(get())
-        except queue.Empty:
-            pass
-        return items
-
-    def _handle_guarded(self, items: list[RawFrame | BusEvent]) -> None:
+    def _handle_guarded(self, items: Sequence[RawFrame | BusEvent]) -> None:
+        if not items:
+            return
         try:
             self.handle_batch(items)
         except Exception:  # noqa: BLE001 -- a bug on one frame must not stop the service

@@ -70,13 +70,22 @@ class RecordBatch:
         results = list(results)
         return cls(
             [result.frame for result in results],
-            [
-                (estimate.leg, estimate.t_s, payloads.json_bytes(payloads.leg_ground(estimate)))
-                for result in results
-                for estimate in result.estimates
-            ],
-            [result.decoded for result in results if result.decoded is not None] if signals else (),
+            [estimate for result in results for estimate in encoded_estimates(result)],
+            decoded_frames(results) if signals else (),
         )
+
+
+def encoded_estimates(result: FrameResult) -> list[tuple[str, float, bytes]]:
+    """(leg, frame time, JSON) of each estimate of ``result``, as published and recorded."""
+    return [
+        (estimate.leg, estimate.t_s, payloads.json_bytes(payloads.leg_ground(estimate)))
+        for estimate in result.estimates
+    ]
+
+
+def decoded_frames(results: Iterable[FrameResult]) -> list[DecodedFrame]:
+    """The decoded frames of ``results`` (those that decoded)."""
+    return [result.decoded for result in results if result.decoded is not None]
 
 
 class CountingFile:

@@ -1,8 +1,8 @@
 """The service configuration: bus, Zenoh, publishing and recording, next to the machine's.
 
 One TOML file holds both parts (example: ``deploy/portal-daq.example.toml``): the
-machine tables read by :mod:`dbc.machine` and the service tables ``[bus]``,
-``[zenoh]``, ``[publish]`` and ``[recording]`` read here. Every service table is
+machine tables read by :mod:`dbc.machine` and the service tables ``[service]``,
+``[bus]``, ``[zenoh]``, ``[publish]`` and ``[recording]`` read here. Every service table is
 optional; left-out keys take the defaults of the dataclasses below. Relative
 paths are relative to the config file. Unknown keys are refused like in the
 machine part, naming file and key.
@@ -26,6 +26,17 @@ from dbc.toml_table import TomlTable
 KEY_PREFIX_PATTERN = r"[^/*$?#\s]+(/[^/*$?#\s]+)*"
 ZENOH_MODES = ("peer", "client", "router")
 COMPRESSIONS = ("zstd", "lz4", "none")
+
+
+@dataclass(frozen=True, slots=True)
+class ServiceSettings:
+    """``[service]``: how the service's work is spread over threads."""
+
+    #: One thread (an event loop) receives, processes and publishes; the recorder has
+    #: its own. False: the reader and the publisher each get a thread too, handing
+    #: frames and messages on through queues (four threads). The event loop takes less
+    #: CPU, most of all at low frame rates where every hand-off wakes a thread (bench/).
+    event_loop: bool = True
 
 
 @dataclass(frozen=True, slots=True)
@@ -118,6 +129,7 @@ class ServiceConfig:
     source: str
     machine: MachineConfig
     database: Database
+    service: ServiceSettings
     bus: BusSettings
     zenoh: ZenohSettings
     publish: PublishSettings
@@ -139,6 +151,7 @@ def load_service_config(path: str | Path) -> ServiceConfig:
         source=source,
         machine=machine,
         database=database,
+        service=_service(root.table("service", required=False)),
         bus=_bus(root.table("bus", required=False)),
         zenoh=_zenoh(root.table("zenoh", required=False), config_dir, machine.machine_id),
         publish=_publish(root.table("publish", required=False)),
@@ -178,6 +191,11 @@ def _choice(table: TomlTable, name: str, choices: tuple[str, ...], default: Any)
     if value not in choices:
         raise table.error(name, f"must be one of {list(choices)}, got {value!r}")
     return value
+
+
+def _service(table: TomlTable) -> ServiceSettings:
+    table.reject_unknown(_keys(ServiceSettings))
+    return ServiceSettings(event_loop=table.boolean("event_loop", ServiceSettings().event_loop))
 
 
 def _bus(table: TomlTable) -> BusSettings:

@@ -59,7 +59,7 @@ SENSOR_KEYS = ("pressure_min_Pa", "pressure_max_Pa", "status_ok")
 MACHINE_TABLES = ("machine", "estimator", "sensors", "leg_defaults", "legs", "protection")
 #: Tables of the service configuration that may share the file; this loader leaves
 #: them to :mod:`daq.service_config`, which checks them.
-SERVICE_TABLES = ("bus", "zenoh", "publish", "recording")
+SERVICE_TABLES = ("service", "bus", "zenoh", "publish", "recording")
 
 
 @dataclass(frozen=True, slots=True)

@@ -24,7 +24,7 @@ def results() -> dict:
 
 
 def test_every_system_and_mode_is_reported(results: dict) -> None:
-    for system in ("pipeline", "pipeline_tuned", "baseline"):
+    for system in ("pipeline", "pipeline_threads", "pipeline_tuned", "baseline"):
         for mode in MODES:
             r = results[system][mode]
             assert r["mode"] == mode
@@ -39,7 +39,7 @@ def test_every_system_and_mode_is_reported(results: dict) -> None:
 
 
 def test_the_service_checked_and_recorded_everything(results: dict) -> None:
-    for system in ("pipeline", "pipeline_tuned"):
+    for system in ("pipeline", "pipeline_threads", "pipeline_tuned"):
         counters = results[system]["counters"]
         assert counters["bad"] == {}  # every simulated frame passes its CRC and counter
         assert not any(counters["dropped"].values())
@@ -57,6 +57,7 @@ def test_the_service_checked_and_recorded_everything(results: dict) -> None:
     assert "signals" not in results["pipeline"]["recording"]["messages"]
     assert results["pipeline_tuned"]["recording"]["messages"]["signals"] == frames
     assert results["pipeline"]["settings"] == {}
+    assert results["pipeline_threads"]["settings"] == {"service": "event_loop = false"}
 
 
 def test_machine_setup_ratio_and_targets(results: dict) -> None:
@@ -66,7 +67,8 @@ def test_machine_setup_ratio_and_targets(results: dict) -> None:
     assert results["setup"]["frame_mix"]["LEG_SB1_F1"] > 0
     assert results["ratio_frames_per_s"] > 0 and results["ratio_frames_per_s_tuned"] > 0
     assert results["ratio_cpu_per_frame"] > 0
-    assert set(results["targets_tuned"]) == set(results["targets"])
+    assert set(results["targets_tuned"]) == set(results["targets_threads"])
+    assert set(results["targets_threads"]) == set(results["targets"])
     assert set(results["targets"]) == {
         "frames_per_s_at_least_baseline",
         "cpu_per_frame_at_most_baseline",
@@ -83,7 +85,7 @@ def test_machine_setup_ratio_and_targets(results: dict) -> None:
 def test_markdown_table_has_a_row_per_system_and_mode(results: dict) -> None:
     table = markdown_table(results)
     rows = [line for line in table.splitlines() if line.startswith("| ") and "---" not in line]
-    assert len(rows) == 1 + 3 * len(MODES)
+    assert len(rows) == 1 + 4 * len(MODES)
     assert "Machine: " in table and "x the baseline's frames/s" in table and "load average" in table
 
 
@@ -93,6 +95,6 @@ def test_command_line_writes_the_results_file(tmp_path: Path, capsys) -> None:  
     argv += ["--nominal-s", "0.02"]
     assert main([*argv, "--no-pin", "--no-tuned", "--out", str(out)]) == 0
     written = json.loads(out.read_text())
-    assert "pipeline_tuned" not in written
+    assert "pipeline_tuned" not in written and "pipeline_threads" not in written
     assert written["pipeline"]["paced"]["frames"] == 40
     assert "| service (as deployed) |" in capsys.readouterr().out
