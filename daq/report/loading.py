@@ -4,6 +4,9 @@ The messages are read in file order with :class:`~daq.mcap_reading.RecordingStre
 (so a file cut short by a crash reads up to its last complete chunk) and handed to
 the pure :class:`~daq.report.tracks.RecordingCollector`.
 
+A file that is not MCAP, or that holds neither CAN frames nor leg estimates (e.g. only
+the simulator's truth), has nothing to report: :class:`~daq.errors.RecordingError`.
+
 The machine configuration comes from ``config_path`` when given, else from the file's
 embedded attachments; without either, the report still draws what was recorded (with
 the estimator's default settings). A recording without leg estimates but with
@@ -15,6 +18,8 @@ import logging
 import re
 from pathlib import Path
 from typing import IO
+
+from mcap.writer import MCAP0_MAGIC
 
 from daq.errors import RecordingError
 from daq.mcap_reading import RecordedAttachment, RecordingStream
@@ -47,6 +52,17 @@ def _open(path: Path) -> IO[bytes]:
         raise RecordingError(path, f"cannot open it: {exc.strerror or exc}") from exc
 
 
+def _check_magic(stream: IO[bytes], path: Path) -> None:
+    """RecordingError unless ``stream`` starts like an MCAP file; rewinds it."""
+    try:
+        start = stream.read(len(MCAP0_MAGIC))
+    except OSError as exc:  # e.g. a directory
+        raise RecordingError(path, f"cannot read it: {exc.strerror or exc}") from exc
+    stream.seek(0)
+    if start != MCAP0_MAGIC:
+        raise RecordingError(path, "not an MCAP file (a service recording is .mcap)")
+
+
 def load_recording(path: Path, config_path: Path | None = None) -> Recording:
     """Read ``path`` into a :class:`Recording`.
 
@@ -58,14 +74,20 @@ def load_recording(path: Path, config_path: Path | None = None) -> Recording:
     collector = RecordingCollector()
     attachments: dict[str, bytes] = {}
     with _open(path) as stream:
+        _check_magic(stream, path)
         reader = RecordingStream(stream, str(path))
         for record in reader:
             if isinstance(record, RecordedAttachment):
                 attachments[record.name] = record.data
             else:
                 collector.add(record.topic, record.data)
-    if collector.frames == 0 and not collector.has_estimates and not attachments:
-        logger.warning("%s holds no frames and no estimates of the service", path)
+    if collector.frames == 0 and not collector.has_estimates:
+        truth = f" ({collector.truth_samples} simulation truth samples only)"
+        raise RecordingError(
+            path,
+            "holds no CAN frames (/can/raw) and no leg estimates: nothing to report"
+            + (truth if collector.truth_samples else ""),
+        )
     if machine is None and attachments:
         try:
             machine = _embedded_machine(attachments, path)

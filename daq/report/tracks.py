@@ -30,8 +30,8 @@ CYCLE_COUNT = "Machine_CycleCount"
 CYCLE_TIME = "Machine_CycleTime"
 PHASE = "Machine_Phase"
 
-#: (t, force_N, pressure_Pa, valid), (t, count, cycle time, phase), (t, {leg: force}).
-LegRow = tuple[float, float, float, bool]
+#: (t, force_N, pressure_Pa, valid, contact), (t, count, cycle time, phase), (t, {leg: force}).
+LegRow = tuple[float, float, float, bool, bool]
 StateRow = tuple[float, int, float, str]
 TruthRow = tuple[float, dict[str, float]]
 
@@ -57,6 +57,9 @@ class LegTrack:
     #: Eq. (5) on ``force_N``.
     pressure_Pa: FloatArray
     valid: BoolArray
+    #: The estimator's contact decision (hysteresis on ``force_N``): off the ground, a
+    #: foot has no soil pressure, whatever eq. (5) gives.
+    contact: BoolArray
 
     @staticmethod
     def row(payload: Mapping[str, Any]) -> LegRow:
@@ -66,18 +69,20 @@ class LegTrack:
             _number(payload["force_N"]),
             _number(payload["pressure_Pa"]),
             bool(payload["valid"]),
+            bool(payload["contact"]),
         )
 
     @classmethod
     def of(cls, leg: str, rows: Iterable[LegRow]) -> "LegTrack":
         ordered = sorted(rows, key=lambda row: row[0])
-        columns = list(zip(*ordered, strict=True)) if ordered else [(), (), (), ()]
+        columns = list(zip(*ordered, strict=True)) if ordered else [(), (), (), (), ()]
         return cls(
             leg=leg,
             t_s=np.array(columns[0], dtype=np.float64),
             force_N=np.array(columns[1], dtype=np.float64),
             pressure_Pa=np.array(columns[2], dtype=np.float64),
             valid=np.array(columns[3], dtype=np.bool_),
+            contact=np.array(columns[4], dtype=np.bool_),
         )
 
 
@@ -226,6 +231,10 @@ class RecordingCollector:
     @property
     def frames(self) -> int:
         return self._frames
+
+    @property
+    def truth_samples(self) -> int:
+        return len(self._truth)
 
     def add(self, topic: str, data: bytes) -> None:
         """One recorded message (its JSON bytes); topics a report does not use are skipped."""
