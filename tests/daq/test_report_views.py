@@ -43,8 +43,9 @@ def played_cycle(machine_state: bool = True) -> ReportContent:
             add(collector, "/signals/MACHINE_STATE", {"t": t, "crc_ok": True, "signals": {
                 "Machine_Phase": phase, "Machine_CycleCount": 0,
                 "Machine_CycleTime": round(cycle_t, 2)}})  # fmt: skip
-        add(collector, "/sim/truth", {"t_unix_s": t, "legs": {
-            "SB1_F1": {"force_true_N": sb1}, "SB2_F1": {"force_true_N": 0.0 if lifted else sb2}}})  # fmt: skip
+        truth = {"SB1_F1": sb1, "SB2_F1": 0.0 if lifted else sb2}
+        legs = {leg: {"force_true_N": force} for leg, force in truth.items()}
+        add(collector, "/sim/truth", {"t_unix_s": t, "legs": legs})
     return analyse(collector.recording("run.mcap", None, machine_id="m"))
 
 
