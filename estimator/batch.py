@@ -11,8 +11,8 @@ import numpy as np
 import numpy.typing as npt
 
 from estimator.equations import contact_pressure_Pa, foot_force_N
+from estimator.filters import filter_series
 from estimator.geometry import LegGeometry
-from estimator.median import running_median
 from estimator.settings import EstimatorSettings
 from estimator.validity import pressure_in_range
 
@@ -26,7 +26,8 @@ class LegSeries:
 
     t_s: FloatArray
     force_raw_N: FloatArray
-    #: Running median of the valid raw forces, held over invalid samples; NaN before the first.
+    #: The configured filter over the valid raw forces, held over invalid samples; NaN
+    #: before the first.
     force_N: FloatArray
     pressure_Pa: FloatArray
     valid: BoolArray
@@ -40,7 +41,7 @@ def estimate_leg_series(
     settings: EstimatorSettings,
     checks_ok: npt.ArrayLike | None = None,
 ) -> LegSeries:
-    """Eq. (4), validity and the running median over whole arrays.
+    """Eq. (4), validity and the configured filter over whole arrays.
 
     ``checks_ok`` marks the samples whose CRC, counter and status were fine
     (all of them when omitted); the pressure range is checked here.
@@ -59,8 +60,8 @@ def estimate_leg_series(
     if checks_ok is not None:
         valid &= np.asarray(checks_ok, dtype=bool)
     force_raw_N = foot_force_N(p_piston, p_rod, leg)
-    filtered = running_median(force_raw_N[valid], settings.median_window)
-    # Each sample takes the median as of the latest valid sample at or before it.
+    filtered = filter_series(force_raw_N[valid], settings)
+    # Each sample takes the filtered value as of the latest valid sample at or before it.
     latest_valid = np.cumsum(valid) - 1
     seen_valid = latest_valid >= 0
     force_N = np.full(t.shape, np.nan)

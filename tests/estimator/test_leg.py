@@ -157,11 +157,12 @@ def test_outage_is_not_counted_as_time_above_limit() -> None:
         max_size=120,
     ),
     st.integers(min_value=0, max_value=5).map(lambda k: 2 * k + 1),
+    st.sampled_from(["median", "hampel"]),
 )
 def test_batch_path_is_bit_identical_to_streaming(
-    rows: list[tuple[float, float, bool]], window: int
+    rows: list[tuple[float, float, bool]], window: int, filter_name: str
 ) -> None:
-    cfg = EstimatorSettings(median_window=window)
+    cfg = EstimatorSettings(filter=filter_name, median_window=window, hampel_window=max(window, 3))
     est = LegEstimator("SB1_F1", LEG, cfg, CYCLE_S)
     t = [i * CYCLE_S for i in range(len(rows))]
     streamed = [
