@@ -140,9 +140,11 @@ class LegEstimator:
         )
         return self._last
 
-    def snapshot(self, now_s: float) -> LegEstimate:
-        """The latest estimate, judged at time ``now_s``: stale if no frame came for too long."""
+    def snapshot(self, age_s: float) -> LegEstimate:
+        """The latest estimate, judged ``age_s`` after its sample: stale if that is longer
+        than :attr:`stale_after_s`. The age is measured by the caller on a clock that
+        does not step (see :mod:`estimator.machine`)."""
         last = self._last
-        if STALE in last.reasons or not now_s - last.t_s > self.stale_after_s:
+        if STALE in last.reasons or not age_s > self.stale_after_s:
             return last
         return replace(last, valid=False, reasons=(*last.reasons, STALE))
