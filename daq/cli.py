@@ -9,9 +9,7 @@ endpoint, recording directory); the reason is one line on stderr.
 import argparse
 import logging
 import os
-import signal
 import sys
-import threading
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -21,6 +19,7 @@ from daq.replay import replay
 from daq.report import report_main
 from daq.runner import run_service
 from daq.service_config import load_service_config
+from daq.stop_signal import StopSignal
 from dbc.errors import ConfigError, DbcError, PortalDaqError
 
 PROG = "portal-daq"
@@ -54,12 +53,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         config = load_service_config(options.config)
     except (ConfigError, DbcError) as exc:
         return fail(exc, 2)
-    stop = threading.Event()
-    for signum in (signal.SIGTERM, signal.SIGINT):
-        signal.signal(signum, lambda *_: stop.set())
     sys.setswitchinterval(GIL_SWITCH_INTERVAL_S)
     try:
-        run_service(config, stop)
+        with StopSignal() as stop:  # SIGTERM, SIGINT
+            run_service(config, stop)
     except (ConfigError, DbcError) as exc:
         return fail(exc, 2)
     except PortalDaqError as exc:
