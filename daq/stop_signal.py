@@ -7,7 +7,7 @@ lock, ``set()`` waits for that lock forever (the shutdown never starts).
 :class:`StopSignal` takes no lock on that path: its handler only sets a flag, and the
 waiting loop is woken through a pipe that the interpreter's own C-level handler
 writes the signal number to (``signal.set_wakeup_fd``), which :meth:`StopSignal.wait`
-watches with ``select``. The service (:mod:`daq.cli`) and the live views
+watches with ``select``. The service (:mod:`daq.run_command`) and the live views
 (:mod:`daq.live.command`) both wait on it.
 """
 

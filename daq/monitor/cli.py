@@ -13,6 +13,7 @@ from daq.live.feed import LiveFeed
 from daq.live.session import open_viewer_session
 from daq.monitor.app import run_curses, run_plain
 from daq.stop_signal import StopSignal
+from daq.subcommand import Subcommand
 from dbc.errors import ConfigError, DbcError, PortalDaqError
 
 COMMAND = "monitor"
@@ -49,3 +50,6 @@ def monitor_main(args: Sequence[str]) -> int:
     except PortalDaqError as exc:
         return fail(COMMAND, exc, 1)
     return 0
+
+
+SUBCOMMAND = Subcommand(COMMAND, "live terminal view of the service, from Zenoh", monitor_main)
