@@ -29,6 +29,9 @@ class ForceFilter(Protocol):
     def value(self) -> float:
         """The latest filtered force; NaN before the first."""
 
+    def clear(self) -> None:
+        """Forget every force (after an outage)."""
+
 
 def make_filter(settings: EstimatorSettings) -> ForceFilter:
     """A fresh streaming filter as configured."""

@@ -62,6 +62,11 @@ class RunningHampel:
         #: Samples replaced by the prediction so far.
         self.replaced = 0
 
+    def clear(self) -> None:
+        """Forget every sample (e.g. after an outage): warm-up starts again."""
+        self._raw.clear()
+        self._value = float("nan")
+
     def push(self, value: float) -> float:
         """Filter one sample: itself, or the prediction when it is an outlier."""
         raw = self._raw

@@ -58,7 +58,10 @@ class LegEstimator:
     """Feeds one leg's samples through eq. (4), validity, filter, contact and metrics.
 
     Invalid samples are reported (with their raw force) but never enter the
-    filter, the contact detector or the soil metrics.
+    filter, the contact detector or the soil metrics. When a sample's frame time is
+    more than :attr:`stale_after_s` past the leg's last valid sample (an outage),
+    the filter and the contact state restart: what they hold describes the foot as
+    it was. A frame time that steps back (the wall clock stepped) restarts nothing.
     """
 
     def __init__(
@@ -72,6 +75,8 @@ class LegEstimator:
         #: No frame for longer than this makes the leg's estimate stale.
         self.stale_after_s = settings.stale_after_cycles * cycle_time_s
         self._filter = make_filter(settings)
+        #: Frame time of the last valid sample (NaN: none since the start or a restart).
+        self._last_valid_t_s = NAN
         self._contact = ContactDetector(settings.contact_on_N, settings.contact_off_N)
         self._metrics = SoilMetricsTracker(
             settings.pressure_limit_Pa, settings.near_constant_window_s, self.stale_after_s
@@ -108,12 +113,17 @@ class LegEstimator:
             settings=self.settings,
         )
         force_raw_N = foot_force_N(sample.p_piston_Pa, sample.p_rod_Pa, self.leg)
+        if sample.t_s - self._last_valid_t_s > self.stale_after_s:  # after an outage
+            self._filter.clear()
+            self._contact.reset()
+            self._last_valid_t_s = NAN
         if reasons:
             force_N = self._filter.value
             contact = self._contact.in_contact
         else:
             force_N = self._filter.push(force_raw_N)
             contact = self._contact.update(force_N)
+            self._last_valid_t_s = sample.t_s
         pressure_Pa = contact_pressure_Pa(force_N, self.leg.A_foot_m2)
         if not reasons:
             self._metrics.add(sample.t_s, pressure_Pa)
@@ -131,9 +141,11 @@ class LegEstimator:
         )
         return self._last
 
-    def snapshot(self, now_s: float) -> LegEstimate:
-        """The latest estimate, judged at time ``now_s``: stale if no frame came for too long."""
+    def snapshot(self, age_s: float) -> LegEstimate:
+        """The latest estimate, judged ``age_s`` after its sample: stale if that is longer
+        than :attr:`stale_after_s`. The age is measured by the caller on a clock that
+        does not step (see :mod:`estimator.machine`)."""
         last = self._last
-        if STALE in last.reasons or not now_s - last.t_s > self.stale_after_s:
+        if STALE in last.reasons or not age_s > self.stale_after_s:
             return last
         return replace(last, valid=False, reasons=(*last.reasons, STALE))
