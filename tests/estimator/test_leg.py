@@ -189,13 +189,14 @@ def test_a_clock_step_back_does_not_restart_the_median() -> None:
         max_size=120,
     ),
     st.integers(min_value=0, max_value=5).map(lambda k: 2 * k + 1),
+    st.sampled_from(["median", "hampel"]),
     # Mostly the cycle time; outages (> 3 cycles) and clock steps back in between.
     st.lists(st.sampled_from([CYCLE_S] * 4 + [0.05, 1.0, -2.0]), min_size=120, max_size=120),
 )
 def test_batch_path_is_bit_identical_to_streaming(
-    rows: list[tuple[float, float, bool]], window: int, steps_s: list[float]
+    rows: list[tuple[float, float, bool]], window: int, filter_name: str, steps_s: list[float]
 ) -> None:
-    cfg = EstimatorSettings(median_window=window)
+    cfg = EstimatorSettings(filter=filter_name, median_window=window, hampel_window=max(window, 3))
     est = LegEstimator("SB1_F1", LEG, cfg, CYCLE_S)
     t = np.cumsum(steps_s[: len(rows)]).tolist()
     streamed = [
