@@ -44,7 +44,7 @@ from bench.probe import ProbeProcess
 from bench.report import markdown_table, targets_met
 from bench.subscriber import peer_config
 from bench.targets import NaiveBaseline, ServiceUnderTest, service_config
-from daq.cli import GIL_SWITCH_INTERVAL_S
+from daq.run_command import GIL_SWITCH_INTERVAL_S
 from dbc.machine import load_machine_config
 
 RESULTS = Path(__file__).resolve().parent / "results.json"

@@ -11,10 +11,16 @@ valid estimates that have a known true force. The paper filters offline, with a
 median centred on each sample; the service's running median is causal and lags by
 ``h = (N - 1) / 2`` valid samples (50 ms with N = 11 at 10 ms), which alone makes
 several kN of difference while the force oscillates. So the calculated force of a
-frame is the median centred on it: the running median ``h`` valid samples later (the
-last ``h`` frames have none and are left out). The value as published at the frame's
-own time is kept too (:attr:`LegComparison.published_N`), to show what the delay
-costs live.
+frame is the median centred on it: the running median of the valid raw forces ``h``
+valid samples later (the last ``h`` frames have none and are left out). The value as
+published at the frame's own time, by whichever filter was configured (running median
+or Hampel), is kept too (:attr:`LegComparison.published_N`), to show what the live
+filter costs.
+
+The paper's comparison is about feet on the ground. A sample is *stance* when its true
+force is above the estimator's contact threshold (``contact_on_N``), else *swing* (the
+leg lifted or folded: its cylinder pressures then carry the leg's own inertia and the
+cylinder friction, nothing eq. (4) models). The statistics are taken over each apart.
 """
 
 import math
@@ -24,7 +30,8 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from daq.report.tracks import FloatArray, LegTrack, TruthTrack
+from daq.report.tracks import BoolArray, FloatArray, LegTrack, TruthTrack
+from estimator.median import running_median
 
 IntArray = npt.NDArray[np.intp]
 
@@ -70,8 +77,11 @@ class LegComparison:
     #: The median of the raw forces centred on the frame (see the module docstring).
     calculated_N: FloatArray
     true_N: FloatArray
-    #: The running median as published at the frame's time (lagging by h samples).
+    #: The configured filter's value as published at the frame's time (the running
+    #: median lags by h samples).
     published_N: FloatArray
+    #: The foot was on the ground: true force above the contact threshold.
+    stance: BoolArray
 
     @property
     def deviation_N(self) -> FloatArray:
@@ -80,7 +90,7 @@ class LegComparison:
 
     @property
     def published_deviation_N(self) -> FloatArray:
-        """Published (lagging) minus true."""
+        """Published (live-filtered) minus true."""
         return np.asarray(self.published_N - self.true_N, dtype=np.float64)
 
 
@@ -99,17 +109,20 @@ class DeviationStats:
     max_abs_N: float
     #: Mean true force over the matched samples (how loaded the leg was).
     mean_true_N: float
-    #: 95 % of the absolute deviations of the published (lagging) values are at most this.
+    #: 95 % of the absolute deviations of the published (live-filtered) values are at most this.
     published_abs95_N: float
 
 
 def compare_leg(
-    track: LegTrack, truth: TruthTrack, tolerance_s: float, median_window: int
+    track: LegTrack, truth: TruthTrack, tolerance_s: float, median_window: int, contact_N: float
 ) -> LegComparison:
     """``track``'s valid estimates matched to ``truth`` (see the module docstring);
-    ``median_window`` is the running median's N."""
+    ``median_window`` is the running median's N, ``contact_N`` the stance threshold."""
     lag = (median_window - 1) // 2
-    usable = np.flatnonzero(track.valid & np.isfinite(track.force_N))
+    usable = np.flatnonzero(
+        track.valid & np.isfinite(track.force_N) & np.isfinite(track.force_raw_N)
+    )
+    centred = running_median(track.force_raw_N[usable], median_window)
     frames = usable[: max(usable.size - lag, 0)]
     true_all = truth.force_true_N.get(track.leg)
     if true_all is None:
@@ -120,41 +133,49 @@ def compare_leg(
     true_N = true_all[index[matched]]
     known = np.isfinite(true_N)
     frames = frames[matched][known]
-    later = usable[np.searchsorted(usable, frames) + lag]  # h valid samples on
+    later = np.searchsorted(usable, frames) + lag  # h valid samples on
     return LegComparison(
         leg=track.leg,
         t_s=track.t_s[frames],
-        calculated_N=track.force_N[later],
+        calculated_N=centred[later],
         true_N=true_N[known],
         published_N=track.force_N[frames],
+        stance=np.asarray(true_N[known] > contact_N, dtype=np.bool_),
     )
 
 
 def compare(
-    tracks: Mapping[str, LegTrack], truth: TruthTrack, median_window: int
+    tracks: Mapping[str, LegTrack], truth: TruthTrack, median_window: int, contact_N: float
 ) -> dict[str, LegComparison]:
-    """Every leg that has truth, matched within half the truth's sample period."""
+    """Every leg that has truth, matched within half the truth's sample period; stance
+    where the true force is above ``contact_N``."""
     tolerance_s = sample_period_s(truth.t_s) / 2
     if not math.isfinite(tolerance_s):
         tolerance_s = 0.0  # one truth sample: only an estimate at the same instant
     return {
-        leg: compare_leg(track, truth, tolerance_s, median_window)
+        leg: compare_leg(track, truth, tolerance_s, median_window, contact_N)
         for leg, track in tracks.items()
         if leg in truth.force_true_N
     }
 
 
-def deviation_stats(comparison: LegComparison) -> DeviationStats:
-    """The statistics of one leg's deviation; NaN when nothing matched.
+def deviation_stats(comparison: LegComparison, stance: bool = True) -> DeviationStats:
+    """The statistics of one leg's deviation over its stance (or swing) samples; NaN
+    when there are none.
 
     >>> import numpy as np
     >>> zero = np.zeros(6)
     >>> calculated = np.array([-3.0, -1, 0, 2, 4, 10])
-    >>> s = deviation_stats(LegComparison("L", zero, calculated, zero, zero))
-    >>> (s.median_N, s.mean_N, s.abs50_N, s.abs95_N, s.max_abs_N)
-    (1.0, 2.0, 2.5, 8.5, 10.0)
+    >>> on_ground = np.array([True] * 5 + [False])
+    >>> c = LegComparison("L", zero, calculated, zero, zero, on_ground)
+    >>> s = deviation_stats(c)
+    >>> (s.samples, s.median_N, s.mean_N, s.abs50_N, s.abs95_N, s.max_abs_N)
+    (5, 0.0, 0.4, 2.0, 3.8, 4.0)
+    >>> deviation_stats(c, stance=False).max_abs_N
+    10.0
     """
-    deviation = comparison.deviation_N
+    use = comparison.stance if stance else ~comparison.stance
+    deviation = comparison.deviation_N[use]
     if deviation.size == 0:
         nan = math.nan
         return DeviationStats(comparison.leg, 0, nan, nan, nan, nan, nan, nan, nan)
@@ -167,8 +188,8 @@ def deviation_stats(comparison: LegComparison) -> DeviationStats:
         abs50_N=float(np.quantile(magnitude, 0.5)),
         abs95_N=float(np.quantile(magnitude, 0.95)),
         max_abs_N=float(np.max(magnitude)),
-        mean_true_N=float(np.mean(comparison.true_N)),
-        published_abs95_N=float(np.quantile(np.abs(comparison.published_deviation_N), 0.95)),
+        mean_true_N=float(np.mean(comparison.true_N[use])),
+        published_abs95_N=float(np.quantile(np.abs(comparison.published_deviation_N[use]), 0.95)),
     )
 
 

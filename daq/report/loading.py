@@ -2,10 +2,16 @@
 
 The messages are read in file order with :class:`~daq.mcap_reading.RecordingStream`
 (so a file cut short by a crash reads up to its last complete chunk) and handed to
-the pure :class:`~daq.report.tracks.RecordingCollector`.
+the pure :class:`~daq.report.tracks.RecordingCollector`. A recording rotated into
+several files is given as its files or their directory; the files of one run are
+read in the order of the run (:mod:`daq.recording_run`).
 
-The machine configuration comes from ``config_path`` when given, else from the file's
-embedded attachments; without either, the report still draws what was recorded (with
+A file that is not MCAP, or a recording that holds neither CAN frames nor leg estimates
+(e.g. only the simulator's truth), has nothing to report:
+:class:`~daq.errors.RecordingError`.
+
+The machine configuration comes from ``config_path`` when given, else from the first
+file's embedded attachments; without either, the report still draws what was recorded (with
 the estimator's default settings). A recording without leg estimates but with
 ``/can/raw`` is replayed through :mod:`daq.replay`'s pipeline, which gives the
 estimates the live service would have recorded, bit for bit. So is a recording whose
@@ -16,15 +22,19 @@ signals were recorded (``[recording] signals = true``).
 
 import logging
 import re
+from collections.abc import Sequence
 from pathlib import Path
 from typing import IO
+
+from mcap.writer import MCAP0_MAGIC
 
 from daq.can_batch import ENCODING as BATCH_ENCODING
 from daq.can_batch import recorded_frames
 from daq.errors import RecordingError
 from daq.mcap_file import RAW_TOPIC
-from daq.mcap_reading import RecordedAttachment, RecordingStream
-from daq.replay import Machine, _embedded_machine, mcap_results
+from daq.mcap_reading import RecordedAttachment, RecordedMessage, RecordingStream
+from daq.recording_run import expand, run_files
+from daq.replay import Machine, embedded_machine, run_results
 from daq.report.tracks import Recording, RecordingCollector
 from dbc.errors import ConfigError, DbcError
 from dbc.machine import MachineConfig, load_machine_config
@@ -52,53 +62,80 @@ def _open(path: Path) -> IO[bytes]:
         raise RecordingError(path, f"cannot open it: {exc.strerror or exc}") from exc
 
 
-def load_recording(path: Path, config_path: Path | None = None) -> Recording:
-    """Read ``path`` into a :class:`Recording`.
+def _check_magic(path: Path) -> None:
+    """RecordingError unless ``path`` starts like an MCAP file."""
+    with _open(path) as stream:
+        try:
+            start = stream.read(len(MCAP0_MAGIC))
+        except OSError as exc:
+            raise RecordingError(path, f"cannot read it: {exc.strerror or exc}") from exc
+    if start != MCAP0_MAGIC:
+        raise RecordingError(path, "not an MCAP file (a service recording is .mcap)")
 
-    Raises :class:`~daq.errors.RecordingError` (unreadable), or
+
+def load_recording(paths: Path | Sequence[Path], config_path: Path | None = None) -> Recording:
+    """Read a recording (a file, or the files or directory of one run) into a
+    :class:`Recording`.
+
+    Raises :class:`~daq.errors.RecordingError` (unreadable, several runs), or
     :class:`~daq.errors.ConfigError` / :class:`~daq.errors.DbcError` (a bad
     ``config_path``, or estimates to recompute without any configuration).
     """
+    given = [paths] if isinstance(paths, Path) else paths
+    for path in expand(given):
+        _check_magic(path)
+    files = run_files(given)
+    first = files[0]
     machine: Machine | None = load_machine_config(config_path) if config_path else None
     collector = RecordingCollector()
     attachments: dict[str, bytes] = {}
+    complete = True
     batches = False
-    with _open(path) as stream:
-        reader = RecordingStream(stream, str(path))
-        for record in reader:
-            if isinstance(record, RecordedAttachment):
-                attachments[record.name] = record.data
-            elif record.topic == RAW_TOPIC and record.encoding == BATCH_ENCODING:
-                batches = True
-                try:
-                    collector.add_frames(recorded_frames(record.encoding, record.data))
-                except ValueError as exc:
-                    raise RecordingError(path, f"a {RAW_TOPIC} batch is unreadable: {exc}") from exc
-            else:
-                collector.add(record.topic, record.data)
-    if collector.frames == 0 and not collector.has_estimates and not attachments:
-        logger.warning("%s holds no frames and no estimates of the service", path)
+    for path in files:
+        with _open(path) as stream:
+            reader = RecordingStream(stream, str(path))
+            for record in reader:
+                if isinstance(record, RecordedAttachment):
+                    attachments.setdefault(record.name, record.data)  # the first file's
+                elif not isinstance(record, RecordedMessage):
+                    continue
+                elif record.topic == RAW_TOPIC and record.encoding == BATCH_ENCODING:
+                    batches = True
+                    try:
+                        collector.add_frames(recorded_frames(record.encoding, record.data))
+                    except ValueError as exc:
+                        raise RecordingError(
+                            path, f"a {RAW_TOPIC} batch is unreadable: {exc}"
+                        ) from exc
+                else:
+                    collector.add(record.topic, record.data)
+        complete = complete and reader.complete
+    if collector.frames == 0 and not collector.has_estimates:
+        truth = f" ({collector.truth_samples} simulation truth samples only)"
+        raise RecordingError(
+            first if len(files) == 1 else first.parent,
+            "holds no CAN frames (/can/raw) and no leg estimates: nothing to report"
+            + (truth if collector.truth_samples else ""),
+        )
     if machine is None and attachments:
         try:
-            machine = _embedded_machine(attachments, path)
+            machine = embedded_machine(attachments, first)
         except (ConfigError, DbcError) as exc:
-            logger.warning("the configuration embedded in %s is unusable: %s", path, exc)
+            logger.warning("the configuration embedded in %s is unusable: %s", first, exc)
     recomputed = not collector.has_estimates and collector.frames > 0
     derive_signals = batches and not collector.has_signals
     if recomputed or batches:
         if machine is None:
             what = "leg estimates recorded; recomputing" if recomputed else "signals; deriving"
-            raise ConfigError(path, "", f"no {what} them needs --config")
-        logger.info("%s: deriving what was not recorded from /can/raw", path)
-        with _open(path) as stream:
-            for result in mcap_results(stream, path, machine):
-                collector.derive(result, bad=batches, signals=derive_signals, estimates=recomputed)
+            raise ConfigError(first, "", f"no {what} them needs --config")
+        logger.info("%s: deriving what was not recorded from /can/raw", first)
+        for result in run_results(files, machine):
+            collector.derive(result, bad=batches, signals=derive_signals, estimates=recomputed)
     config: MachineConfig | None = machine[0] if machine is not None else None
-    machine_id = config.machine_id if config else machine_id_from_name(path) or path.stem
+    machine_id = config.machine_id if config else machine_id_from_name(first) or first.stem
+    name = (
+        first.name if len(files) == 1 else f"{first.name} .. {files[-1].name} ({len(files)} files)"
+    )
     return collector.recording(
-        path.name,
-        config,
-        machine_id=machine_id,
-        recomputed=recomputed,
-        complete=reader.complete,
+        name, config, machine_id=machine_id, recomputed=recomputed, complete=complete
     )
