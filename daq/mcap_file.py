@@ -79,6 +79,21 @@ class RecordBatch:
             decoded_frames(results) if signals else (),
         )
 
+    def split(self, t_s: float) -> tuple["RecordBatch", "RecordBatch"]:
+        """What came before frame time ``t_s``, and the rest (frames are in time order)."""
+        return (
+            RecordBatch(
+                [f for f in self.frames if f.t_s < t_s],
+                [e for e in self.estimates if e[1] < t_s],
+                [d for d in self.decoded if d.t_s < t_s],
+            ),
+            RecordBatch(
+                [f for f in self.frames if f.t_s >= t_s],
+                [e for e in self.estimates if e[1] >= t_s],
+                [d for d in self.decoded if d.t_s >= t_s],
+            ),
+        )
+
 
 def encoded_estimates(result: FrameResult) -> list[tuple[str, float, bytes]]:
     """(leg, frame time, JSON) of each estimate of ``result``, as published and recorded."""

@@ -168,12 +168,25 @@ class Recorder(Worker):
             self._write(item)
 
     def _write(self, item: Item) -> None:
+        if not self._ready(item):
+            self.dropped += _count(item)
+            return
+        if isinstance(item, RecordBatch) and item.frames:
+            # A batch spanning the file's duration: its later frames begin the next file.
+            head, tail = item.split(self._rotation_t_s(item.frames[0].t_s))
+            if tail.frames:
+                self._write_to_file(head)
+                self._write(tail)
+                return
+        self._write_to_file(item)
+
+    def _ready(self, item: Item) -> bool:
+        """A file to write ``item`` to: (re)opened after an error, rotated when due."""
         if self._file is None:
             if time.monotonic() < self._retry_at or not self._guarded(
                 lambda: self._open(self._now())
             ):
-                self.dropped += _count(item)
-                return
+                return False
         # Frame time drives rotation; bus events carry wall-clock time.
         if (
             isinstance(item, RecordBatch)
@@ -181,9 +194,10 @@ class Recorder(Worker):
             and self._due_for_rotation(item.frames[0].t_s)
         ):
             self._close_file()
-            if not self._guarded(lambda: self._open(self._now())):
-                self.dropped += _count(item)
-                return
+            return self._guarded(lambda: self._open(self._now()))
+        return True
+
+    def _write_to_file(self, item: Item) -> None:
         mcap = self._file
         assert mcap is not None
         if isinstance(item, RecordBatch):
@@ -203,10 +217,14 @@ class Recorder(Worker):
         mcap, stream = self._file, self._stream
         if mcap is None or stream is None or mcap.message_count == 0:
             return False
-        if stream.count >= self.settings.max_bytes:
-            return True
-        first_ns = mcap.first_log_time_ns
-        return first_ns is not None and t_s * 1e9 - first_ns >= self.settings.max_duration_s * 1e9
+        return stream.count >= self.settings.max_bytes or t_s >= self._rotation_t_s(t_s)
+
+    def _rotation_t_s(self, t_s: float) -> float:
+        """The frame time from which frames go into the next file (``t_s``: the first
+        frame to write, which begins the file when the file is empty)."""
+        mcap = self._file
+        first_ns = mcap.first_log_time_ns if mcap is not None else None
+        return (t_s if first_ns is None else first_ns / 1e9) + self.settings.max_duration_s
 
     def _guarded(self, action: Callable[[], object]) -> bool:
         """Run a file operation; an OS error abandons the file and schedules a retry."""

@@ -1,6 +1,7 @@
 """MCAP recording: rotation by size and time, the files of one run, reading back a file
 cut short by a crash."""
 
+import json
 import logging
 import time
 from pathlib import Path
@@ -69,6 +70,22 @@ def test_rotation_by_frame_time(tmp_path: Path) -> None:
         wait_drained(recorder)
     assert len(recorder.paths) == 4
     assert [len(raw_times(path)) for path in recorder.paths] == [10, 10, 10, 5]
+
+
+def test_one_batch_spanning_several_files_is_split_by_frame_time(tmp_path: Path) -> None:
+    _, database = example_machine()
+    settings = RecordingSettings(directory=tmp_path, max_duration_s=1.0)
+    with Recorder(settings, database, machine_id="m") as recorder:
+        recorder.submit(RecordBatch.of(results(35, dt=0.1), signals=True))  # 3.4 s at once
+        wait_drained(recorder)
+    assert [len(raw_times(path)) for path in recorder.paths] == [10, 10, 10, 5]
+    with open(recorder.paths[1], "rb") as file:
+        leg_times = [
+            json.loads(r.data)["t"]
+            for r in RecordingStream(file)
+            if isinstance(r, RecordedMessage) and r.topic.startswith("/leg/")
+        ]
+    assert leg_times == raw_times(recorder.paths[1])  # the estimates went with their frames
 
 
 def record_run(directory: Path, run_id: str, t0: float) -> list[Path]:

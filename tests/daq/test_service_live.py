@@ -5,6 +5,8 @@ from __future__ import annotations
 import io
 import json
 import queue
+import subprocess
+import sys
 import threading
 import time
 import uuid
@@ -20,9 +22,10 @@ from mcap.reader import make_reader
 from daq import can_batch
 from daq.bus_reader import BusReader
 from daq.frames import BusEvent, RawFrame
+from daq.payloads import json_bytes, leg_ground
 from daq.pipeline import Pipeline
 from daq.recorder import Recorder
-from daq.replay import replay
+from daq.replay import replay, results
 from daq.report.loading import load_recording
 from daq.runner import bus_factory, recording_attachments
 from daq.service import Service
@@ -406,3 +409,78 @@ def test_reader_never_blocks_and_counts_overflow() -> None:
     ]
     assert reader.dropped == 16
     assert reader.state == "closed"
+
+
+@pytest.mark.parametrize("event_loop", [True, False])
+def test_raw_batches_read_by_mcap_and_portal_daq_replay_give_the_live_estimates(
+    tmp_path: Path, event_loop: bool
+) -> None:
+    """The recording's /can/raw batches, read with mcap's own reader and decoded by the
+    layout in daq.can_batch, and `portal-daq replay` of the file, give the estimates
+    received live on Zenoh, bit for bit (faults included; both thread layouts)."""
+    path = write_service_config(
+        tmp_path,
+        channel=f"test-{uuid.uuid4().hex}",
+        port=free_port(),
+        recording=tmp_path / "rec",
+        extra=f"\n[service]\nevent_loop = {str(event_loop).lower()}\n",
+    )
+    config = load_service_config(path)
+    assert config.service.event_loop is event_loop
+    encoder = encoder_for(config)
+    messages = leg_messages(encoder, FRAMES_PER_LEG, time.time())
+    t = messages[-1].timestamp + 0.01
+    messages += [
+        can_message(encoder.encode("LEG_SB2_F1", leg_signals("SB2_F1", 2e7, 1e6), counter=5), t),
+        can_message(
+            encoder.encode("LEG_SB2_F1", leg_signals("SB2_F1", 1e7, 1e6), corrupt_crc=True), t
+        ),
+    ]
+    prefix = config.zenoh.key_prefix
+    with live_service(config) as service, subscriber_session(zenoh_port(config)) as session:
+        collector = connected_collector(session, prefix)
+        with sender(config) as bus:
+            for message in messages:
+                bus.send(message)
+        collector.wait_until(
+            lambda: (
+                sum(len(collector.of(f"{prefix}/leg/{leg}/ground")) for leg in LEGS)
+                == len(messages)
+            )
+        )
+        recorder = service.recorder
+        assert recorder is not None
+    live = [payload for key, payload, _ in collector.samples if "/leg/" in key]
+    (recording,) = recorder.paths
+    # mcap's reader, file order; the batches decoded with the documented layout
+    items: list[RawFrame | BusEvent] = []
+    with open(recording, "rb") as file:
+        reader = make_reader(file)
+        for schema, channel, message in reader.iter_messages(log_time_order=False):
+            if channel.topic == "/can/raw":
+                assert schema is not None and schema.name == "portal.CanFrameBatch"
+                items += can_batch.decode(message.data)
+            elif channel.topic == "/daq/bus":
+                event = json.loads(message.data)
+                fields = ("t", "state", "reason", "reset_counters")
+                items.append(BusEvent(*(event[field] for field in fields)))
+    assert sum(isinstance(item, RawFrame) for item in items) == len(messages)
+    pipeline = Pipeline.from_config(config.machine, config.database)
+    replayed = [e for result in results(pipeline, items) for e in result.estimates]
+    # JSON floats round-trip exactly (repr), NaN as null: equal payloads are equal bits
+    assert [json.loads(json_bytes(leg_ground(e))) for e in replayed] == live
+    assert live[-2]["reasons"] == ["counter"] and live[-1]["reasons"] == ["crc"]
+    # portal-daq replay, the command line
+    done = subprocess.run(
+        [sys.executable, "-m", "daq", "replay", str(recording)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=True,
+    )
+    rows = [row.split(",") for row in done.stdout.splitlines()[1:]]
+    keys = ("t", "force_N", "force_raw_N", "pressure_Pa", "p_piston_Pa", "p_rod_Pa")
+    for row, estimate in zip(rows, live, strict=True):
+        assert row[0] == estimate["leg"] and row[9] == "|".join(estimate["reasons"])
+        for value, key in zip(row[1:7], keys, strict=True):
+            assert float(value) == estimate[key] or (value == "nan" and estimate[key] is None)
