@@ -9,6 +9,8 @@ from typing import Any
 
 from cantools.database.can import Message
 
+from dbc.units import pressure_factor_to_Pa
+
 Schema = dict[str, Any]
 
 _NUMBER = {"type": ["number", "null"]}
@@ -105,7 +107,9 @@ def signals_schema(message: Message) -> Schema:
     signal_types: dict[str, Any] = {}
     for signal in message.signals:
         types = ["number", "null"] + (["string"] if signal.choices else [])
-        description = f"{signal.unit}" if signal.unit else ""
+        description = signal.unit or ""
+        if pressure_factor_to_Pa(description) is not None:
+            description = "Pa"  # pressures are converted to SI when decoded
         signal_types[signal.name] = {"type": types, "description": description}
     return _object(
         f"portal.signals.{message.name}",
@@ -113,6 +117,9 @@ def signals_schema(message: Message) -> Schema:
             "t": _TIME,
             "crc_ok": {"type": "boolean"},
             "counter_ok": {"type": "boolean"},
+            "faults": {"type": "array", "items": {"type": "string"}},
+            "frames_lost": {"type": "integer"},
+            "source_address": {"type": "integer"},
             "signals": {"type": "object", "properties": signal_types},
         },
     )

@@ -17,8 +17,8 @@ import numpy as np
 import numpy.typing as npt
 
 from daq.mcap_file import BUS_TOPIC, RAW_TOPIC, TRUTH_TOPIC
-from daq.pipeline import COUNTER_FAULT, CRC_FAULT
 from dbc.machine import MachineConfig
+from dbc.protection import COUNTER_JUMP, CRC_FAULT
 
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
@@ -238,10 +238,12 @@ class RecordingCollector:
         elif topic.startswith(SIGNALS_PREFIX):
             signals = json.loads(data)
             self._messages[topic.removeprefix(SIGNALS_PREFIX)] += 1
-            if not signals.get("crc_ok", True):
+            if "faults" in signals:
+                self._bad.update(str(fault) for fault in signals["faults"])
+            elif not signals.get("crc_ok", True):  # recordings before the faults list
                 self._bad[CRC_FAULT] += 1
             elif not signals.get("counter_ok", True):
-                self._bad[COUNTER_FAULT] += 1
+                self._bad[COUNTER_JUMP] += 1
             state = StateTrack.row(signals) if topic == STATE_TOPIC else None
             if state is not None:
                 self._state.append(state)
