@@ -314,25 +314,26 @@ def _split_ref(table: TomlTable, key: str, text: str, database: Database) -> tup
     return message, signal_name
 
 
-def _chamber_table(table: TomlTable, key: str) -> TomlTable:
-    """The chamber's keys as a table: ``"M.S"`` is ``{ signal = "M.S" }``."""
+def _chamber_table(table: TomlTable, key: str, allowed: tuple[str, ...]) -> tuple[TomlTable, str]:
+    """The chamber's keys as a table (``"M.S"`` is ``{ signal = "M.S" }``), and the key
+    that names its signal in messages (the chamber's own key for the short form)."""
     if isinstance(table.data.get(key), dict):
         chamber = table.table(key)
-        chamber.reject_unknown(CHAMBER_KEYS)
-        return chamber
-    return TomlTable({"signal": table.string(key)}, table.source, table.key(key))
+        chamber.reject_unknown(allowed)
+        return chamber, "signal"
+    return TomlTable({"signal": table.string(key)}, table.source, table.key(key)), ""
 
 
 def _chamber(
     table: TomlTable, key: str, database: Database, status_ok: tuple[StatusValue, ...]
 ) -> ChamberSignal:
-    chamber = _chamber_table(table, key)
-    message, signal_name = _split_ref(chamber, "signal", chamber.string("signal"), database)
+    chamber, signal_key = _chamber_table(table, key, CHAMBER_KEYS)
+    message, signal_name = _split_ref(chamber, signal_key, chamber.string("signal"), database)
     source_address = _source_address(chamber, message)
     signal = message.get_signal_by_name(signal_name)
     unit = chamber.string("unit") if "unit" in chamber else (signal.unit or "")
     if pressure_factor_to_Pa(unit) is None:
-        where = "unit" if "unit" in chamber else "signal"
+        where = "unit" if "unit" in chamber else signal_key
         raise chamber.error(
             where,
             f"signal {message.name}.{signal_name} has unit {unit!r}, not a pressure unit; "
@@ -355,7 +356,7 @@ def _chamber(
         source_address=source_address,
         unit=unit,
         status=status,
-        cycle_time_s=_cycle_time_s(chamber, message),
+        cycle_time_s=_cycle_time_s(chamber, signal_key, message),
     )
 
 
@@ -373,10 +374,10 @@ def _source_address(table: TomlTable, message: Message) -> int | None:
     return address
 
 
-def _cycle_time_s(table: TomlTable, message: Message) -> float:
+def _cycle_time_s(table: TomlTable, key: str, message: Message) -> float:
     if not message.cycle_time:
         raise table.error(
-            "signal",
+            key,
             f"message {message.name} has no GenMsgCycleTime in the DBC; "
             "staleness and skew cannot be judged without it",
         )
@@ -442,13 +443,8 @@ def _status_check(
 
 def _leg_status(table: TomlTable, database: Database) -> tuple[Message, str, int | None]:
     """The leg-level ``status`` (``"M.S"`` or ``{ signal, source_address }``)."""
-    status = (
-        _chamber_table(table, "status")
-        if isinstance(table.data.get("status"), dict)
-        else (TomlTable({"signal": table.string("status")}, table.source, table.key("status")))
-    )
-    status.reject_unknown(("signal", "source_address"))
-    message, signal = _split_ref(status, "signal", status.string("signal"), database)
+    status, signal_key = _chamber_table(table, "status", ("signal", "source_address"))
+    message, signal = _split_ref(status, signal_key, status.string("signal"), database)
     return message, signal, _source_address(status, message)
 
 
