@@ -159,6 +159,8 @@ def test_bad_frames_are_counted_and_recorded_raw(config: ServiceConfig) -> None:
     t0 = time.time()
     good = encoder.encode("LEG_SB1_F1", leg_signals("SB1_F1", 9e6, 1e6))
     bad_crc = encoder.encode("LEG_SB1_F1", leg_signals("SB1_F1", 9e6, 1e6), corrupt_crc=True)
+    # After a bad CRC the counter check resynchronises on the next good frame.
+    resync = encoder.encode("LEG_SB1_F1", leg_signals("SB1_F1", 9e6, 1e6))
     jump = encoder.encode("LEG_SB1_F1", leg_signals("SB1_F1", 9e6, 1e6), counter=9)
     messages = [
         can_message(good, t0),
@@ -168,7 +170,8 @@ def test_bad_frames_are_counted_and_recorded_raw(config: ServiceConfig) -> None:
         can.Message(timestamp=t0, arbitration_id=0x100, is_remote_frame=True, dlc=8),
         can.Message(timestamp=t0, arbitration_id=0x80, is_error_frame=True, dlc=8, data=bytes(8)),
         can_message(bad_crc, t0 + 0.01),
-        can_message(jump, t0 + 0.02),
+        can_message(resync, t0 + 0.02),
+        can_message(jump, t0 + 0.03),
     ]
     with live_service(config) as service, subscriber_session(zenoh_port(config)) as session:
         collector = connected_collector(session, prefix)
@@ -192,7 +195,7 @@ def test_bad_frames_are_counted_and_recorded_raw(config: ServiceConfig) -> None:
         assert status["uptime_s"] > 0 and status["frames_per_s"] >= 0
         assert status["healthy"] is True
         leg = collector.of(f"{prefix}/leg/SB1_F1/ground")
-        assert [m["reasons"] for m in leg] == [[], ["crc"], ["counter"]]
+        assert [m["reasons"] for m in leg] == [[], ["crc"], [], ["counter"]]
         path = service.recorder.paths[0]  # type: ignore[union-attr]
     raw = [payload for topic, payload in recorded(path) if topic == "/can/raw"]
     assert [(r["id"], r["error"]) for r in raw] == [
@@ -202,6 +205,7 @@ def test_bad_frames_are_counted_and_recorded_raw(config: ServiceConfig) -> None:
         (0x1ABCDE, "unknown_id"),
         (0x100, "remote_frame"),
         (0x80, "error_frame"),
+        (0x100, None),
         (0x100, None),
         (0x100, None),
     ]
