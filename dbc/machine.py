@@ -23,7 +23,7 @@ from cantools.database.can import Database, Message
 
 from dbc import DEFAULT_DBC_PATH
 from dbc.database import load_database
-from dbc.decoding import is_j1939
+from dbc.decoding import is_j1939, j1939_pgn
 from dbc.errors import ConfigError
 from dbc.protection import CRC_ALGORITHMS, DEFAULT_CRC_ALGORITHM, Protection
 from dbc.toml_table import TomlTable
@@ -329,7 +329,7 @@ def _chamber(
 ) -> ChamberSignal:
     chamber, signal_key = _chamber_table(table, key, CHAMBER_KEYS)
     message, signal_name = _split_ref(chamber, signal_key, chamber.string("signal"), database)
-    source_address = _source_address(chamber, message)
+    source_address = _source_address(chamber, message, database)
     signal = message.get_signal_by_name(signal_name)
     unit = chamber.string("unit") if "unit" in chamber else (signal.unit or "")
     if pressure_factor_to_Pa(unit) is None:
@@ -360,8 +360,12 @@ def _chamber(
     )
 
 
-def _source_address(table: TomlTable, message: Message) -> int | None:
+def _source_address(table: TomlTable, message: Message, database: Database) -> int | None:
+    """The pinned J1939 sender: the configured one; for a message that shares its PGN with
+    others (one DBC message per sender) the address in its own ID; else None (any)."""
     if "source_address" not in table:
+        if is_j1939(message) and _shares_pgn(message, database):
+            return int(message.frame_id & 0xFF)
         return None
     if not is_j1939(message):
         raise table.error(
@@ -372,6 +376,14 @@ def _source_address(table: TomlTable, message: Message) -> int | None:
     if not 0 <= address <= 253:
         raise table.error("source_address", f"must be a J1939 address 0..253, got {address}")
     return address
+
+
+def _shares_pgn(message: Message, database: Database) -> bool:
+    pgn = j1939_pgn(message.frame_id)
+    return any(
+        other is not message and is_j1939(other) and j1939_pgn(other.frame_id) == pgn
+        for other in database.messages
+    )
 
 
 def _cycle_time_s(table: TomlTable, key: str, message: Message) -> float:
@@ -445,7 +457,7 @@ def _leg_status(table: TomlTable, database: Database) -> tuple[Message, str, int
     """The leg-level ``status`` (``"M.S"`` or ``{ signal, source_address }``)."""
     status, signal_key = _chamber_table(table, "status", ("signal", "source_address"))
     message, signal = _split_ref(status, signal_key, status.string("signal"), database)
-    return message, signal, _source_address(status, message)
+    return message, signal, _source_address(status, message, database)
 
 
 def _attach_leg_status(

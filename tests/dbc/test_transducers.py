@@ -475,3 +475,49 @@ def test_quantized_bar_pressures_give_eq4_to_1_N() -> None:
         quantized = (round(p_bar / 0.01) * 0.01 * 1e5, round(r_bar / 0.01) * 0.01 * 1e5)
         assert estimate.force_raw_N == pytest.approx(foot_force_N(*quantized, geometry), abs=1.0)
         assert not math.isnan(estimate.force_raw_N)
+
+
+PER_SENDER_DBC = """VERSION ""
+NS_ :
+BS_:
+BU_: T DAQ
+BO_ 2566856737 HYD_21: 8 T
+ SG_ P : 0|16@1+ (0.01,0) [0|655.35] "bar" DAQ
+BO_ 2566856738 HYD_22: 8 T
+ SG_ P : 0|16@1+ (0.01,0) [0|655.35] "bar" DAQ
+BA_DEF_ BO_ "VFrameFormat" ENUM "StandardCAN","ExtendedCAN","reserved","J1939PG";
+BA_DEF_ BO_ "GenMsgCycleTime" INT 0 65535;
+BA_DEF_DEF_ "VFrameFormat" "StandardCAN";
+BA_DEF_DEF_ "GenMsgCycleTime" 0;
+BA_ "VFrameFormat" BO_ 2566856737 3;
+BA_ "VFrameFormat" BO_ 2566856738 3;
+BA_ "GenMsgCycleTime" BO_ 2566856737 10;
+BA_ "GenMsgCycleTime" BO_ 2566856738 10;
+"""
+
+
+def test_one_dbc_message_per_sender_of_a_pgn() -> None:
+    """A DBC may define the PGN once per transducer: each message takes its own address."""
+    from dbc.database import load_database_string
+
+    database = load_database_string(PER_SENDER_DBC, "per_sender.dbc")
+    legs_start = BASE.index("[legs.J1]")
+    text = BASE[:legs_start] + ('[legs.L]\npiston = "HYD_21.P"\nrod = "HYD_22.P"\n')
+    config = parse_machine_config(tomllib.loads(text), "m.toml", database)
+    assert (config.legs["L"].piston.source_address, config.legs["L"].rod.source_address) == (
+        0x21,
+        0x22,
+    )
+    pipeline = Pipeline.from_config(config, database)
+
+    def send(source: int, bar: float, t_s: float) -> Any:
+        frame = RawFrame(t_s, j1939_id(3, source), True, pressure_bytes(bar))
+        return pipeline.process(frame)
+
+    assert send(0x22, 10.0, 1.0).decoded.message == "HYD_22"
+    result = send(0x21, 200.0, 1.001)
+    assert result.decoded.message == "HYD_21"
+    (estimate,) = result.estimates
+    assert estimate.valid and estimate.p_rod_Pa == pytest.approx(10e5)
+    stray = send(0x30, 50.0, 1.002)
+    assert stray.estimates == () and pipeline.bad["unmapped_source"] == 1
