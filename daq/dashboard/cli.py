@@ -12,6 +12,7 @@ from collections.abc import Sequence
 from daq.dashboard.server import Dashboard
 from daq.live.command import add_viewer_arguments, fail, load_viewer, setup_logging, stop_on_signals
 from daq.live.session import open_viewer_session
+from daq.subcommand import Subcommand
 from dbc.errors import ConfigError, DbcError, PortalDaqError
 
 COMMAND = "dashboard"
@@ -63,3 +64,8 @@ def http_address(text: str) -> tuple[str, int]:
     if not host or not port.isdigit() or int(port) > 65535:
         raise ConfigError("--http", "", f"expected HOST:PORT, e.g. {DEFAULT_HTTP}, got {text!r}")
     return host, int(port)
+
+
+SUBCOMMAND = Subcommand(
+    COMMAND, "live web dashboard of the service, from Zenoh, over HTTP", dashboard_main
+)

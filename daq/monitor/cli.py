@@ -12,6 +12,7 @@ from daq.live.command import add_viewer_arguments, fail, load_viewer, setup_logg
 from daq.live.feed import LiveFeed
 from daq.live.session import open_viewer_session
 from daq.monitor.app import run_curses, run_plain
+from daq.subcommand import Subcommand
 from dbc.errors import ConfigError, DbcError, PortalDaqError
 
 COMMAND = "monitor"
@@ -48,3 +49,6 @@ def monitor_main(args: Sequence[str]) -> int:
     except PortalDaqError as exc:
         return fail(COMMAND, exc, 1)
     return 0
+
+
+SUBCOMMAND = Subcommand(COMMAND, "live terminal view of the service, from Zenoh", monitor_main)

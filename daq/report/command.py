@@ -13,6 +13,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from daq.subcommand import Subcommand
 from dbc.errors import ConfigError, DbcError, PortalDaqError
 
 PROG = "portal-daq"
@@ -62,7 +63,7 @@ def report(options: ReportOptions) -> list[Path]:
 
 
 def report_main(args: Sequence[str]) -> int:
-    """The ``report`` subcommand of :func:`daq.cli.main`; returns the exit status."""
+    """The ``report`` subcommand of ``portal-daq``; returns the exit status."""
     options = parse_report_args(args)
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     try:
@@ -80,3 +81,8 @@ def report_main(args: Sequence[str]) -> int:
 def _fail(message: str, status: int) -> int:
     sys.stderr.write(f"{PROG}: {message}\n")
     return status
+
+
+SUBCOMMAND = Subcommand(
+    "report", "pictures and an HTML page of a recording (with simulation truth)", report_main
+)
