@@ -170,6 +170,8 @@ class RecordingCounts:
     #: ``decode_error``, ``error_frame``, ``remote_frame``, and ``crc`` / ``counter`` for
     #: decoded frames whose protection failed.
     bad: Mapping[str, int] = field(default_factory=dict)
+    #: Frames lost before they reached the bus interface, as the rolling counters tell.
+    frames_lost: int = 0
     #: Leg estimates, and the invalid ones by reason.
     estimates: int = 0
     invalid: Mapping[str, int] = field(default_factory=dict)
@@ -212,6 +214,7 @@ class RecordingCollector:
         self._state: list[StateRow] = []
         self._truth: list[TruthRow] = []
         self._frames = 0
+        self._frames_lost = 0
         self._messages: Counter[str] = Counter()
         self._bad: Counter[str] = Counter()
         self._invalid: Counter[str] = Counter()
@@ -240,6 +243,7 @@ class RecordingCollector:
             self._messages[topic.removeprefix(SIGNALS_PREFIX)] += 1
             if "faults" in signals:
                 self._bad.update(str(fault) for fault in signals["faults"])
+                self._frames_lost += int(signals.get("frames_lost", 0))
             elif not signals.get("crc_ok", True):  # recordings before the faults list
                 self._bad[CRC_FAULT] += 1
             elif not signals.get("counter_ok", True):
@@ -291,6 +295,7 @@ class RecordingCollector:
                 frames=self._frames,
                 messages=dict(sorted(self._messages.items())),
                 bad=dict(self._bad.most_common()),
+                frames_lost=self._frames_lost,
                 estimates=sum(len(rows) for rows in self._legs.values()),
                 invalid=dict(self._invalid.most_common()),
                 bus_events=self._bus_events,
