@@ -60,7 +60,8 @@ ESTIMATOR_KEYS = (
     "pressure_limit_Pa",
     "near_constant_window_s",
 )
-SENSOR_KEYS = ("pressure_min_Pa", "pressure_max_Pa", "status_ok")
+SENSOR_RANGE_KEYS = ("pressure_min_Pa", "pressure_max_Pa")
+SENSOR_KEYS = (*SENSOR_RANGE_KEYS, "status_ok")
 #: Top-level tables of the machine configuration.
 MACHINE_TABLES = ("machine", "estimator", "sensors", "leg_defaults", "legs", "protection")
 #: What ``status_ok`` is when the config does not say.
@@ -224,14 +225,15 @@ def parse_machine_config(
     sensors = root.table("sensors", required=False)
     sensors.reject_unknown(SENSOR_KEYS)
     defaults = EstimatorSettings()
-    owners = {key: estimator for key in ESTIMATOR_KEYS} | {key: sensors for key in SENSOR_KEYS}
+    owners = {key: estimator for key in ESTIMATOR_KEYS} | {
+        key: sensors for key in SENSOR_RANGE_KEYS
+    }
     settings_kwargs: dict[str, Any] = {
         "median_window": estimator.integer("median_window", defaults.median_window)
     }
     for key, table in owners.items():
-        if key not in settings_kwargs and key != "status_ok":
+        if key not in settings_kwargs:
             settings_kwargs[key] = table.number(key, getattr(defaults, key))
-    owners.pop("status_ok")
     status_ok = _status_values(sensors, "status_ok", DEFAULT_STATUS_OK)
     settings = root.build(EstimatorSettings, owners, **settings_kwargs)
 
@@ -286,11 +288,9 @@ def _leg(
 
     leg_status_ok = _status_values(table, "status_ok", status_ok)
     leg_status = _leg_status(table, database) if "status" in table else None
-    chambers = {}
-    for key in TRIGGERS:
-        chambers[key] = _chamber(table, key, database, leg_status_ok)
+    chambers = {key: _chamber(table, key, database, leg_status_ok) for key in TRIGGERS}
     if leg_status is not None:
-        chambers = _attach_leg_status(table, chambers, leg_status, database, leg_status_ok)
+        chambers = _attach_leg_status(table, chambers, leg_status, leg_status_ok)
     piston, rod = chambers["piston"], chambers["rod"]
     trigger = table.string("trigger", "piston")
     if trigger not in TRIGGERS:
@@ -464,7 +464,6 @@ def _attach_leg_status(
     table: TomlTable,
     chambers: dict[str, ChamberSignal],
     leg_status: tuple[Message, str, int | None],
-    database: Database,
     status_ok: tuple[StatusValue, ...],
 ) -> dict[str, ChamberSignal]:
     """A leg-level status follows the frames of the chamber(s) whose message carries it."""
