@@ -7,14 +7,13 @@ one line on stderr.
 """
 
 import argparse
-import signal
 import sys
-import threading
 from collections.abc import Sequence
 from pathlib import Path
 
 from daq.runner import run_service
 from daq.service_config import load_service_config
+from daq.stop_signal import StopSignal
 from daq.subcommand import PROG, Subcommand, fail, setup_logging
 from dbc.errors import ConfigError, DbcError, PortalDaqError
 
@@ -38,12 +37,10 @@ def run_main(args: Sequence[str]) -> int:
         config = load_service_config(options.config)
     except (ConfigError, DbcError) as exc:
         return fail(exc, 2)
-    stop = threading.Event()
-    for signum in (signal.SIGTERM, signal.SIGINT):
-        signal.signal(signum, lambda *_: stop.set())
     sys.setswitchinterval(GIL_SWITCH_INTERVAL_S)
     try:
-        run_service(config, stop)
+        with StopSignal() as stop:  # SIGTERM, SIGINT
+            run_service(config, stop)
     except (ConfigError, DbcError) as exc:
         return fail(exc, 2)
     except PortalDaqError as exc:

@@ -53,7 +53,10 @@ LEG_SIGNAL_KEYS = ("piston", "rod", "status", "status_ok", "trigger", "max_skew_
 CHAMBER_KEYS = ("signal", "source_address", "unit", "status", "status_ok")
 PROTECTION_KEYS = ("counter", "crc", "crc_algorithm", "data_id", "max_delta_counter")
 ESTIMATOR_KEYS = (
+    "filter",
     "median_window",
+    "hampel_window",
+    "hampel_k",
     "stale_after_cycles",
     "contact_on_N",
     "contact_off_N",
@@ -229,7 +232,9 @@ def parse_machine_config(
         key: sensors for key in SENSOR_RANGE_KEYS
     }
     settings_kwargs: dict[str, Any] = {
-        "median_window": estimator.integer("median_window", defaults.median_window)
+        "filter": estimator.string("filter", defaults.filter),
+        "median_window": estimator.integer("median_window", defaults.median_window),
+        "hampel_window": estimator.integer("hampel_window", defaults.hampel_window),
     }
     for key, table in owners.items():
         if key not in settings_kwargs:
