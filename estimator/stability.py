@@ -57,9 +57,10 @@ def support_polygon(points: Iterable[Point]) -> tuple[Point, ...] | None:
         hull = ConvexHull(xy)
     except QhullError:
         return None  # all on one line (or repeated): no area to stand on
-    # In 2-D, qhull lists the vertices counter-clockwise; start at the lowest index.
-    order = list(hull.vertices)
-    first = order.index(min(order))
+    # In 2-D, qhull lists the vertices counter-clockwise; start at the lowest corner
+    # (then leftmost), so that the same feet give the same polygon in any order.
+    order = [int(i) for i in hull.vertices]
+    first = min(range(len(order)), key=lambda k: (xy[order[k], 1], xy[order[k], 0]))
     order = order[first:] + order[:first]
     return tuple((float(xy[i, 0]), float(xy[i, 1])) for i in order)
 
