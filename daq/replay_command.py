@@ -1,4 +1,4 @@
-"""``portal-daq replay RECORDING [--config FILE] [--out FILE]``: estimates of a recording as CSV.
+"""``portal-daq replay RECORDING... [--config FILE] [--out FILE]``: estimates as CSV.
 
 Argument parsing and exit codes only; the work is in :mod:`daq.replay`. Exit status:
 0 done, 2 for a bad configuration or DBC, 1 when the recording or the output cannot
@@ -19,9 +19,12 @@ def replay_main(args: Sequence[str]) -> int:
     parser = argparse.ArgumentParser(
         prog=f"{PROG} replay",
         description="Run a recording (service MCAP, candump .log, .asc, .blf) through the "
-        "decoder and estimator; one CSV row per leg estimate.",
+        "decoder and estimator; one CSV row per leg estimate. The files of a rotated "
+        "MCAP recording (or their directory) are chained in the order of their run.",
     )
-    parser.add_argument("recording", type=Path)
+    parser.add_argument(
+        "recording", type=Path, nargs="+", help="MCAP files or a directory of one run, or CAN logs"
+    )
     parser.add_argument("--config", type=Path, help="machine config (MCAP: default embedded)")
     parser.add_argument("--out", type=Path, help="CSV file (default: stdout)")
     options = parser.parse_args(args)
