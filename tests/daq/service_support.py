@@ -115,6 +115,18 @@ class Collector:
         """The first payload on ``key`` (received from now on) satisfying ``predicate``."""
         with self._changed:
             start = len(self.samples)
+        return self.first(key, predicate, timeout, start=start)
+
+    def first(
+        self,
+        key: str,
+        predicate: Callable[[Any], bool] = lambda _: True,
+        timeout: float = WAIT_S,
+        *,
+        start: int = 0,
+    ) -> Any:
+        """The first payload on ``key`` satisfying ``predicate``, among those received
+        since sample ``start`` (0: ever), waiting for one if there is none yet."""
         found: list[Any] = []
 
         def seen() -> bool:
