@@ -19,7 +19,9 @@ consumer and publisher loops turned within :data:`HEARTBEAT_MAX_AGE_S`. The
 reader's loop turns at least every receive timeout (0.1 s) even on a quiet
 bus, and while the bus is down or being reopened (the service repairs that
 itself, so a restart by systemd would not help); the consumer's loop turns at
-least every 0.1 s, and stops turning only when it hangs on a frame.
+least every 0.1 s, and stops turning only when it hangs on a frame. The status's
+``healthy`` is also false for a status period in which the kernel dropped frames
+(``dropped.kernel`` rose); that does not stop the watchdog (a restart would not help).
 """
 
 import logging

@@ -40,6 +40,7 @@ def service_toml(
     recording: Path | None = None,
     status_period_s: float = 0.2,
     chunk_size: int = 1024 * 1024,
+    receive_buffer_bytes: int | None = None,
     extra: str = "",
 ) -> str:
     """A full service config: the example machine plus service tables for a test."""
@@ -47,7 +48,10 @@ def service_toml(
 [bus]
 interface = "{interface}"
 channel = "{channel}"
-
+"""
+    if receive_buffer_bytes is not None:
+        text += f"receive_buffer_bytes = {receive_buffer_bytes}\n"
+    text += f"""
 [zenoh]
 mode = "peer"
 listen = ["tcp/127.0.0.1:{port}"]
