@@ -19,6 +19,7 @@ from daq.dashboard.cli import dashboard_main
 from daq.monitor.cli import monitor_main
 from daq.replay import replay
 from daq.report import report_main
+from daq.router import router_main
 from daq.runner import run_service
 from daq.service_config import load_service_config
 from dbc.errors import ConfigError, DbcError, PortalDaqError
@@ -41,6 +42,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         return monitor_main(args[1:])
     if args[:1] == ["dashboard"]:
         return dashboard_main(args[1:])
+    if args[:1] == ["router"]:
+        return router_main(args[1:])
     parser = argparse.ArgumentParser(
         prog=PROG,
         description="CAN-bus DAQ and soil-pressure estimation; `portal-daq replay -h` "

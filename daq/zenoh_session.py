@@ -41,14 +41,20 @@ def zenoh_config(settings: ZenohSettings, source: str = "") -> zenoh.Config:
 
 def open_session(settings: ZenohSettings, source: str = "") -> zenoh.Session:
     """Open the session; a failure (e.g. the listen port is taken) is a ZenohError."""
-    config = zenoh_config(settings, source)
+    return open_config_session(
+        zenoh_config(settings, source),
+        "check [zenoh] listen/connect: is the port taken by another process, "
+        "is the address on this host?",
+    )
+
+
+def open_config_session(config: zenoh.Config, hint: str) -> zenoh.Session:
+    """Open a session on ``config``; a Zenoh error becomes a ZenohError with ``hint``."""
     try:
         return zenoh.open(config)
     except zenoh.ZError as exc:
         raise ZenohError(
-            _without_source_locations(str(exc)) or "cannot open the session",
-            "check [zenoh] listen/connect: is the port taken by another process, "
-            "is the address on this host?",
+            _without_source_locations(str(exc)) or "cannot open the session", hint
         ) from exc
 
 
