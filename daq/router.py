@@ -21,7 +21,7 @@ from pathlib import Path
 import zenoh
 
 from daq.live.command import fail, setup_logging, stop_on_signals
-from daq.zenoh_session import open_config_session
+from daq.zenoh_session import one_line, open_config_session
 from dbc.errors import ConfigError, PortalDaqError
 
 COMMAND = "router"
@@ -33,7 +33,7 @@ def router_config(path: Path) -> zenoh.Config:
     try:
         config = zenoh.Config.from_file(str(path))
     except zenoh.ZError as exc:
-        raise ConfigError(path, "", f"not a valid Zenoh config: {exc}") from exc
+        raise ConfigError(path, "", f"not a valid Zenoh config: {one_line(str(exc))}") from exc
     mode = json.loads(config.get_json("mode") or "null")
     if mode not in (None, MODE):
         raise ConfigError(path, "mode", f"must be {MODE!r} for a router, got {mode!r}")

@@ -67,7 +67,7 @@ class MachineSummary:
 
     machine_id: str
     prefix: str
-    #: :data:`LIVE`, :data:`WAITING` (token seen, no status yet), :data:`STALE`, :data:`GONE`.
+    #: :data:`LIVE`, :data:`WAITING` (no status or ground yet), :data:`STALE`, :data:`GONE`.
     state: str
     #: Seconds since the liveliness token went; None while it is there.
     gone_for_s: float | None
@@ -161,10 +161,11 @@ def summarize(entry: MachineEntry, settings: FleetSettings, now_s: float) -> Mac
     latest = ground or status
     if entry.alive is False:
         state = GONE
-    elif status is None:
+    elif status is None or ground is None:
         state = WAITING
-    elif status.age_s(now_s) > settings.status_stale_s or (
-        ground is not None and ground.age_s(now_s) > settings.ground_stale_s
+    elif (
+        status.age_s(now_s) > settings.status_stale_s
+        or ground.age_s(now_s) > settings.ground_stale_s
     ):
         state = STALE
     else:

@@ -220,6 +220,20 @@ def test_fleet_page_shows_three_machines_and_one_gone(
             chromium(tmp_path, url, f"--screenshot={shot}", "--window-size=1200,330")
             shutil.copyfile(shot, ROOT / os.environ["PORTAL_FLEET_PNG"])
 
+        # The monitor finds them too, connected only to the router.
+        monitor = subprocess.run(
+            [sys.executable, "-m", "daq", "monitor", "--fleet", "--plain", "--duration", "2.5"]
+            + ["--connect", router, "--mode", "client"],
+            cwd=ROOT,
+            capture_output=True,
+            text=True,
+            timeout=60,
+        )
+        assert monitor.returncode == 0, monitor.stderr
+        for machine_id in MACHINES:  # in some line (a loaded CI may show a moment stale)
+            pattern = rf"{machine_id} live healthy 6/6 \d+\.\d kPa SB\d_F\d"
+            assert re.search(pattern, monitor.stdout), monitor.stdout
+
         # One machine's view, as a click on its row opens it.
         machine_url = url + "machine/fleet-b/"
         latest = get_json(machine_url + "api/latest")
