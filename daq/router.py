@@ -20,7 +20,8 @@ from pathlib import Path
 
 import zenoh
 
-from daq.live.command import fail, setup_logging, stop_on_signals
+from daq.stop_signal import StopSignal
+from daq.subcommand import PROG, Subcommand, fail, setup_logging
 from daq.zenoh_session import one_line, open_config_session
 from dbc.errors import ConfigError, PortalDaqError
 
@@ -50,7 +51,7 @@ def listen_endpoints(config: zenoh.Config) -> list[str]:
 
 def router_main(args: Sequence[str]) -> int:
     parser = argparse.ArgumentParser(
-        prog=f"portal-daq {COMMAND}",
+        prog=f"{PROG} {COMMAND}",
         description="A site Zenoh router (Python session in router mode) for machines and "
         "fleet views to connect to; zenohd with the same file is the production choice.",
     )
@@ -63,14 +64,21 @@ def router_main(args: Sequence[str]) -> int:
     try:
         config = router_config(options.config)
     except ConfigError as exc:
-        return fail(COMMAND, exc, 2)
+        return fail(exc, 2)
     endpoints = listen_endpoints(config)
-    stop = stop_on_signals()
     try:
-        with open_config_session(config, "check listen in the router's config") as session:
+        with (
+            StopSignal() as stop,  # SIGTERM, SIGINT
+            open_config_session(config, "check listen in the router's config") as session,
+        ):
             sys.stdout.write(f"router {session.info.zid()} listening on {' '.join(endpoints)}\n")
             sys.stdout.flush()
             stop.wait()
     except PortalDaqError as exc:
-        return fail(COMMAND, exc, 1)
+        return fail(exc, 1)
     return 0
+
+
+SUBCOMMAND = Subcommand(
+    COMMAND, "a site Zenoh router for machines and fleet views (zenohd in production)", router_main
+)

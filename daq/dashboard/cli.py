@@ -21,9 +21,10 @@ from daq.live.command import (
     load_fleet,
     load_viewer,
     setup_logging,
-    stop_on_signals,
 )
 from daq.live.session import open_viewer_session
+from daq.stop_signal import StopSignal
+from daq.subcommand import Subcommand
 from dbc.errors import ConfigError, DbcError, PortalDaqError
 
 COMMAND = "dashboard"
@@ -50,9 +51,8 @@ def dashboard_main(args: Sequence[str]) -> int:
         address = http_address(options.http)
     except (ConfigError, DbcError) as exc:
         return fail(COMMAND, exc, 2)
-    stop = stop_on_signals()
     try:
-        with open_viewer_session(viewer.zenoh) as session:
+        with StopSignal() as stop, open_viewer_session(viewer.zenoh) as session:
             dashboard: HubServer
             if isinstance(viewer, FleetViewer):
                 dashboard = FleetDashboard(session, viewer.settings, address)
@@ -80,3 +80,8 @@ def http_address(text: str) -> tuple[str, int]:
     if not host or not port.isdigit() or int(port) > 65535:
         raise ConfigError("--http", "", f"expected HOST:PORT, e.g. {DEFAULT_HTTP}, got {text!r}")
     return host, int(port)
+
+
+SUBCOMMAND = Subcommand(
+    COMMAND, "live web dashboard of the service, from Zenoh, over HTTP", dashboard_main
+)

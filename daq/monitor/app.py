@@ -11,7 +11,6 @@ curses screen.
 import curses
 import locale
 import os
-import threading
 import time
 from collections.abc import Callable
 from typing import Protocol, TextIO
@@ -22,6 +21,7 @@ from daq.live.state import LiveState
 from daq.live.viewer import ViewerConfig
 from daq.monitor.fleet_view import fleet_plain_line, fleet_render
 from daq.monitor.view import ALARM, DIM, OK, TITLE, WARN, Line, plain_line, render
+from daq.stop_signal import Stop
 
 #: The curses screen is redrawn this often.
 REFRESH_S = 0.25
@@ -76,7 +76,7 @@ class FleetView:
 
 def run_curses(
     view: View,
-    stop: threading.Event,
+    stop: Stop,
     *,
     duration_s: float | None = None,
 ) -> None:
@@ -103,7 +103,7 @@ def run_curses(
 
 def run_plain(
     view: View,
-    stop: threading.Event,
+    stop: Stop,
     out: TextIO,
     *,
     duration_s: float | None = None,

@@ -11,18 +11,22 @@ import argparse
 import sys
 from collections.abc import Sequence
 
+import zenoh
+
 from daq.live.command import (
     FleetViewer,
+    Viewer,
     add_viewer_arguments,
     fail,
     load_fleet,
     load_viewer,
     setup_logging,
-    stop_on_signals,
 )
 from daq.live.feed import LiveFeed
 from daq.live.session import open_viewer_session
 from daq.monitor.app import FleetView, MachineView, View, run_curses, run_plain
+from daq.stop_signal import StopSignal
+from daq.subcommand import Subcommand
 from dbc.errors import ConfigError, DbcError, PortalDaqError
 
 COMMAND = "monitor"
@@ -46,23 +50,26 @@ def monitor_main(args: Sequence[str]) -> int:
         return fail(COMMAND, exc, 2)
     if not options.plain and not sys.stdout.isatty():
         return fail(COMMAND, "standard output is not a terminal: use --plain", 2)
-    stop = stop_on_signals()
-    fleet = isinstance(viewer, FleetViewer)
-    prefix = viewer.settings.prefix if isinstance(viewer, FleetViewer) else viewer.config.prefix
     try:
-        with (
-            open_viewer_session(viewer.zenoh) as session,
-            LiveFeed(session, prefix, liveliness=fleet) as feed,
-        ):
-            view: View = (
-                FleetView(viewer.settings, feed)
-                if isinstance(viewer, FleetViewer)
-                else MachineView(viewer.config, feed)
-            )
-            if options.plain:
-                run_plain(view, stop, sys.stdout, duration_s=options.duration)
-            else:
-                run_curses(view, stop, duration_s=options.duration)
+        with StopSignal() as stop, open_viewer_session(viewer.zenoh) as session:
+            feed, view = feed_and_view(viewer, session)
+            with feed:
+                if options.plain:
+                    run_plain(view, stop, sys.stdout, duration_s=options.duration)
+                else:
+                    run_curses(view, stop, duration_s=options.duration)
     except PortalDaqError as exc:
         return fail(COMMAND, exc, 1)
     return 0
+
+
+def feed_and_view(viewer: Viewer | FleetViewer, session: zenoh.Session) -> tuple[LiveFeed, View]:
+    """The feed (not started) and the view it feeds: one service, or every machine."""
+    if isinstance(viewer, FleetViewer):
+        feed = LiveFeed(session, viewer.settings.prefix, liveliness=True)
+        return feed, FleetView(viewer.settings, feed)
+    feed = LiveFeed(session, viewer.config.prefix)
+    return feed, MachineView(viewer.config, feed)
+
+
+SUBCOMMAND = Subcommand(COMMAND, "live terminal view of the service, from Zenoh", monitor_main)

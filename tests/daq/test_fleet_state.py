@@ -142,7 +142,7 @@ def test_fleet_monitor_text() -> None:
 def test_router_bad_config_exits_2(tmp_path: Path, text: str, expected: str) -> None:
     path = tmp_path / "router.json5"
     path.write_text(text)
-    line = assert_one_line(run("router", "--config", str(path)), 2, "portal-daq router: ")
+    line = assert_one_line(run("router", "--config", str(path)), 2, "portal-daq: ")
     assert str(path) in line and expected in line
 
 
