@@ -215,10 +215,6 @@ def test_fleet_page_shows_three_machines_and_one_gone(
         assert rows(dom) == dict.fromkeys(MACHINES, "live")
         assert 'href="machine/fleet-b/"' in dom
         assert "3 of 3 machines present" in dom
-        if os.environ.get("PORTAL_FLEET_PNG"):
-            shot = tmp_path / "fleet.png"
-            chromium(tmp_path, url, f"--screenshot={shot}", "--window-size=1200,330")
-            shutil.copyfile(shot, ROOT / os.environ["PORTAL_FLEET_PNG"])
 
         # The monitor finds them too, connected only to the router.
         monitor = subprocess.run(
@@ -254,3 +250,7 @@ def test_fleet_page_shows_three_machines_and_one_gone(
         dom = chromium(tmp_path, url, "--dump-dom")
         assert rows(dom) == {"fleet-a": "live", "fleet-b": "gone", "fleet-c": "live"}
         assert "2 of 3 machines present" in dom
+        if os.environ.get("PORTAL_FLEET_PNG"):
+            shot = tmp_path / "fleet.png"
+            chromium(tmp_path, url, f"--screenshot={shot}", "--window-size=1200,330")
+            shutil.copyfile(shot, ROOT / os.environ["PORTAL_FLEET_PNG"])
