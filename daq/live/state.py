@@ -23,6 +23,8 @@ T = TypeVar("T")
 #: The keys a viewer subscribes to, relative to the service's prefix.
 GROUND, STATUS, METRICS = "ground", "status", "metrics"
 SUFFIXES = (GROUND, STATUS, METRICS)
+#: The service's liveliness token (no payload: it exists while the service runs).
+ALIVE = "alive"
 
 
 @dataclass(frozen=True, slots=True)
@@ -69,6 +71,12 @@ class GroundReading:
     complete: bool
     #: None when the service found it undefined (or is older than the margin).
     stability: StabilityReading | None = None
+
+    @property
+    def stability_margin_m(self) -> float | None:
+        """``stability.margin_m`` when the service publishes it: signed distance (m) from
+        the centre of pressure to the nearest support-polygon edge; None when absent or null."""
+        return None if self.stability is None else self.stability.margin_m
 
 
 @dataclass(frozen=True, slots=True)
