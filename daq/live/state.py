@@ -50,7 +50,8 @@ class StabilityReading:
 
     #: Signed distance of the centre of pressure to the nearest support edge; < 0 outside.
     margin_m: float
-    cop_m: tuple[float, float]
+    #: Centre of pressure; None when not given.
+    cop_m: tuple[float, float] | None
     #: The feet in contact that span the support polygon.
     legs: tuple[str, ...]
     polygon_m: tuple[tuple[float, float], ...]
@@ -210,12 +211,12 @@ def parse_ground(data: Mapping[str, Any]) -> GroundReading:
 
 
 def parse_stability(data: Any) -> StabilityReading | None:
-    """The ``stability`` member; None when null or not understood."""
+    """The ``stability`` member; None when null or without a margin."""
     if not isinstance(data, dict):
         return None
     margin_m = _number(data, "margin_m")
     cop = _point(data.get("cop_m"))
-    if margin_m is None or cop is None:
+    if margin_m is None:
         return None
     polygon = data.get("polygon_m")
     corners = [_point(corner) for corner in polygon] if isinstance(polygon, list) else []

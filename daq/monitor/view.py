@@ -134,10 +134,11 @@ def stability_line(viewer: ViewerConfig, state: LiveState) -> Line:
         return Line(
             "stability: - (fewer than three feet down, an invalid leg or no bridge pose)", DIM
         )
+    cop = margin.cop_m
     text = (
         f"stability margin {margin.margin_m:.2f} m (warning below {warning_m:.2f} m), "
-        f"centre of pressure ({margin.cop_m[0]:.2f}, {margin.cop_m[1]:.2f}) m, "
-        f"feet {' '.join(margin.legs)}"
+        + (f"centre of pressure ({cop[0]:.2f}, {cop[1]:.2f}) m, " if cop else "")
+        + f"feet {' '.join(margin.legs)}"
     )
     if margin.margin_m < warning_m:
         return Line("STABILITY WARNING: " + text, ALARM)
