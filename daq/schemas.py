@@ -82,6 +82,36 @@ BUS_EVENT = _object(
     },
 )
 
+_XY = {"type": "array", "items": {"type": "number"}, "minItems": 2, "maxItems": 2}
+
+#: ``/ground``: the ``<prefix>/ground`` aggregate, at the publish rate.
+GROUND = _object(
+    "portal.Ground",
+    {
+        "t": {"type": "number", "description": "moment judged, frames' clock, Unix seconds"},
+        "legs": {"type": "object", "additionalProperties": LEG_GROUND},
+        "total_force_N": _NUMBER,
+        "weight_N": _NUMBER,
+        "residual_N": _NUMBER,
+        "legs_in_contact": {"type": "integer"},
+        "complete": {"type": "boolean"},
+        "stability": {
+            "type": ["object", "null"],
+            "description": "null with fewer than three feet in contact, an invalid leg "
+            "or an unknown bridge pose",
+            "properties": {
+                "cop_m": _XY | {"description": "centre of pressure, m"},
+                "margin_m": {
+                    "type": "number",
+                    "description": "to the nearest support polygon edge, m; negative outside",
+                },
+                "legs": {"type": "array", "items": {"type": "string"}},
+                "polygon_m": {"type": "array", "items": _XY},
+                "feet_m": {"type": "object", "additionalProperties": _XY},
+            },
+        },
+    },
+)
 
 _LEG_TRUTH = {
     "type": "object",
