@@ -8,8 +8,8 @@ schema (:data:`SCHEMA_TEXT`), so a reader needs nothing else:
 - header: ``uint8 version`` (:data:`VERSION`), ``uint32 count``;
 - ``count`` frames, each ``float64 t_s`` (receive time, Unix seconds, exactly the
   value the pipeline saw, so a replay is bit for bit), ``uint32 id``, ``uint8 flags``
-  (bit 0 extended ID, bit 1 error frame, bit 2 remote frame), ``uint8 length``,
-  then ``length`` data bytes;
+  (bit 0 extended ID, bit 1 error frame, bit 2 remote frame, bit 3 CAN FD),
+  ``uint8 length`` (up to 64, CAN FD), then ``length`` data bytes;
 
 little endian, no padding. What the service made of a frame (decoded signals, bad
 frame kinds) is not stored: a replay derives it, the same as live.
@@ -39,13 +39,13 @@ SCHEMA_TEXT = f"""\
 portal.CanFrameBatch version {VERSION}: CAN frames in receive order, little endian, no padding
 header: uint8 version ({VERSION}); uint32 count
 count x frame: float64 t_s (receive time, Unix seconds); uint32 id;
-  uint8 flags (bit 0: extended 29-bit id, bit 1: error frame, bit 2: remote frame);
-  uint8 length; uint8 data[length]
+  uint8 flags (bit 0: extended 29-bit id, bit 1: error frame, bit 2: remote frame,
+  bit 3: CAN FD); uint8 length (0..64); uint8 data[length]
 """
 
 _HEADER = struct.Struct("<BI")
 _FRAME = struct.Struct("<dIBB")
-_EXTENDED, _ERROR, _REMOTE = 1, 2, 4
+_EXTENDED, _ERROR, _REMOTE, _FD = 1, 2, 4, 8
 
 
 class BatchFormatError(ValueError):
@@ -60,7 +60,7 @@ def encode(frames: Sequence[RawFrame]) -> bytes:
         pack(
             f.t_s,
             f.arbitration_id,
-            f.is_extended_id | (f.is_error_frame << 1) | (f.is_remote_frame << 2),
+            f.is_extended_id | (f.is_error_frame << 1) | (f.is_remote_frame << 2) | (f.is_fd << 3),
             len(f.data),
         )
         + f.data
@@ -93,6 +93,7 @@ def decode(data: bytes) -> Iterator[RawFrame]:
                 payload,
                 bool(flags & _ERROR),
                 bool(flags & _REMOTE),
+                bool(flags & _FD),
             )
     except struct.error as exc:
         raise BatchFormatError("the batch ends inside a frame header") from exc
@@ -120,4 +121,5 @@ def decode_json_frame(data: bytes) -> RawFrame:
         data=bytes.fromhex(raw["data"]),
         is_error_frame=raw["error_frame"],
         is_remote_frame=raw["remote_frame"],
+        is_fd=raw.get("fd", False),  # recordings made before CAN FD lack it
     )

@@ -27,6 +27,7 @@ from daq.mcap_file import RecordBatch, decoded_frames, encoded_estimates
 from daq.pipeline import Pipeline
 from daq.service_config import PublishSettings
 from dbc.decoding import DecodedFrame
+from estimator.machine import MachineSnapshot
 
 logger = logging.getLogger(__name__)
 
@@ -51,7 +52,7 @@ class Publisher(Protocol):
 
 
 class Recording(Protocol):
-    def submit(self, item: RecordBatch | BusEvent) -> None: ...
+    def submit(self, item: RecordBatch | BusEvent | MachineSnapshot) -> None: ...
 
 
 class Source(Protocol):
@@ -108,6 +109,9 @@ class Consumer(Worker):
         self._publisher = publisher
         self._recorder = recorder
         self._record_signals = record_signals
+        #: ``/ground`` snapshots are taken at the publish rate for the publisher and
+        #: the recorder.
+        self._snapshots = publisher is not None or recorder is not None
         self._now = now
         rate_hz = settings.signals_max_rate_hz
         self._signals_period_s = 1.0 / rate_hz if rate_hz > 0 else 0.0
@@ -222,10 +226,14 @@ class Consumer(Worker):
         timeout_s = min(0.1, ground_period_s)
         while True:
             self.heartbeat = now = time.monotonic()
-            if self._publisher is not None and now >= next_ground:
+            if self._snapshots and now >= next_ground:
                 next_ground = max(next_ground + ground_period_s, now)
                 snapshot = self.pipeline.snapshot(self.judged_at())
-                self._publisher.submit("ground", payloads.machine_ground(snapshot))
+                if self._publisher is not None:
+                    self._publisher.submit("ground", payloads.machine_ground(snapshot))
+                if self._recorder is not None:
+                    self._hand_over()  # the frames before it, first
+                    self._recorder.submit(snapshot)
             if self._publisher is not None and now >= next_metrics:
                 next_metrics = max(next_metrics + metrics_period_s, now)
                 metrics = payloads.soil_metrics(self._now(), self.pipeline.metrics())
@@ -235,7 +243,7 @@ class Consumer(Worker):
             if self._stop.is_set():
                 break
             wait_s = min(timeout_s, self._record_due - now)
-            if self._publisher is not None:
+            if self._snapshots:
                 wait_s = min(wait_s, next_ground - now)
             wait_s = max(0.0, wait_s - (time.monotonic() - now))
             self._handle_guarded(self._source.poll(wait_s))

@@ -13,6 +13,8 @@ consumer processed). Topics: ``/can/raw`` in the binary layout of
                          ``[recording] signals = true`` (replay and report
                          derive them from ``/can/raw`` otherwise)
 ``/leg/<LEG>/ground``    each leg estimate (the bytes published on Zenoh)
+``/ground``              all legs, weight check and stability margin, at the
+                         publish rate (:data:`GROUND_TOPIC`)
 ``/daq/bus``             bus state changes (:data:`BUS_TOPIC`)
 ``/sim/truth``           simulation ground truth, when a simulator bridge
                          publishes it (:data:`TRUTH_TOPIC`)
@@ -36,12 +38,14 @@ from daq import can_batch, payloads, schemas
 from daq.frames import BusEvent, RawFrame
 from daq.pipeline import FrameResult
 from dbc.decoding import DecodedFrame
+from estimator.machine import MachineSnapshot
 
 RAW_TOPIC = "/can/raw"
 BUS_TOPIC = "/daq/bus"
 SIGNALS_TOPIC = "/signals/{message}"
 LEG_TOPIC = "/leg/{leg}/ground"
 TRUTH_TOPIC = "/sim/truth"
+GROUND_TOPIC = "/ground"
 #: MCAP profile: none of the standard ones (ros1, ros2) fits JSON messages.
 PROFILE = ""
 #: Metadata record naming the run a file belongs to: keys ``machine_id``, ``run_id``,
@@ -228,6 +232,16 @@ class McapFile:
             schemas.BUS_EVENT,
             _ns(event.t_s),
             payloads.bus_event(event),
+        )
+
+    def write_ground(self, snapshot: MachineSnapshot) -> None:
+        """The ``/ground`` aggregate (with the stability margin), logged at its moment."""
+        self._write_json(
+            GROUND_TOPIC,
+            "portal.Ground",
+            schemas.GROUND,
+            _ns(snapshot.t_s),
+            payloads.machine_ground(snapshot),
         )
 
     def write_truth(self, sample: payloads.JsonObject) -> None:

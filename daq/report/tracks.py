@@ -23,8 +23,9 @@ from daq.frames import RawFrame
 from daq.mcap_file import BUS_TOPIC, RAW_TOPIC, TRUTH_TOPIC
 from daq.payloads import leg_ground
 from daq.payloads import signals as signals_payload
-from daq.pipeline import COUNTER_FAULT, CRC_FAULT, FrameResult
+from daq.pipeline import FrameResult
 from dbc.machine import MachineConfig
+from dbc.protection import COUNTER_JUMP, CRC_FAULT
 
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
@@ -187,12 +188,18 @@ class RecordingCounts:
     #: ``decode_error``, ``error_frame``, ``remote_frame``, and ``crc`` / ``counter`` for
     #: decoded frames whose protection failed.
     bad: Mapping[str, int] = field(default_factory=dict)
+    #: Frames lost before they reached the bus interface, as the rolling counters tell.
+    frames_lost: int = 0
     #: Leg estimates, and the invalid ones by reason.
     estimates: int = 0
     invalid: Mapping[str, int] = field(default_factory=dict)
     #: Bus state changes (``/daq/bus``) and truth samples (``/sim/truth``).
     bus_events: int = 0
     truth_samples: int = 0
+    #: Frames lost before the service could handle them, as its ``/daq/bus`` loss
+    #: events tell: by the kernel (socket receive buffer full) and by its queue.
+    kernel_dropped: int = 0
+    rx_dropped: int = 0
 
 
 @dataclass(frozen=True)
@@ -229,10 +236,12 @@ class RecordingCollector:
         self._state: list[StateRow] = []
         self._truth: list[TruthRow] = []
         self._frames = 0
+        self._frames_lost = 0
         self._messages: Counter[str] = Counter()
         self._bad: Counter[str] = Counter()
         self._invalid: Counter[str] = Counter()
         self._bus_events = 0
+        self._dropped: Counter[str] = Counter()
         self._first_s = float("inf")
         self._last_s = float("-inf")
 
@@ -286,14 +295,20 @@ class RecordingCollector:
         elif topic == TRUTH_TOPIC:
             self._truth.append(TruthTrack.row(json.loads(data)))
         elif topic == BUS_TOPIC:
-            self._bus_events += 1
+            event = json.loads(data)
+            lost = {key: event.get(key, 0) for key in ("kernel_dropped", "rx_dropped")}
+            self._dropped.update(lost)
+            self._bus_events += not any(lost.values())  # a loss keeps the state
 
     def _add_signals(self, message: str, payload: Mapping[str, Any]) -> None:
         self._messages[message] += 1
-        if not payload.get("crc_ok", True):
+        if "faults" in payload:
+            self._bad.update(str(fault) for fault in payload["faults"])
+            self._frames_lost += int(payload.get("frames_lost", 0))
+        elif not payload.get("crc_ok", True):  # recordings before the faults list
             self._bad[CRC_FAULT] += 1
         elif not payload.get("counter_ok", True):
-            self._bad[COUNTER_FAULT] += 1
+            self._bad[COUNTER_JUMP] += 1
         state = StateTrack.row(payload) if SIGNALS_PREFIX + message == STATE_TOPIC else None
         if state is not None:
             self._state.append(state)
@@ -335,10 +350,13 @@ class RecordingCollector:
                 frames=self._frames,
                 messages=dict(sorted(self._messages.items())),
                 bad=dict(self._bad.most_common()),
+                frames_lost=self._frames_lost,
                 estimates=sum(len(rows) for rows in self._legs.values()),
                 invalid=dict(self._invalid.most_common()),
                 bus_events=self._bus_events,
                 truth_samples=len(self._truth),
+                kernel_dropped=self._dropped["kernel_dropped"],
+                rx_dropped=self._dropped["rx_dropped"],
             ),
             recomputed=recomputed,
             complete=complete,
