@@ -19,6 +19,7 @@ from daq.subcommand import PROG, Subcommand
 #: One line per subcommand module; each defines ``SUBCOMMAND``. Keep them sorted.
 SUBCOMMAND_MODULES = (
     "daq.dashboard.cli",
+    "daq.export_command",
     "daq.monitor.cli",
     "daq.replay_command",
     "daq.report.command",

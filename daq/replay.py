@@ -141,21 +141,27 @@ def run_estimates(files: Sequence[Path], machine: Machine | None) -> Iterator[Le
 
 def run_results(files: Sequence[Path], machine: Machine | None) -> Iterator[FrameResult]:
     """What the pipeline makes of every frame of MCAP ``files`` (one run, in order)."""
+    attachments: dict[str, bytes] = {}
     pipeline: Pipeline | None = None
+    for item in run_items(files, attachments):
+        if pipeline is None:
+            pipeline = Pipeline.from_config(*(machine or embedded_machine(attachments, files[0])))
+        yield from results(pipeline, (item,))
+
+
+def run_items(
+    files: Sequence[Path], attachments: dict[str, bytes] | None = None
+) -> Iterator[RawFrame | BusEvent]:
+    """The frames and bus events of MCAP ``files`` (one run, in order); the first file's
+    attachments are put into ``attachments`` as they are read (before its messages)."""
     for path in files:
         with _open(path) as stream:
-            attachments: dict[str, bytes] = {}
             for record in RecordingStream(stream, str(path)):
                 if isinstance(record, RecordedAttachment):
-                    attachments[record.name] = record.data
-                    continue
-                if not isinstance(record, RecordedMessage):
-                    continue
-                if pipeline is None:
-                    pipeline = Pipeline.from_config(
-                        *(machine or embedded_machine(attachments, path))
-                    )
-                yield from results(pipeline, _items(record, path))
+                    if attachments is not None:
+                        attachments.setdefault(record.name, record.data)
+                elif isinstance(record, RecordedMessage):
+                    yield from _items(record, path)
 
 
 def _items(record: RecordedMessage, path: Path) -> Iterable[RawFrame | BusEvent]:

@@ -362,7 +362,8 @@ def test_mcap_channels_and_schemas_are_readable(config: ServiceConfig) -> None:
         assert summary is not None  # finished cleanly: summary present
         topics = {channel.topic: channel for channel in summary.channels.values()}
         # signals are not recorded by default ([recording] signals = false)
-        assert set(topics) == {"/can/raw", "/daq/bus"} | {f"/leg/{leg}/ground" for leg in LEGS}
+        legs = {f"/leg/{leg}/ground" for leg in LEGS}
+        assert set(topics) == {"/can/raw", "/daq/bus", "/ground"} | legs
         raw = topics.pop("/can/raw")
         assert raw.message_encoding == can_batch.ENCODING
         raw_schema = summary.schemas[raw.schema_id]
