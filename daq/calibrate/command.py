@@ -19,9 +19,6 @@ import numpy as np
 from daq.subcommand import PROG, Subcommand, fail
 from dbc.errors import ConfigError, DbcError, PortalDaqError
 
-logger = logging.getLogger(__name__)
-
-
 def calibrate_main(args: Sequence[str]) -> int:
     parser = argparse.ArgumentParser(
         prog=f"{PROG} calibrate",
