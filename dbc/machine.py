@@ -24,6 +24,7 @@ from cantools.database.can import Database, Message
 from dbc import DEFAULT_DBC_PATH
 from dbc.database import load_database
 from dbc.errors import ConfigError
+from dbc.stability_config import StabilityConfig, parse_stability
 from dbc.toml_table import TomlTable
 from estimator.geometry import LegGeometry
 from estimator.settings import EstimatorSettings
@@ -59,7 +60,15 @@ ESTIMATOR_KEYS = (
 )
 SENSOR_KEYS = ("pressure_min_Pa", "pressure_max_Pa", "status_ok")
 #: Top-level tables of the machine configuration.
-MACHINE_TABLES = ("machine", "estimator", "sensors", "leg_defaults", "legs", "protection")
+MACHINE_TABLES = (
+    "machine",
+    "estimator",
+    "sensors",
+    "leg_defaults",
+    "legs",
+    "protection",
+    "stability",
+)
 #: Tables of the service configuration that may share the file; this loader leaves
 #: them to :mod:`daq.service_config`, which checks them.
 SERVICE_TABLES = ("bus", "zenoh", "publish", "recording")
@@ -116,6 +125,8 @@ class MachineConfig:
     estimator: EstimatorSettings
     legs: Mapping[str, LegConfig]
     protection: Mapping[str, Protection]
+    #: Feet, bridge and pose signals for the stability margin; None: not configured.
+    stability: StabilityConfig | None = None
 
     @property
     def weight_N(self) -> float:
@@ -209,6 +220,14 @@ def parse_machine_config(
         estimator=settings,
         legs=legs,
         protection=protection,
+        stability=parse_stability(
+            root.table("stability", required=False),
+            legs,
+            lambda table, key: _signal(table, key, database),
+            lambda ref: (
+                database.get_message_by_name(ref.message).get_signal_by_name(ref.signal).unit
+            ),
+        ),
     )
 
 

@@ -187,6 +187,10 @@ class RecordingCounts:
     #: Bus state changes (``/daq/bus``) and truth samples (``/sim/truth``).
     bus_events: int = 0
     truth_samples: int = 0
+    #: Frames lost before the service could handle them, as its ``/daq/bus`` loss
+    #: events tell: by the kernel (socket receive buffer full) and by its queue.
+    kernel_dropped: int = 0
+    rx_dropped: int = 0
 
 
 @dataclass(frozen=True)
@@ -227,6 +231,7 @@ class RecordingCollector:
         self._bad: Counter[str] = Counter()
         self._invalid: Counter[str] = Counter()
         self._bus_events = 0
+        self._dropped: Counter[str] = Counter()
         self._first_s = float("inf")
         self._last_s = float("-inf")
 
@@ -265,7 +270,10 @@ class RecordingCollector:
         elif topic == TRUTH_TOPIC:
             self._truth.append(TruthTrack.row(json.loads(data)))
         elif topic == BUS_TOPIC:
-            self._bus_events += 1
+            event = json.loads(data)
+            lost = {key: event.get(key, 0) for key in ("kernel_dropped", "rx_dropped")}
+            self._dropped.update(lost)
+            self._bus_events += not any(lost.values())  # a loss keeps the state
 
     def add_estimate(self, payload: dict[str, Any]) -> None:
         """One leg estimate in the shape of :func:`daq.payloads.leg_ground`."""
@@ -308,6 +316,8 @@ class RecordingCollector:
                 invalid=dict(self._invalid.most_common()),
                 bus_events=self._bus_events,
                 truth_samples=len(self._truth),
+                kernel_dropped=self._dropped["kernel_dropped"],
+                rx_dropped=self._dropped["rx_dropped"],
             ),
             recomputed=recomputed,
             complete=complete,

@@ -311,6 +311,9 @@ def test_the_collector_counts_like_the_service_and_sorts_by_time() -> None:
     collector.add(
         "/daq/bus", message({"t": 1.0, "state": "up", "reason": "", "reset_counters": False})
     )
+    loss = {"t": 5.2, "state": "up", "reason": "lost", "reset_counters": False}
+    collector.add("/daq/bus", message(loss | {"kernel_dropped": 40, "rx_dropped": 0}))
+    collector.add("/daq/bus", message(loss | {"kernel_dropped": 2, "rx_dropped": 3}))
     collector.add(
         "/sim/truth", message({"t_unix_s": 5.2, "legs": {"SB1_F1": {"force_true_N": None}}})
     )
@@ -325,6 +328,7 @@ def test_the_collector_counts_like_the_service_and_sorts_by_time() -> None:
     assert counts.bad == {"unknown_id": 2, "wrong_dlc": 1, "crc": 1, "counter": 1}
     assert counts.estimates == 3 and counts.invalid == {"crc": 1, "counter": 1, "range": 1}
     assert (counts.bus_events, counts.truth_samples) == (1, 2)
+    assert (counts.kernel_dropped, counts.rx_dropped) == (42, 3)
     assert (recording.start_t_s, recording.end_t_s) == (5.0, 5.3)
     leg = recording.legs["SB1_F1"]
     assert leg.t_s.tolist() == [5.1, 5.2, 5.3] and leg.valid.tolist() == [False, False, True]
