@@ -5,10 +5,10 @@ rows out) over the runs of a campaign with a :class:`concurrent.futures.Executor
 and keeps the runs' order, so the table is the same whichever executor ran it.
 
 - Default: local processes (:class:`~concurrent.futures.ProcessPoolExecutor`), one
-  per CPU unless ``workers`` says otherwise; ``workers=1`` runs in this process. They
-  start with ``forkserver``: forked from a single-threaded server that has imported
-  the report code once (nothing of the caller's threads or sessions is inherited, as
-  with ``spawn``, but a worker starts in milliseconds, not seconds of imports).
+  per CPU unless ``workers`` says otherwise; ``workers=1`` runs in this process.
+  Workers are forked (no second of imports each) when this process has no other
+  thread; otherwise they come from a ``forkserver`` that imported the report code
+  once (a fork would copy other threads' locks mid-use).
 - ``cluster="tcp://scheduler:8786"``: the same function on a Dask distributed
   cluster (the optional extra ``portal-daq[cluster]``), through the client's
   ``concurrent.futures`` interface. The paths are read by the workers: give paths
@@ -19,7 +19,9 @@ A failure on one recording stops the campaign with that recording's error.
 
 import logging
 import multiprocessing
+import multiprocessing.context
 import os
+import threading
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import Executor, ProcessPoolExecutor
 from contextlib import contextmanager
@@ -67,9 +69,7 @@ def executor(cluster: str | None, workers: int | None, tasks: int) -> Iterator[E
     if count == 1:
         yield InProcessExecutor()
         return
-    context = multiprocessing.get_context("forkserver")
-    context.set_forkserver_preload([run_rows.__module__])
-    with ProcessPoolExecutor(max_workers=count, mp_context=context) as pool:
+    with ProcessPoolExecutor(max_workers=count, mp_context=_start_method()) as pool:
         logger.info("campaign: %d recordings on %d local processes", tasks, count)
         yield pool
 
@@ -92,6 +92,17 @@ def dask_executor(address: str) -> Iterator[Executor]:
         workers = len(client.scheduler_info().get("workers", {}))
         logger.info("campaign on the Dask cluster %s (%d workers)", address, workers)
         yield client.get_executor()  # type: ignore[no-untyped-call]
+
+
+def _start_method() -> multiprocessing.context.BaseContext:
+    """``fork`` while this process has no other thread (the command line: workers start
+    at once, the report code already imported); else ``forkserver`` (a fork would copy
+    other threads' locks mid-use), preloaded with the report code."""
+    if threading.active_count() == 1:
+        return multiprocessing.get_context("fork")
+    context = multiprocessing.get_context("forkserver")
+    context.set_forkserver_preload([run_rows.__module__])
+    return context
 
 
 class InProcessExecutor(Executor):

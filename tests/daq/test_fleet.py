@@ -256,3 +256,41 @@ def test_fleet_page_shows_three_machines_and_one_gone(
             shot = tmp_path / "fleet.png"
             chromium(tmp_path, url, f"--screenshot={shot}", "--window-size=1200,330")
             shutil.copyfile(shot, ROOT / os.environ["PORTAL_FLEET_PNG"])
+
+
+def client_config(router: str) -> zenoh.Config:
+    config = zenoh.Config()
+    config.insert_json5("mode", '"client"')
+    config.insert_json5("connect/endpoints", f'["{router}"]')
+    config.insert_json5("scouting/multicast/enabled", "false")
+    return config
+
+
+def test_the_router_lets_no_simulation_truth_through(tmp_path: Path) -> None:
+    """The shipped router's access control: data passes, ``portal/*/sim/**`` does not."""
+    port = free_port()
+    router = f"tcp/127.0.0.1:{port}"
+    received: list[str] = []
+    arrived = threading.Condition()
+
+    def on_sample(sample: zenoh.Sample) -> None:
+        with arrived:
+            received.append(str(sample.key_expr))
+            arrived.notify_all()
+
+    with (
+        process(["router", "--config", str(router_file(tmp_path, port))]),
+        zenoh.open(client_config(router)) as viewer,
+        zenoh.open(client_config(router)) as other,
+    ):
+        subscriber = viewer.declare_subscriber("portal/**", on_sample)
+        with arrived:  # until the router routes to the subscriber
+            while "portal/m/ground" not in received:
+                other.put("portal/m/ground", b"{}")
+                arrived.wait(0.1)
+        other.put("portal/m/sim/truth", b"{}")
+        other.put("portal/m/status", b"{}")  # after the truth, from the same session
+        with arrived:
+            assert arrived.wait_for(lambda: "portal/m/status" in received, WAIT_S)
+        subscriber.undeclare()
+    assert "portal/m/sim/truth" not in received
