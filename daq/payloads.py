@@ -111,13 +111,21 @@ def soil_metrics(t_s: float, metrics: Mapping[str, SoilMetrics]) -> JsonObject:
 
 
 def signals(frame: DecodedFrame) -> JsonObject:
-    """``<prefix>/signals/<MESSAGE>`` and ``/signals/<MESSAGE>``: one decoded frame."""
-    return {
+    """``<prefix>/signals/<MESSAGE>`` and ``/signals/<MESSAGE>``: one decoded frame.
+
+    Pressure signals are in Pa; ``source_address`` only for J1939 messages.
+    """
+    payload: JsonObject = {
         "t": frame.t_s,
         "crc_ok": frame.crc_ok,
         "counter_ok": frame.counter_ok,
+        "faults": list(frame.faults),
+        "frames_lost": frame.frames_lost,
         "signals": dict(frame.signals),
     }
+    if frame.source_address is not None:
+        payload["source_address"] = frame.source_address
+    return payload
 
 
 def raw_frame(result: FrameResult) -> JsonObject:
