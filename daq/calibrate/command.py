@@ -19,6 +19,7 @@ import numpy as np
 from daq.subcommand import PROG, Subcommand, fail
 from dbc.errors import ConfigError, DbcError, PortalDaqError
 
+
 def calibrate_main(args: Sequence[str]) -> int:
     parser = argparse.ArgumentParser(
         prog=f"{PROG} calibrate",
