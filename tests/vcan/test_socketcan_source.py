@@ -34,11 +34,8 @@ def fd_capable_vcan0() -> None:
 
 @pytest.fixture
 def sender() -> Iterator[can.BusABC]:
-    bus = can.Bus(interface="socketcan", channel=CHANNEL)
-    try:
+    with can.Bus(interface="socketcan", channel=CHANNEL) as bus:
         yield bus
-    finally:
-        bus.shutdown()
 
 
 def source(receive_buffer_bytes: int = 4 * 1024 * 1024) -> SocketCanSource:
