@@ -225,6 +225,11 @@ class McapFile:
             )
             self._add(channel, _ns(decoded.t_s), payloads.json_bytes(payloads.signals(decoded)))
 
+    def write_result(self, result: FrameResult, *, signals: bool = True) -> None:
+        """One processed frame as a batch of its own (offline writers and tests; the
+        service writes the consumer's batches)."""
+        self.write_batch(RecordBatch.of([result], signals=signals))
+
     def write_event(self, event: BusEvent) -> None:
         self._write_json(
             BUS_TOPIC,

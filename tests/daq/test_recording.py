@@ -134,7 +134,7 @@ def test_a_file_cut_short_reads_back_to_its_last_complete_chunk(tmp_path: Path) 
         mcap = McapFile(stream, database, chunk_size=1024)
         mcap.start({"a.txt": b"hello"})
         for i, result in enumerate(results(300)):
-            mcap.write_batch(RecordBatch.of([result], signals=True))
+            mcap.write_result(result)
             if i % 50 == 49:
                 mcap.flush()
                 sizes.append((stream.count, i + 1))

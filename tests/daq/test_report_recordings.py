@@ -20,7 +20,7 @@ from mcap.reader import make_reader
 from mcap.writer import Writer
 
 from daq.frames import RawFrame
-from daq.mcap_file import CONFIG_ATTACHMENT, DBC_ATTACHMENT, McapFile, RecordBatch
+from daq.mcap_file import CONFIG_ATTACHMENT, DBC_ATTACHMENT, McapFile
 from daq.pipeline import Pipeline
 from daq.report import ReportOptions, report
 from daq.report.content import analyse
@@ -50,8 +50,11 @@ def record(
     embed_config: bool = True,
     faults: FaultConfig | None = None,
     chunk_size: int = 1024 * 1024,
+    run: dict[str, str] | None = None,
+    after_s: float = 0.0,
 ) -> Path:
-    """A service recording of ``seconds`` of the synthetic cycle, looping."""
+    """A service recording of ``seconds`` of the synthetic cycle, looping; with ``run``
+    metadata, and only the frames from ``after_s`` on (a later file of a run)."""
     config, database = example_machine()
     result = make_result(duration_s=CYCLE_S)
     playout = make_playout(result, faults)
@@ -62,7 +65,7 @@ def record(
         DBC_ATTACHMENT: config.dbc_path.read_bytes(),
     }
     with open(path, "wb") as stream, McapFile(stream, database, chunk_size=chunk_size) as mcap:
-        mcap.start(attachments if embed_config else {}, T0_S)
+        mcap.start(attachments if embed_config else {}, T0_S, run)
         last_row = None
         for instant in instants(schedule(playout.cycles, end_sim_ns=round(seconds * 1e9))):
             t_s = T0_S + instant.sim_t_ns / 1e9
@@ -71,7 +74,9 @@ def record(
                 if item.message == "MACHINE_STATE" and not machine_state:
                     continue
                 frame = RawFrame(t_s, item.frame.arbitration_id, False, item.frame.data)
-                mcap.write_batch(RecordBatch.of([pipeline.process(frame)], signals=True))
+                processed = pipeline.process(frame)  # before after_s: as in an earlier file
+                if t_s >= T0_S + after_s:
+                    mcap.write_result(processed)
             if truth and (position.cycle, position.row) != last_row:
                 last_row = (position.cycle, position.row)
                 mcap.write_truth(truth_sample(result, position, t_s, feet_m2).as_json())
