@@ -12,8 +12,9 @@ per frame (best of three) for:
 - ``record``: :meth:`McapFile.write_batch` of the consumer's batches into memory
   (binary ``/can/raw`` batch, estimates, MCAP, zstd);
 - ``record_signals``: the same with ``[recording] signals = true``;
+- ``record_raw``: only the ``/can/raw`` batches (no estimates);
 - ``record_ros2``: the alternative measured for ``/can/raw``: one ROS 2
-  ``can_msgs/msg/Frame`` message (CDR) per frame instead of the batch.
+  ``can_msgs/msg/Frame`` message (CDR) per frame instead of the batches.
 
 The threads, queues, Zenoh and the disk are left out: ``bench/run.py`` measures
 those end to end. This is for measuring a change to one stage, before and after.
@@ -131,6 +132,12 @@ def stage_costs(raw: Sequence[RawFrame], batch: int = 100) -> dict[str, float]:
             for chunk in result_batches:
                 mcap.write_batch(RecordBatch.of(chunk, signals=signals))
 
+    def record_raw() -> None:
+        with McapFile(io.BytesIO(), database) as mcap:
+            mcap.start()
+            for frames in batches:
+                mcap.write_batch(RecordBatch(frames, []))
+
     def record_ros2() -> None:
         with io.BytesIO() as stream:
             writer = Writer(stream, chunk_size=128 * 1024)
@@ -152,6 +159,7 @@ def stage_costs(raw: Sequence[RawFrame], batch: int = 100) -> dict[str, float]:
     costs["publish_json"] = best_us_per_frame(publish_json, n)
     costs["record"] = best_us_per_frame(record, n)
     costs["record_signals"] = best_us_per_frame(lambda: record(signals=True), n)
+    costs["record_raw"] = best_us_per_frame(record_raw, n)
     costs["record_ros2"] = best_us_per_frame(record_ros2, n)
     return costs
 
