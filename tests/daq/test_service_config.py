@@ -23,7 +23,8 @@ def test_example_loads_with_documented_values() -> None:
     assert config.zenoh.key_prefix == "portal/pam-proto-1"
     assert config.zenoh.config_file == EXAMPLE.parent / "zenoh.json5"
     assert config.publish.ground_rate_hz == 10.0 and config.publish.signals is True
-    assert config.recording.compression == "zstd"
+    assert config.recording.compression == "zstd" and config.recording.signals is False
+    assert config.service.event_loop is True and config.publish.signals_max_rate_hz == 10.0
     assert config.recording.directory == Path("/var/lib/portal-daq/recordings")
     zenoh_config(config.zenoh)  # the JSON5 file is valid for Zenoh
 
