@@ -1,0 +1,120 @@
+"""Each shipped example config: the bridge's frames decode through the service's Pipeline
+to eq. (4) of the pressures sent, in Pa, with no sample lost or invalid.
+
+The frames come from the bridge's :class:`~sim_bridge.playout.Playout` (a synthetic
+cycle); the expected samples from :class:`tests.examples_support.SentFrames`, which reads
+the same frames with cantools alone and its own unit table.
+"""
+
+from collections import defaultdict
+from pathlib import Path
+
+import pytest
+from cantools.autosar.end_to_end import check_profile2_crc, check_profile5_crc
+from crccheck.crc import Crc8SaeJ1850
+
+from daq.frames import RawFrame
+from daq.pipeline import Pipeline
+from dbc.machine import load_machine_config
+from estimator.leg import LegEstimate
+from sim_bridge.faults import FaultConfig
+from sim_bridge.result import LEGS
+from sim_bridge.schedule import instants, schedule
+from tests.examples_support import EXAMPLE_CONFIGS, ROOT, SentFrames, example_id
+from tests.sim_bridge.synthetic import make_playout, make_result
+
+PLAYED_S = 1.0
+J1939 = ROOT / "deploy" / "examples" / "j1939" / "portal-daq.toml"
+E2E = ROOT / "deploy" / "examples" / "e2e" / "portal-daq.toml"
+
+
+def test_both_examples_are_shipped() -> None:
+    assert {example_id(path) for path in EXAMPLE_CONFIGS} == {"default", "j1939", "e2e"}
+
+
+def play_through_pipeline(
+    config_path: Path,
+) -> tuple[SentFrames, dict[str, list[LegEstimate]], Pipeline, list[RawFrame]]:
+    """``PLAYED_S`` of a synthetic cycle with ``config_path``: what was sent and estimated."""
+    config, database = load_machine_config(config_path)
+    result = make_result()
+    playout = make_playout(result, FaultConfig(seed=1), config, database)
+    pipeline = Pipeline.from_config(config, database)
+    sent = SentFrames(config, database)
+    estimates: dict[str, list[LegEstimate]] = defaultdict(list)
+    frames = []
+    for instant in instants(schedule(playout.cycles, end_sim_ns=round(PLAYED_S * 1e9))):
+        position, outgoing = playout.frames(instant)
+        t_s = 1000.0 + instant.sim_t_ns / 1e9
+        for item in outgoing:
+            frame = RawFrame(
+                t_s, item.frame.arbitration_id, item.frame.is_extended_id, item.frame.data
+            )
+            frames.append(frame)
+            for sample in sent.add(t_s, frame.arbitration_id, frame.is_extended_id, frame.data):
+                # the quantized pressures sent are the simulation's, converted to the DBC unit
+                column = LEGS.index(sample.leg)
+                for chamber, p_Pa, truth in (
+                    ("piston", sample.p_piston_Pa, result.p_piston_Pa),
+                    ("rod", sample.p_rod_Pa, result.p_rod_Pa),
+                ):
+                    bound_Pa = sent.half_step_Pa(sample.leg, chamber) * (1 + 1e-9)
+                    assert abs(p_Pa - truth[position.row, column]) <= bound_Pa
+            for estimate in pipeline.process(frame).estimates:
+                estimates[estimate.leg].append(estimate)
+    return sent, estimates, pipeline, frames
+
+
+@pytest.mark.parametrize("config_path", EXAMPLE_CONFIGS, ids=example_id)
+def test_each_example_decodes_to_eq_4_of_the_pressures_sent_in_Pa(config_path: Path) -> None:
+    sent, estimates, pipeline, _ = play_through_pipeline(config_path)
+    assert pipeline.bad == {} and pipeline.frames_lost == 0
+    assert sorted(estimates) == sorted(LEGS)
+    for leg, expected in sent.samples.items():
+        got = estimates[leg]
+        # one estimate per trigger frame sent (100 Hz): none lost, none invented
+        assert len(got) == len(expected) == round(PLAYED_S / 0.01)
+        for estimate, sample in zip(got, expected, strict=True):
+            assert sample.complete
+            assert estimate.valid and estimate.reasons == (), estimate
+            assert estimate.t_s == sample.t_s
+            assert estimate.p_piston_Pa == pytest.approx(sample.p_piston_Pa, rel=1e-12)
+            assert estimate.p_rod_Pa == pytest.approx(sample.p_rod_Pa, rel=1e-12)
+            assert abs(estimate.force_raw_N - sample.force_raw_N) <= 1.0
+            # Pa, not the DBC's bar or kPa: a loaded leg is at several MPa
+            assert 1e6 < estimate.p_piston_Pa < 5e7
+            assert 1e5 < estimate.p_rod_Pa < 5e7
+
+
+def test_the_j1939_example_sends_one_pgn_from_twelve_transducers() -> None:
+    _, _, _, frames = play_through_pipeline(J1939)
+    transducers = [f.arbitration_id for f in frames if (f.arbitration_id >> 8) & 0xFFFF == 0xFF20]
+    assert all(f.is_extended_id for f in frames)
+    assert {frame_id & 0xFF for frame_id in transducers} == set(range(0x21, 0x2D))
+    assert {frame_id >> 8 for frame_id in transducers} == {0x18FF20}  # priority 6, PGN 0xFF20
+    # each transducer at 100 Hz, none of them more
+    assert len(transducers) == 12 * round(PLAYED_S / 0.01)
+
+
+def test_the_e2e_example_frames_carry_crcs_a_reference_implementation_accepts() -> None:
+    """Profiles 2 and 5 by cantools.autosar, profile 1 by crccheck's CRC-8 SAE J1850."""
+    _, _, pipeline, frames = play_through_pipeline(E2E)
+    checked = defaultdict(int)
+    list_p2 = [0x40 + i for i in range(16)]
+    for frame in frames:
+        data, frame_id = frame.data, frame.arbitration_id
+        if 0x210 <= frame_id <= 0x215:  # legs: profile 5, data ID = frame ID
+            assert check_profile5_crc(data, frame_id), frame
+            checked["p5"] += 1
+        elif frame_id in (0x220, 0x221):  # inclination: profile 1, data ID low then high byte
+            crc = Crc8SaeJ1850.calc(bytes((frame_id & 0xFF, frame_id >> 8)) + data[1:])
+            assert data[0] == crc, frame
+            checked["p1"] += 1
+        elif frame_id == 0x240:  # machine state: profile 2 with a DataIDList
+            assert check_profile2_crc(data, list_p2[data[1] & 0x0F]), frame
+            checked["p2 list"] += 1
+        else:  # strokes and bridge: profile 2, data ID = low byte of the frame ID
+            assert check_profile2_crc(data, frame_id & 0xFF), frame
+            checked["p2"] += 1
+    assert checked == {"p5": 600, "p1": 200, "p2 list": 10, "p2": 200}
+    assert pipeline.bad == {}
