@@ -6,7 +6,9 @@ is dropped and counted. The recorder thread serialises to JSON, writes through
 :class:`~daq.mcap_file.McapFile`, writes the chunk in progress out every
 ``flush_period_s`` and starts a new file when one reaches ``max_bytes`` or spans
 ``max_duration_s`` of frame time. Files are named
-``<machine>_<UTC start, YYYYmmddTHHMMSS.mmmZ>.mcap``. Simulation truth samples
+``<machine>_<UTC start, YYYYmmddTHHMMSS.mmmZ>.mcap``. The files of one recorder (one
+run of the service) carry the same run id, drawn at :meth:`Recorder.start`, and their
+index in the run (:mod:`daq.recording_run`), so that replay chains them. Simulation truth samples
 (:class:`~daq.sim_truth.TruthRecord`, from a simulator bridge) are submitted the same
 way and written to ``/sim/truth``; one that is not a valid sample is counted
 (:attr:`Recorder.rejected`) and skipped.
@@ -20,6 +22,7 @@ its summary; after a crash the file reads back up to its last written chunk.
 import logging
 import queue
 import time
+import uuid
 from collections.abc import Callable, Mapping
 from datetime import UTC, datetime
 from pathlib import Path
@@ -31,6 +34,7 @@ from daq.errors import RecordingError
 from daq.frames import BusEvent
 from daq.mcap_file import CountingFile, McapFile
 from daq.pipeline import FrameResult
+from daq.recording_run import run_metadata
 from daq.service_config import RecordingSettings
 from daq.sim_truth import TruthRecord, truth_payload
 
@@ -71,6 +75,7 @@ class Recorder(Worker):
         machine_id: str,
         attachments: Mapping[str, bytes] = {},
         now: Callable[[], float] = time.time,
+        run_id: str | None = None,
     ) -> None:
         if settings.directory is None:
             raise ValueError("settings.directory is None: recording is off")
@@ -81,6 +86,8 @@ class Recorder(Worker):
         self._machine_id = machine_id
         self._attachments = dict(attachments)
         self._now = now
+        #: Names this run of the service in every file's metadata; drawn at start if None.
+        self.run_id = run_id
         self._queue: queue.Queue[Item] = queue.Queue(maxsize=settings.queue_size)
         self._file: McapFile | None = None
         self._stream: CountingFile | None = None
@@ -94,6 +101,7 @@ class Recorder(Worker):
         self.rejected = 0
         #: Files begun, and the current one.
         self.paths: list[Path] = []
+        self._files_created = 0
 
     @property
     def depth(self) -> int:
@@ -118,6 +126,8 @@ class Recorder(Worker):
             raise RecordingError(
                 self.directory, f"cannot create it: {exc.strerror or exc}"
             ) from exc
+        if self.run_id is None:
+            self.run_id = uuid.uuid4().hex
         self._open(self._now())
 
     def submit(self, item: Item) -> None:
@@ -229,8 +239,11 @@ class Recorder(Worker):
             compression=self.settings.compression,
             chunk_size=self.settings.chunk_size,
         )
+        assert self.run_id is not None  # drawn in _before_start
+        run = run_metadata(self._machine_id, self.run_id, self._files_created)
+        self._files_created += 1  # a file that fails to start still took its index
         try:
-            mcap.start(self._attachments, t_s)
+            mcap.start(self._attachments, t_s, run)
         except BaseException:
             stream.close()
             raise

@@ -17,13 +17,13 @@ _NUMBER = {"type": ["number", "null"]}
 _TIME = {"type": "number", "description": "frame time (kernel time stamp), Unix seconds"}
 
 
-def _object(title: str, properties: dict[str, Any]) -> Schema:
+def _object(title: str, properties: dict[str, Any], optional: tuple[str, ...] = ()) -> Schema:
     return {
         "$schema": "https://json-schema.org/draft/2020-12/schema",
         "title": title,
         "type": "object",
         "properties": properties,
-        "required": list(properties),
+        "required": [name for name in properties if name not in optional],
     }
 
 
@@ -122,4 +122,5 @@ def signals_schema(message: Message) -> Schema:
             "source_address": {"type": "integer"},
             "signals": {"type": "object", "properties": signal_types},
         },
+        optional=("source_address",),
     )

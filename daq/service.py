@@ -25,7 +25,6 @@ least every 0.1 s, and stops turning only when it hangs on a frame.
 import logging
 import math
 import queue
-import threading
 import time
 from collections.abc import Callable
 
@@ -41,6 +40,7 @@ from daq.recorder import Recorder
 from daq.sd_notify import SdNotifier
 from daq.service_config import ServiceConfig
 from daq.sim_truth import TRUTH_KEY, TruthSubscriber
+from daq.stop_signal import Stop
 
 logger = logging.getLogger(__name__)
 
@@ -127,7 +127,7 @@ class Service:
         if self.recorder is not None:
             self.recorder.close()
 
-    def run(self, stop: threading.Event) -> None:
+    def run(self, stop: Stop) -> None:
         """Start, then publish status and notify systemd until ``stop`` is set; then close."""
         notifier = self.notifier
         period_s = self.config.publish.status_period_s

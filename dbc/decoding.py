@@ -188,7 +188,8 @@ class FrameDecoder:
         compiled: bool = True,
     ) -> None:
         self._codecs: dict[tuple[int, bool], _MessageCodec] = {}
-        self._by_pgn: dict[int, _MessageCodec] = {}
+        # PGN -> source address -> codec; None: any address (one message of the PGN).
+        self._by_pgn: dict[int, dict[int | None, _MessageCodec]] = {}
         for message in database.messages:
             codec = _MessageCodec(
                 message,
@@ -197,9 +198,15 @@ class FrameDecoder:
                 compiled,
             )
             if is_j1939(message):
-                self._by_pgn[j1939_pgn(message.frame_id)] = codec
+                self._by_pgn.setdefault(j1939_pgn(message.frame_id), {})[
+                    message.frame_id & 0xFF
+                ] = codec
             else:
                 self._codecs[(message.frame_id, bool(message.is_extended_frame))] = codec
+        for by_address in self._by_pgn.values():
+            # One message of a PGN takes it from any source address (transducers sharing a
+            # PGN); several (one per sender) each take their own, others go to the first.
+            by_address[None] = next(iter(by_address.values()))
         # 29-bit IDs of J1939 frames seen, with their message: bounded by the known PGNs
         # times priorities, source (and destination) addresses, so it cannot grow forever.
         self._j1939_ids: dict[int, _MessageCodec] = {}
@@ -224,8 +231,9 @@ class FrameDecoder:
         if is_extended_id and self._by_pgn:
             codec = self._j1939_ids.get(arbitration_id)
             if codec is None:
-                codec = self._by_pgn.get(j1939_pgn(arbitration_id))
-                if codec is not None:
+                by_address = self._by_pgn.get(j1939_pgn(arbitration_id))
+                if by_address is not None:
+                    codec = by_address.get(arbitration_id & 0xFF, by_address[None])
                     self._j1939_ids[arbitration_id] = codec
             if codec is not None:
                 return codec.decode(arbitration_id, bytes(data), t_s, arbitration_id & 0xFF)
@@ -233,5 +241,6 @@ class FrameDecoder:
 
     def reset_counters(self) -> None:
         """Forget the last counters, e.g. after the bus was down: no false counter faults."""
-        for codec in (*self._codecs.values(), *self._by_pgn.values()):
+        j1939 = {id(c): c for by_address in self._by_pgn.values() for c in by_address.values()}
+        for codec in (*self._codecs.values(), *j1939.values()):
             codec.reset_counters()

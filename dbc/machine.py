@@ -23,7 +23,7 @@ from cantools.database.can import Database, Message
 
 from dbc import DEFAULT_DBC_PATH
 from dbc.database import load_database
-from dbc.decoding import is_j1939
+from dbc.decoding import is_j1939, j1939_pgn
 from dbc.errors import ConfigError
 from dbc.protection import CRC_ALGORITHMS, DEFAULT_CRC_ALGORITHM, Protection
 from dbc.toml_table import TomlTable
@@ -53,14 +53,18 @@ LEG_SIGNAL_KEYS = ("piston", "rod", "status", "status_ok", "trigger", "max_skew_
 CHAMBER_KEYS = ("signal", "source_address", "unit", "status", "status_ok")
 PROTECTION_KEYS = ("counter", "crc", "crc_algorithm", "data_id", "max_delta_counter")
 ESTIMATOR_KEYS = (
+    "filter",
     "median_window",
+    "hampel_window",
+    "hampel_k",
     "stale_after_cycles",
     "contact_on_N",
     "contact_off_N",
     "pressure_limit_Pa",
     "near_constant_window_s",
 )
-SENSOR_KEYS = ("pressure_min_Pa", "pressure_max_Pa", "status_ok")
+SENSOR_RANGE_KEYS = ("pressure_min_Pa", "pressure_max_Pa")
+SENSOR_KEYS = (*SENSOR_RANGE_KEYS, "status_ok")
 #: Top-level tables of the machine configuration.
 MACHINE_TABLES = ("machine", "estimator", "sensors", "leg_defaults", "legs", "protection")
 #: What ``status_ok`` is when the config does not say.
@@ -224,14 +228,17 @@ def parse_machine_config(
     sensors = root.table("sensors", required=False)
     sensors.reject_unknown(SENSOR_KEYS)
     defaults = EstimatorSettings()
-    owners = {key: estimator for key in ESTIMATOR_KEYS} | {key: sensors for key in SENSOR_KEYS}
+    owners = {key: estimator for key in ESTIMATOR_KEYS} | {
+        key: sensors for key in SENSOR_RANGE_KEYS
+    }
     settings_kwargs: dict[str, Any] = {
-        "median_window": estimator.integer("median_window", defaults.median_window)
+        "filter": estimator.string("filter", defaults.filter),
+        "median_window": estimator.integer("median_window", defaults.median_window),
+        "hampel_window": estimator.integer("hampel_window", defaults.hampel_window),
     }
     for key, table in owners.items():
-        if key not in settings_kwargs and key != "status_ok":
+        if key not in settings_kwargs:
             settings_kwargs[key] = table.number(key, getattr(defaults, key))
-    owners.pop("status_ok")
     status_ok = _status_values(sensors, "status_ok", DEFAULT_STATUS_OK)
     settings = root.build(EstimatorSettings, owners, **settings_kwargs)
 
@@ -286,11 +293,9 @@ def _leg(
 
     leg_status_ok = _status_values(table, "status_ok", status_ok)
     leg_status = _leg_status(table, database) if "status" in table else None
-    chambers = {}
-    for key in TRIGGERS:
-        chambers[key] = _chamber(table, key, database, leg_status_ok)
+    chambers = {key: _chamber(table, key, database, leg_status_ok) for key in TRIGGERS}
     if leg_status is not None:
-        chambers = _attach_leg_status(table, chambers, leg_status, database, leg_status_ok)
+        chambers = _attach_leg_status(table, chambers, leg_status, leg_status_ok)
     piston, rod = chambers["piston"], chambers["rod"]
     trigger = table.string("trigger", "piston")
     if trigger not in TRIGGERS:
@@ -314,25 +319,26 @@ def _split_ref(table: TomlTable, key: str, text: str, database: Database) -> tup
     return message, signal_name
 
 
-def _chamber_table(table: TomlTable, key: str) -> TomlTable:
-    """The chamber's keys as a table: ``"M.S"`` is ``{ signal = "M.S" }``."""
+def _chamber_table(table: TomlTable, key: str, allowed: tuple[str, ...]) -> tuple[TomlTable, str]:
+    """The chamber's keys as a table (``"M.S"`` is ``{ signal = "M.S" }``), and the key
+    that names its signal in messages (the chamber's own key for the short form)."""
     if isinstance(table.data.get(key), dict):
         chamber = table.table(key)
-        chamber.reject_unknown(CHAMBER_KEYS)
-        return chamber
-    return TomlTable({"signal": table.string(key)}, table.source, table.key(key))
+        chamber.reject_unknown(allowed)
+        return chamber, "signal"
+    return TomlTable({"signal": table.string(key)}, table.source, table.key(key)), ""
 
 
 def _chamber(
     table: TomlTable, key: str, database: Database, status_ok: tuple[StatusValue, ...]
 ) -> ChamberSignal:
-    chamber = _chamber_table(table, key)
-    message, signal_name = _split_ref(chamber, "signal", chamber.string("signal"), database)
-    source_address = _source_address(chamber, message)
+    chamber, signal_key = _chamber_table(table, key, CHAMBER_KEYS)
+    message, signal_name = _split_ref(chamber, signal_key, chamber.string("signal"), database)
+    source_address = _source_address(chamber, message, database)
     signal = message.get_signal_by_name(signal_name)
     unit = chamber.string("unit") if "unit" in chamber else (signal.unit or "")
     if pressure_factor_to_Pa(unit) is None:
-        where = "unit" if "unit" in chamber else "signal"
+        where = "unit" if "unit" in chamber else signal_key
         raise chamber.error(
             where,
             f"signal {message.name}.{signal_name} has unit {unit!r}, not a pressure unit; "
@@ -355,12 +361,16 @@ def _chamber(
         source_address=source_address,
         unit=unit,
         status=status,
-        cycle_time_s=_cycle_time_s(chamber, message),
+        cycle_time_s=_cycle_time_s(chamber, signal_key, message),
     )
 
 
-def _source_address(table: TomlTable, message: Message) -> int | None:
+def _source_address(table: TomlTable, message: Message, database: Database) -> int | None:
+    """The pinned J1939 sender: the configured one; for a message that shares its PGN with
+    others (one DBC message per sender) the address in its own ID; else None (any)."""
     if "source_address" not in table:
+        if is_j1939(message) and _shares_pgn(message, database):
+            return int(message.frame_id & 0xFF)
         return None
     if not is_j1939(message):
         raise table.error(
@@ -373,10 +383,18 @@ def _source_address(table: TomlTable, message: Message) -> int | None:
     return address
 
 
-def _cycle_time_s(table: TomlTable, message: Message) -> float:
+def _shares_pgn(message: Message, database: Database) -> bool:
+    pgn = j1939_pgn(message.frame_id)
+    return any(
+        other is not message and is_j1939(other) and j1939_pgn(other.frame_id) == pgn
+        for other in database.messages
+    )
+
+
+def _cycle_time_s(table: TomlTable, key: str, message: Message) -> float:
     if not message.cycle_time:
         raise table.error(
-            "signal",
+            key,
             f"message {message.name} has no GenMsgCycleTime in the DBC; "
             "staleness and skew cannot be judged without it",
         )
@@ -442,21 +460,15 @@ def _status_check(
 
 def _leg_status(table: TomlTable, database: Database) -> tuple[Message, str, int | None]:
     """The leg-level ``status`` (``"M.S"`` or ``{ signal, source_address }``)."""
-    status = (
-        _chamber_table(table, "status")
-        if isinstance(table.data.get("status"), dict)
-        else (TomlTable({"signal": table.string("status")}, table.source, table.key("status")))
-    )
-    status.reject_unknown(("signal", "source_address"))
-    message, signal = _split_ref(status, "signal", status.string("signal"), database)
-    return message, signal, _source_address(status, message)
+    status, signal_key = _chamber_table(table, "status", ("signal", "source_address"))
+    message, signal = _split_ref(status, signal_key, status.string("signal"), database)
+    return message, signal, _source_address(status, message, database)
 
 
 def _attach_leg_status(
     table: TomlTable,
     chambers: dict[str, ChamberSignal],
     leg_status: tuple[Message, str, int | None],
-    database: Database,
     status_ok: tuple[StatusValue, ...],
 ) -> dict[str, ChamberSignal]:
     """A leg-level status follows the frames of the chamber(s) whose message carries it."""

@@ -15,8 +15,19 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 from dbc.decoding import DecodedFrame
-from dbc.machine import TRIGGERS, ChamberSignal, LegConfig
+from dbc.machine import TRIGGERS, ChamberSignal, LegConfig, StatusCheck
 from estimator.leg import LegSample
+
+
+@dataclass(frozen=True, slots=True)
+class _Paired:
+    """A leg whose two chambers come in one frame: every such frame is one sample."""
+
+    leg: str
+    piston: str
+    rod: str
+    source_address: int | None
+    statuses: tuple[StatusCheck, ...]
 
 
 @dataclass(frozen=True, slots=True)
@@ -43,8 +54,19 @@ class LegSampler:
     """Picks each leg's chamber pressures and status out of its messages' frames."""
 
     def __init__(self, legs: Mapping[str, LegConfig]) -> None:
+        # The usual case, both chambers in one frame, needs no state (the hot path).
+        self._paired: dict[str, list[_Paired]] = {}
         self._routes: dict[str, list[_Route]] = {}
         for leg in legs.values():
+            piston, rod = leg.piston, leg.rod
+            if (piston.message, piston.source_address) == (rod.message, rod.source_address):
+                statuses = tuple(
+                    dict.fromkeys(s for s in (piston.status, rod.status) if s is not None)
+                )
+                self._paired.setdefault(piston.message, []).append(
+                    _Paired(leg.name, piston.signal, rod.signal, piston.source_address, statuses)
+                )
+                continue
             for chamber in TRIGGERS:
                 signal: ChamberSignal = getattr(leg, chamber)
                 self._routes.setdefault(signal.message, []).append(
@@ -58,29 +80,39 @@ class LegSampler:
         None when the frame's message carries chambers but none from its source
         address: a J1939 frame of a known PGN from an unmapped transducer.
         """
+        paired = self._paired.get(frame.message)
         routes = self._routes.get(frame.message)
-        if routes is None:
+        if paired is None and routes is None:
             return []
         source_address = frame.source_address
+        signals = frame.signals
+        samples = [
+            (
+                leg.leg,
+                LegSample(
+                    frame.t_s,
+                    float(signals[leg.piston]),
+                    float(signals[leg.rod]),
+                    _with_status(frame.faults, leg.statuses, signals),
+                ),
+            )
+            for leg in paired or ()
+            if leg.source_address is None or leg.source_address == source_address
+        ]
         matched = [
             route
-            for route in routes
+            for route in routes or ()
             if route.signal.source_address is None or route.signal.source_address == source_address
         ]
-        if not matched:
+        if not samples and not matched:
             return None
-        signals = frame.signals
         for route in matched:
-            faults = frame.faults
             status = route.signal.status
-            if status is not None:
-                fault = status.fault(signals[status.signal])
-                if fault is not None:
-                    faults = (*faults, fault)
+            faults = _with_status(frame.faults, (status,) if status else (), signals)
             self._latest[(route.leg.name, route.chamber)] = _Reading(
                 frame.t_s, float(signals[route.signal.signal]), faults
             )
-        return [self._sample(route.leg) for route in matched if route.triggers]
+        return samples + [self._sample(route.leg) for route in matched if route.triggers]
 
     def _sample(self, leg: LegConfig) -> tuple[str, LegSample]:
         other_chamber = "rod" if leg.trigger == "piston" else "piston"
@@ -101,3 +133,14 @@ class LegSampler:
     def reset(self) -> None:
         """Forget the latest chamber values (after a gap in reception)."""
         self._latest.clear()
+
+
+def _with_status(
+    faults: tuple[str, ...], statuses: tuple[StatusCheck, ...], signals: Mapping[str, object]
+) -> tuple[str, ...]:
+    """The frame's faults and those of its status signals."""
+    for status in statuses:
+        fault = status.fault(signals[status.signal])
+        if fault is not None and fault not in faults:
+            faults = (*faults, fault)
+    return faults

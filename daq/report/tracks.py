@@ -30,8 +30,9 @@ CYCLE_COUNT = "Machine_CycleCount"
 CYCLE_TIME = "Machine_CycleTime"
 PHASE = "Machine_Phase"
 
-#: (t, force_N, pressure_Pa, valid), (t, count, cycle time, phase), (t, {leg: force}).
-LegRow = tuple[float, float, float, bool]
+#: (t, force_N, pressure_Pa, valid, force_raw_N), (t, count, cycle time, phase),
+#: (t, {leg: force}).
+LegRow = tuple[float, float, float, bool, float]
 StateRow = tuple[float, int, float, str]
 TruthRow = tuple[float, dict[str, float]]
 
@@ -52,11 +53,14 @@ class LegTrack:
 
     leg: str
     t_s: FloatArray
-    #: Running median of the valid raw forces (eq. 4); NaN before the first valid sample.
+    #: The configured filter over the valid raw forces (eq. 4), as published live; NaN
+    #: before the first valid sample.
     force_N: FloatArray
     #: Eq. (5) on ``force_N``.
     pressure_Pa: FloatArray
     valid: BoolArray
+    #: Eq. (4) on each sample alone, unfiltered.
+    force_raw_N: FloatArray
 
     @staticmethod
     def row(payload: Mapping[str, Any]) -> LegRow:
@@ -66,18 +70,20 @@ class LegTrack:
             _number(payload["force_N"]),
             _number(payload["pressure_Pa"]),
             bool(payload["valid"]),
+            _number(payload["force_raw_N"]),
         )
 
     @classmethod
     def of(cls, leg: str, rows: Iterable[LegRow]) -> "LegTrack":
         ordered = sorted(rows, key=lambda row: row[0])
-        columns = list(zip(*ordered, strict=True)) if ordered else [(), (), (), ()]
+        columns = list(zip(*ordered, strict=True)) if ordered else [(), (), (), (), ()]
         return cls(
             leg=leg,
             t_s=np.array(columns[0], dtype=np.float64),
             force_N=np.array(columns[1], dtype=np.float64),
             pressure_Pa=np.array(columns[2], dtype=np.float64),
             valid=np.array(columns[3], dtype=np.bool_),
+            force_raw_N=np.array(columns[4], dtype=np.float64),
         )
 
 
@@ -170,6 +176,8 @@ class RecordingCounts:
     #: ``decode_error``, ``error_frame``, ``remote_frame``, and ``crc`` / ``counter`` for
     #: decoded frames whose protection failed.
     bad: Mapping[str, int] = field(default_factory=dict)
+    #: Frames lost before they reached the bus interface, as the rolling counters tell.
+    frames_lost: int = 0
     #: Leg estimates, and the invalid ones by reason.
     estimates: int = 0
     invalid: Mapping[str, int] = field(default_factory=dict)
@@ -212,6 +220,7 @@ class RecordingCollector:
         self._state: list[StateRow] = []
         self._truth: list[TruthRow] = []
         self._frames = 0
+        self._frames_lost = 0
         self._messages: Counter[str] = Counter()
         self._bad: Counter[str] = Counter()
         self._invalid: Counter[str] = Counter()
@@ -240,6 +249,7 @@ class RecordingCollector:
             self._messages[topic.removeprefix(SIGNALS_PREFIX)] += 1
             if "faults" in signals:
                 self._bad.update(str(fault) for fault in signals["faults"])
+                self._frames_lost += int(signals.get("frames_lost", 0))
             elif not signals.get("crc_ok", True):  # recordings before the faults list
                 self._bad[CRC_FAULT] += 1
             elif not signals.get("counter_ok", True):
@@ -291,6 +301,7 @@ class RecordingCollector:
                 frames=self._frames,
                 messages=dict(sorted(self._messages.items())),
                 bad=dict(self._bad.most_common()),
+                frames_lost=self._frames_lost,
                 estimates=sum(len(rows) for rows in self._legs.values()),
                 invalid=dict(self._invalid.most_common()),
                 bus_events=self._bus_events,

@@ -40,6 +40,7 @@ def service_toml(
     recording: Path | None = None,
     status_period_s: float = 0.2,
     chunk_size: int = 1024 * 1024,
+    max_duration_s: float = 3600.0,
     extra: str = "",
 ) -> str:
     """A full service config: the example machine plus service tables for a test."""
@@ -63,6 +64,7 @@ status_period_s = {status_period_s}
 directory = "{recording}"
 chunk_size = {chunk_size}
 max_bytes = {max(chunk_size, 1024 * 1024)}
+max_duration_s = {max_duration_s}
 flush_period_s = 0.2
 """
     return text + extra + "\n" + EXAMPLE_CONFIG.read_text()

@@ -49,6 +49,7 @@ def track(
         force_N=pressure * 0.33,
         pressure_Pa=pressure,
         valid=np.array(valid if valid is not None else [True] * len(t_s), dtype=np.bool_),
+        force_raw_N=pressure * 0.33,
     )
 
 
@@ -166,14 +167,17 @@ def test_match_nearest_within_half_a_period() -> None:
 
 
 def test_the_calculated_force_is_the_median_centred_on_the_frame() -> None:
-    """Median window 5: the running median 2 valid samples later; invalid ones skipped."""
+    """Median window 5 over the raw forces, centred: the running median 2 valid samples
+    later; invalid ones skipped. Published: the recorded (live-filtered) force."""
     t = np.round(np.arange(12) * 0.01 + 100.0, 6)
     t[9] += 0.004  # 4 ms off its truth sample: more than the 3 ms allowed below
     valid = np.ones(12, dtype=np.bool_)
     valid[6] = False
-    force = 1000.0 * np.arange(12)
-    force[6] = 1e9  # invalid: neither matched nor used as a later value
-    leg = LegTrack("L", t, force, force / 0.33, valid)
+    raw = 2000.0 * np.arange(12)
+    raw[[1, 8]] = [50e3, -50e3]  # spikes: the centred median removes them
+    raw[6] = 1e9  # invalid: neither matched nor used as a later value
+    force = 1000.0 * np.arange(12)  # as published by the live filter
+    leg = LegTrack("L", t, force, force / 0.33, valid, raw)
     true_N = 1000.0 * np.arange(12) + 10.0
     true_N[3] = NAN  # unknown truth: left out
     truth = TruthTrack(np.round(np.arange(12) * 0.01 + 100.0, 6), {"L": true_N})
@@ -182,11 +186,13 @@ def test_the_calculated_force_is_the_median_centred_on_the_frame() -> None:
     # usable frames 0..5, 7..11; the last 2 have no centred median; 3 has no truth,
     # 9 no truth sample near enough
     assert comparison.t_s.tolist() == [t[i] for i in (0, 1, 2, 4, 5, 7, 8)]
-    # frame 4 -> 2 valid samples later is 7 (6 is invalid), 5 -> 8, 7 -> 9, 8 -> 10
-    assert comparison.calculated_N.tolist() == [2e3, 3e3, 4e3, 7e3, 8e3, 9e3, 10e3]
+    # centred window of 5 valid raw forces (6 is invalid): frame 0 (head) -> median of
+    # frames 0..2 = 4k, 1 -> 0..3 (even: (4k + 6k) / 2), 2 -> 0..4, 4 -> 2,3,4,5,7,
+    # 5 -> 3,4,5,7,8 (the -50k spike at 8 is outvoted), 7 -> 4,5,7,8,9, 8 -> 5,7,8,9,10
+    assert comparison.calculated_N.tolist() == [4e3, 5e3, 6e3, 8e3, 8e3, 10e3, 14e3]
     assert comparison.published_N.tolist() == [0.0, 1e3, 2e3, 4e3, 5e3, 7e3, 8e3]
     assert comparison.true_N.tolist() == [10.0, 1010.0, 2010.0, 4010.0, 5010.0, 7010.0, 8010.0]
-    assert comparison.deviation_N.tolist() == [1990.0] * 3 + [2990.0] * 2 + [1990.0] * 2
+    assert comparison.deviation_N.tolist() == [3990.0] * 4 + [2990.0] * 2 + [5990.0]
 
     both = compare({"L": leg, "X": leg}, truth, median_window=5)
     assert list(both) == ["L"]  # no truth for X
@@ -272,6 +278,12 @@ def test_the_collector_counts_like_the_service_and_sorts_by_time() -> None:
             "/signals/MACHINE_STATE",
             message({"t": t, "crc_ok": crc_ok, "counter_ok": counter_ok, "signals": state_signals}),
         )
+    leg_frame = {"t": 5.3, "crc_ok": True, "counter_ok": False, "signals": {}}
+    collector.add(
+        "/signals/LEG_SB1_F1",
+        message(leg_frame | {"faults": ["counter_repeat"], "frames_lost": 0}),
+    )
+    collector.add("/signals/LEG_SB1_F1", message(leg_frame | {"faults": [], "frames_lost": 2}))
     collector.add("/leg/SB1_F1/ground", leg_payload(5.3, 3300.0))
     collector.add("/leg/SB1_F1/ground", leg_payload(5.1, None, False, ("crc",)))
     collector.add("/leg/SB1_F1/ground", leg_payload(5.2, 33.0, False, ("counter", "range")))
@@ -288,8 +300,15 @@ def test_the_collector_counts_like_the_service_and_sorts_by_time() -> None:
     recording = collector.recording("x.mcap", None, machine_id="m")
 
     counts = recording.counts
-    assert counts.frames == 4 and counts.messages == {"MACHINE_STATE": 3}
-    assert counts.bad == {"unknown_id": 2, "wrong_dlc": 1, "crc": 1, "counter": 1}
+    assert counts.frames == 4 and counts.messages == {"LEG_SB1_F1": 2, "MACHINE_STATE": 3}
+    assert counts.bad == {
+        "unknown_id": 2,
+        "wrong_dlc": 1,
+        "crc": 1,
+        "counter": 1,
+        "counter_repeat": 1,
+    }
+    assert counts.frames_lost == 2
     assert counts.estimates == 3 and counts.invalid == {"crc": 1, "counter": 1, "range": 1}
     assert (counts.bus_events, counts.truth_samples) == (1, 2)
     assert (recording.start_t_s, recording.end_t_s) == (5.0, 5.3)
