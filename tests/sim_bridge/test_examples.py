@@ -6,22 +6,26 @@ cycle); the expected samples from :class:`tests.examples_support.SentFrames`, wh
 the same frames with cantools alone and its own unit table.
 """
 
+import uuid
 from collections import defaultdict
 from pathlib import Path
 
+import can
 import pytest
 from cantools.autosar.end_to_end import check_profile2_crc, check_profile5_crc
 from crccheck.crc import Crc8SaeJ1850
 
 from daq.frames import RawFrame
 from daq.pipeline import Pipeline
+from daq.service_config import load_service_config
 from dbc.machine import load_machine_config
 from estimator.leg import LegEstimate
+from sim_bridge.__main__ import cli
 from sim_bridge.faults import FaultConfig
 from sim_bridge.result import LEGS
 from sim_bridge.schedule import instants, schedule
 from tests.examples_support import EXAMPLE_CONFIGS, ROOT, SentFrames, example_id
-from tests.sim_bridge.synthetic import make_playout, make_result
+from tests.sim_bridge.synthetic import make_playout, make_result, write_export
 
 PLAYED_S = 1.0
 J1939 = ROOT / "deploy" / "examples" / "j1939" / "portal-daq.toml"
@@ -30,6 +34,38 @@ E2E = ROOT / "deploy" / "examples" / "e2e" / "portal-daq.toml"
 
 def test_both_examples_are_shipped() -> None:
     assert {example_id(path) for path in EXAMPLE_CONFIGS} == {"default", "j1939", "e2e"}
+
+
+@pytest.mark.parametrize("config_path", [J1939, E2E], ids=example_id)
+def test_each_example_loads_as_a_service_config_with_its_dbc_beside_it(config_path: Path) -> None:
+    config = load_service_config(config_path)
+    assert config.machine.dbc_path.resolve().parent == config_path.parent
+    assert config.zenoh.config_file is not None and config.zenoh.config_file.is_file()
+    assert config.zenoh.key_prefix == f"portal/{config.machine.machine_id}"
+    assert len(config.machine.legs) == 6
+
+
+@pytest.mark.parametrize("config_path", [J1939, E2E], ids=example_id)
+def test_the_bridge_command_plays_each_example(config_path: Path, tmp_path: Path) -> None:
+    data, mapping = write_export(tmp_path, make_result(duration_s=0.5))
+    channel = f"examples-{uuid.uuid4()}"
+    args = ["--config", str(config_path), "--interface", "virtual", "--channel", channel]
+    args += ["--input", str(data), "--mapping", str(mapping), "--as-fast-as-possible"]
+    with can.Bus(interface="virtual", channel=channel) as rx:
+        assert cli(args) == 0
+        messages = []
+        while (message := rx.recv(timeout=0)) is not None:
+            messages.append(message)
+    pipeline = Pipeline.from_config(*load_machine_config(config_path))
+    estimates = [
+        estimate
+        for m in messages
+        for estimate in pipeline.process(
+            RawFrame(m.timestamp, m.arbitration_id, m.is_extended_id, bytes(m.data))
+        ).estimates
+    ]
+    assert pipeline.bad == {} and pipeline.frames_lost == 0
+    assert len(estimates) == 6 * 50 and all(estimate.valid for estimate in estimates)
 
 
 def play_through_pipeline(
