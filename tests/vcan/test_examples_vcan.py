@@ -11,9 +11,6 @@ one estimate per trigger frame sent: no sample lost. Run through ``tests/vcan/wi
 
 import os
 import re
-import signal
-import subprocess
-import sys
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -23,7 +20,7 @@ from daq.runner import RECEIVE_BUFFER_BYTES
 from daq.service_config import load_service_config
 from tests.daq.service_support import Collector, free_port, subscriber_session
 from tests.examples_support import EXAMPLE_CONFIGS, SentFrames, example_id, machine_part
-from tests.helpers import ROOT
+from tests.vcan.bridge_support import run_bridge_recorded
 from tests.vcan.test_service_vcan import WAIT_S, connected, service_process
 
 pytestmark = pytest.mark.vcan
@@ -31,9 +28,6 @@ pytestmark = pytest.mark.vcan
 CHANNEL = "vcan0"
 SPEED = 1.0
 DURATION_S = 3.0  # simulated: 300 samples per leg
-#: candump's socket receive buffer: in the loaded guest candump falls behind by seconds
-#: (its default buffer, ~250 frames, overflowed; so did 4 MiB).
-CANDUMP_RCVBUF = 32 * 1024 * 1024
 #: In the guest the bridge and the service share one slow CPU: a rod frame and the piston
 #: frame sent right after it may be far apart. The timing rule has its own unit tests.
 MAX_SKEW_S = 10.0
@@ -109,22 +103,12 @@ def test_the_example_end_to_end_publishes_eq_4_of_the_frames_sent(
     ):
         collector = Collector(session, f"{prefix}/**")
         connected(collector, prefix)
-        with (
-            open(log, "w") as out,
-            subprocess.Popen(
-                ["candump", "-L", "-r", str(CANDUMP_RCVBUF), CHANNEL], stdout=out
-            ) as dump,
-        ):
-            try:
-                bridge = subprocess.run(
-                    [sys.executable, "-m", "sim_bridge", "--config", str(config_path),
-                     "--channel", CHANNEL, "--speed", str(SPEED), "--duration", str(DURATION_S),
-                     "--rtol", "1e-3"],
-                    cwd=ROOT, capture_output=True, text=True, timeout=300,
-                )  # fmt: skip
-            finally:
-                dump.send_signal(signal.SIGINT)  # candump flushes its output and exits
-                dump.wait(timeout=30)
+        bridge = run_bridge_recorded(
+            log,
+            ["--config", str(config_path), "--channel", CHANNEL, "--speed", str(SPEED),
+             "--duration", str(DURATION_S), "--rtol", "1e-3"],
+            timeout_s=300,
+        )  # fmt: skip
         assert bridge.returncode == 0, bridge.stderr
         sent = SentFrames(config.machine, config.database)
         for frame in candump_frames(log):
