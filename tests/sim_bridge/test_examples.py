@@ -18,10 +18,11 @@ from crccheck.crc import Crc8SaeJ1850
 from daq.frames import RawFrame
 from daq.pipeline import Pipeline
 from daq.service_config import load_service_config
+from dbc.errors import ConfigError
 from dbc.machine import load_machine_config
 from estimator.leg import LegEstimate
 from sim_bridge.__main__ import cli
-from sim_bridge.faults import FaultConfig
+from sim_bridge.faults import FaultConfig, FaultWindow
 from sim_bridge.result import LEGS
 from sim_bridge.schedule import instants, schedule
 from tests.examples_support import EXAMPLE_CONFIGS, ROOT, SentFrames, example_id
@@ -154,3 +155,18 @@ def test_the_e2e_example_frames_carry_crcs_a_reference_implementation_accepts() 
             checked["p2"] += 1
     assert checked == {"p5": 600, "p1": 200, "p2 list": 10, "p2": 200}
     assert pipeline.bad == {}
+
+
+def test_a_j1939_fault_names_one_transducer_or_every_sender_of_the_message() -> None:
+    config, database = load_machine_config(J1939)
+    silent = (FaultWindow.parse("HYD_PRESS@0x22@0.2:0.1"), FaultWindow.parse("HYD_PRESS@0.5:0.1"))
+    playout = make_playout(make_result(), FaultConfig(silent=silent, seed=1), config, database)
+    for instant in instants(schedule(playout.cycles, end_sim_ns=round(PLAYED_S * 1e9))):
+        playout.frames(instant)
+    assert playout.counts.silent["HYD_PRESS@0x22"] == 10 + 10
+    assert all(playout.counts.silent[f"HYD_PRESS@0x{a:02X}"] == 10 for a in range(0x23, 0x2D))
+    assert playout.counts.silent["STROKE_SB1"] == 0
+    with pytest.raises(ConfigError, match="HYD_PRESS@0x21"):  # the error lists the senders
+        make_playout(
+            make_result(), FaultConfig(silent=(FaultWindow.parse("HYD@0:1"),)), config, database
+        )
