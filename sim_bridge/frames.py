@@ -147,6 +147,9 @@ class FrameBuilder:
             for signal in (protection.counter, protection.crc)
             if signal is not None
         }
+        self._with_crc = frozenset(
+            name for name, protection in config.protection.items() if protection.crc is not None
+        )
         chambers_by_sender: dict[tuple[str, int | None], list[_ChamberSignals]] = {}
         for leg in config.legs.values():
             if leg.name not in LEGS:
@@ -237,6 +240,10 @@ class FrameBuilder:
         """The DBC message of ``sender`` and the J1939 source address it sends from."""
         plan = self._plans[sender]
         return plan.message, plan.source_address
+
+    def has_crc(self, sender: str) -> bool:
+        """``sender``'s message carries a CRC (what ``--bad-crc`` can corrupt)."""
+        return self._plans[sender].message in self._with_crc
 
     def signals(
         self,

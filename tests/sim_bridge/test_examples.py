@@ -170,3 +170,17 @@ def test_a_j1939_fault_names_one_transducer_or_every_sender_of_the_message() -> 
         make_playout(
             make_result(), FaultConfig(silent=(FaultWindow.parse("HYD@0:1"),)), config, database
         )
+
+
+def test_bad_crc_touches_only_messages_that_have_a_crc() -> None:
+    config, database = load_machine_config(J1939)  # no CRC anywhere
+    playout = make_playout(
+        make_result(), FaultConfig(bad_crc_probability=1.0, seed=1), config, database
+    )
+    pipeline = Pipeline.from_config(config, database)
+    for instant in instants(schedule(playout.cycles, end_sim_ns=round(0.1 * 1e9))):
+        for item in playout.frames(instant)[1]:
+            frame = item.frame
+            pipeline.process(RawFrame(0.0, frame.arbitration_id, frame.is_extended_id, frame.data))
+    assert sum(playout.counts.built.values()) > 0 and not playout.counts.bad_crc
+    assert pipeline.bad == {}
