@@ -124,13 +124,23 @@ def test_each_example_decodes_to_eq_4_of_the_pressures_sent_in_Pa(config_path: P
 
 
 def test_the_j1939_example_sends_one_pgn_from_twelve_transducers() -> None:
-    _, _, _, frames = play_through_pipeline(J1939)
-    transducers = [f.arbitration_id for f in frames if (f.arbitration_id >> 8) & 0xFFFF == 0xFF20]
+    _, _, pipeline, frames = play_through_pipeline(J1939)
+    transducers = [f for f in frames if (f.arbitration_id >> 8) & 0xFFFF == 0xFF20]
     assert all(f.is_extended_id for f in frames)
-    assert {frame_id & 0xFF for frame_id in transducers} == set(range(0x21, 0x2D))
-    assert {frame_id >> 8 for frame_id in transducers} == {0x18FF20}  # priority 6, PGN 0xFF20
+    assert {f.arbitration_id & 0xFF for f in transducers} == set(range(0x21, 0x2D))
+    # priority 6, PGN 0xFF20
+    assert {f.arbitration_id >> 8 for f in transducers} == {0x18FF20}
     # each transducer at 100 Hz, none of them more
     assert len(transducers) == 12 * round(PLAYED_S / 0.01)
+    # the same PGN at priority 3 from SB1_F1's piston transducer makes a sample; from an
+    # address no chamber maps (0x2D) it is counted, not used
+    last = transducers[-1]
+    made = [
+        [e.leg for e in pipeline.process(RawFrame(last.t_s, frame_id, True, last.data)).estimates]
+        for frame_id in (0x0CFF2021, 0x18FF202D)
+    ]
+    assert made == [["SB1_F1"], []]
+    assert pipeline.bad == {"unmapped_source": 1}
 
 
 def test_the_e2e_example_frames_carry_crcs_a_reference_implementation_accepts() -> None:
