@@ -20,7 +20,7 @@ from daq.runner import RECEIVE_BUFFER_BYTES
 from daq.service_config import load_service_config
 from tests.daq.service_support import Collector, free_port, subscriber_session
 from tests.examples_support import EXAMPLE_CONFIGS, SentFrames, example_id, machine_part
-from tests.vcan.bridge_support import run_bridge_recorded
+from tests.vcan.bridge_support import frames_sent, run_bridge_recorded
 from tests.vcan.test_service_vcan import WAIT_S, connected, service_process
 
 pytestmark = pytest.mark.vcan
@@ -32,7 +32,6 @@ DURATION_S = 3.0  # simulated: 300 samples per leg
 #: frame sent right after it may be far apart. The timing rule has its own unit tests.
 MAX_SKEW_S = 10.0
 CANDUMP_LINE = re.compile(r"^\((\d+\.\d+)\) vcan0 ([0-9A-F]{3}|[0-9A-F]{8})#([0-9A-F]*)$")
-BRIDGE_SENT = re.compile(r"sent (\d+) frames in")
 
 
 @pytest.fixture(autouse=True, scope="module")
@@ -115,8 +114,7 @@ def test_the_example_end_to_end_publishes_eq_4_of_the_frames_sent(
             sent.add(*frame)
         total = sum(sent.frames.values())
         # candump saw every frame the bridge says it sent
-        reported = BRIDGE_SENT.search(bridge.stderr)
-        assert reported and int(reported.group(1)) == total, bridge.stderr
+        assert frames_sent(bridge) == total, bridge.stderr
         # the service received and processed every one of them
         statuses = lambda: collector.of(f"{prefix}/status")  # noqa: E731
         try:
