@@ -37,10 +37,11 @@ RAW_FRAME = _object(
         "data": {"type": "string", "description": "payload, hex"},
         "error_frame": {"type": "boolean"},
         "remote_frame": {"type": "boolean"},
+        "fd": {"type": "boolean", "description": "a CAN FD frame"},
         "error": {
             "type": ["string", "null"],
             "description": "why the frame could not be used: unknown_id, wrong_dlc, "
-            "decode_error, error_frame, remote_frame; null when it decoded",
+            "decode_error, fd_frame, error_frame, remote_frame; null when it decoded",
         },
         "reason": {"type": ["string", "null"]},
     },
@@ -72,9 +73,47 @@ BUS_EVENT = _object(
             "type": "boolean",
             "description": "reception resumed after a gap: rolling counters were reset",
         },
+        "kernel_dropped": {
+            "type": "integer",
+            "description": "frames the kernel dropped just before (receive buffer full)",
+        },
+        "rx_dropped": {
+            "type": "integer",
+            "description": "frames the service's reader dropped just before (queue full)",
+        },
     },
 )
 
+_XY = {"type": "array", "items": {"type": "number"}, "minItems": 2, "maxItems": 2}
+
+#: ``/ground``: the ``<prefix>/ground`` aggregate, at the publish rate.
+GROUND = _object(
+    "portal.Ground",
+    {
+        "t": {"type": "number", "description": "moment judged, frames' clock, Unix seconds"},
+        "legs": {"type": "object", "additionalProperties": LEG_GROUND},
+        "total_force_N": _NUMBER,
+        "weight_N": _NUMBER,
+        "residual_N": _NUMBER,
+        "legs_in_contact": {"type": "integer"},
+        "complete": {"type": "boolean"},
+        "stability": {
+            "type": ["object", "null"],
+            "description": "null with fewer than three feet in contact, an invalid leg "
+            "or an unknown bridge pose",
+            "properties": {
+                "cop_m": _XY | {"description": "centre of pressure, m"},
+                "margin_m": {
+                    "type": "number",
+                    "description": "to the nearest support polygon edge, m; negative outside",
+                },
+                "legs": {"type": "array", "items": {"type": "string"}},
+                "polygon_m": {"type": "array", "items": _XY},
+                "feet_m": {"type": "object", "additionalProperties": _XY},
+            },
+        },
+    },
+)
 
 _LEG_TRUTH = {
     "type": "object",

@@ -24,7 +24,7 @@ from cantools.database.namedsignalvalue import NamedSignalValue
 from cantools.j1939 import pgn_from_frame_id
 
 from dbc._compiled_codec import CompiledMessage
-from dbc.errors import FrameLengthError, SignalDecodeError, UnknownFrameError
+from dbc.errors import FdFrameError, FrameLengthError, SignalDecodeError, UnknownFrameError
 from dbc.protection import (
     COUNTER_JUMP,
     COUNTER_REPEAT,
@@ -222,22 +222,32 @@ class FrameDecoder:
         return sorted(self._by_pgn)
 
     def decode(
-        self, arbitration_id: int, data: bytes, t_s: float, is_extended_id: bool = False
+        self,
+        arbitration_id: int,
+        data: bytes,
+        t_s: float,
+        is_extended_id: bool = False,
+        is_fd: bool = False,
     ) -> DecodedFrame:
-        """Decode one frame; raises a :class:`~dbc.errors.FrameError` subclass if unusable."""
+        """Decode one frame; raises a :class:`~dbc.errors.FrameError` subclass if unusable.
+
+        An FD frame decodes only for a message the DBC defines as FD (else ``fd_frame``).
+        """
         codec = self._codecs.get((arbitration_id, is_extended_id))
-        if codec is not None:
-            return codec.decode(arbitration_id, bytes(data), t_s, None)
-        if is_extended_id and self._by_pgn:
+        source_address = None
+        if codec is None and is_extended_id and self._by_pgn:
             codec = self._j1939_ids.get(arbitration_id)
             if codec is None:
                 by_address = self._by_pgn.get(j1939_pgn(arbitration_id))
                 if by_address is not None:
                     codec = by_address.get(arbitration_id & 0xFF, by_address[None])
                     self._j1939_ids[arbitration_id] = codec
-            if codec is not None:
-                return codec.decode(arbitration_id, bytes(data), t_s, arbitration_id & 0xFF)
-        raise UnknownFrameError(arbitration_id, "ID not in the DBC")
+            source_address = arbitration_id & 0xFF if codec is not None else None
+        if is_fd and (codec is None or not codec.message.is_fd):
+            raise FdFrameError(arbitration_id, "CAN FD frame of no FD message in the DBC")
+        if codec is None:
+            raise UnknownFrameError(arbitration_id, "ID not in the DBC")
+        return codec.decode(arbitration_id, bytes(data), t_s, source_address)
 
     def reset_counters(self) -> None:
         """Forget the last counters, e.g. after the bus was down: no false counter faults."""

@@ -26,6 +26,7 @@ from dbc.database import load_database
 from dbc.decoding import is_j1939, j1939_pgn
 from dbc.errors import ConfigError
 from dbc.protection import CRC_ALGORITHMS, DEFAULT_CRC_ALGORITHM, Protection
+from dbc.stability_config import StabilityConfig, parse_stability
 from dbc.toml_table import TomlTable
 from dbc.units import ACCEPTED_PRESSURE_UNITS, pressure_factor_to_Pa
 from estimator.geometry import LegGeometry
@@ -66,12 +67,31 @@ ESTIMATOR_KEYS = (
 SENSOR_RANGE_KEYS = ("pressure_min_Pa", "pressure_max_Pa")
 SENSOR_KEYS = (*SENSOR_RANGE_KEYS, "status_ok")
 #: Top-level tables of the machine configuration.
-MACHINE_TABLES = ("machine", "estimator", "sensors", "leg_defaults", "legs", "protection")
+MACHINE_TABLES = (
+    "machine",
+    "estimator",
+    "sensors",
+    "leg_defaults",
+    "legs",
+    "protection",
+    "stability",
+)
 #: What ``status_ok`` is when the config does not say.
 DEFAULT_STATUS_OK: tuple[str | int, ...] = ("ok",)
 #: Tables of the service configuration that may share the file; this loader leaves
 #: them to :mod:`daq.service_config`, which checks them.
 SERVICE_TABLES = ("bus", "zenoh", "publish", "recording")
+
+
+@dataclass(frozen=True, slots=True)
+class SignalRef:
+    """A signal of the DBC, written ``MESSAGE.SIGNAL`` in the config."""
+
+    message: str
+    signal: str
+
+    def __str__(self) -> str:
+        return f"{self.message}.{self.signal}"
 
 
 #: A status value meaning "fine": a value-table name or a raw number.
@@ -167,6 +187,8 @@ class MachineConfig:
     unit_factors: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
     #: ``[sensors] status_ok``: the status values meaning "fine" where a leg does not say.
     status_ok: tuple[str | int, ...] = ("ok",)
+    #: Feet, bridge and pose signals for the stability margin; None: not configured.
+    stability: StabilityConfig | None = None
 
     @property
     def weight_N(self) -> float:
@@ -266,6 +288,14 @@ def parse_machine_config(
         protection=protection,
         unit_factors=unit_factors,
         status_ok=status_ok,
+        stability=parse_stability(
+            root.table("stability", required=False),
+            legs,
+            lambda table, key: _signal(table, key, database),
+            lambda ref: (
+                database.get_message_by_name(ref.message).get_signal_by_name(ref.signal).unit
+            ),
+        ),
     )
 
 
@@ -317,6 +347,12 @@ def _split_ref(table: TomlTable, key: str, text: str, database: Database) -> tup
     if signal_name not in {signal.name for signal in message.signals}:
         raise table.error(key, f"no signal {signal_name!r} in message {message_name} of the DBC")
     return message, signal_name
+
+
+def _signal(table: TomlTable, key: str, database: Database) -> SignalRef:
+    """``key`` of ``table``: a ``MESSAGE.SIGNAL`` of the DBC."""
+    message, signal = _split_ref(table, key, table.string(key), database)
+    return SignalRef(message.name, signal)
 
 
 def _chamber_table(table: TomlTable, key: str, allowed: tuple[str, ...]) -> tuple[TomlTable, str]:

@@ -17,7 +17,7 @@ import pytest
 import zenoh
 from mcap.reader import make_reader
 
-from daq.bus_reader import BusReader
+from daq.bus_reader import BusReader, PythonCanSource
 from daq.frames import BusEvent, RawFrame
 from daq.recorder import Recorder
 from daq.replay import replay
@@ -314,18 +314,20 @@ def test_replay_of_a_run_rotated_every_second_equals_the_live_estimates(tmp_path
     )
     config = load_service_config(path)
     # 3.5 s of frame time, every leg on the ground (contact) with a median to carry over.
-    paths = send_and_wait(config, leg_messages(encoder_for(config), 350, time.time()))
-    assert len(paths) == 4
+    # Stamped 30 s after the service's start, so that the file its bus event (wall time)
+    # opens holds nothing else: a file spans max_duration_s from its first message.
+    paths = send_and_wait(config, leg_messages(encoder_for(config), 350, time.time() + 30.0))
+    assert len(paths) == 5 and live_estimates(paths[:1]) == []
     live = live_estimates(paths)
     assert len(live) == 6 * 350
-    second_file = live_estimates(paths[1:2])
+    second_file = live_estimates(paths[2:3])
     assert second_file and all(e["contact"] for e in second_file)
 
     assert_replay_is_live([tmp_path / "rec"], live)  # the directory
     assert_replay_is_live(paths[::-1], live)  # the files, in any order
     report_input = load_recording(tmp_path / "rec")  # the report reads the whole run too
     assert report_input.counts.frames == len(live)
-    assert report_input.name.endswith("(4 files)")
+    assert report_input.name.endswith("(5 files)")
 
 
 def test_mcap_channels_and_schemas_are_readable(config: ServiceConfig) -> None:
@@ -362,7 +364,9 @@ def test_reader_never_blocks_and_counts_overflow() -> None:
     channel = f"test-{uuid.uuid4().hex}"
     inbox: queue.Queue[RawFrame | BusEvent] = queue.Queue(maxsize=5)
     reader = BusReader(
-        lambda: can.Bus(interface="virtual", channel=channel), inbox, channel=channel
+        lambda: PythonCanSource(can.Bus(interface="virtual", channel=channel)),
+        inbox,
+        channel=channel,
     )
     with reader:
         assert reader.opened.wait(WAIT_S)
