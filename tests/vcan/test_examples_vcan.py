@@ -9,14 +9,12 @@ quantized pressures in those frames (decoded and converted to Pa by
 one estimate per trigger frame sent: no sample lost. Run through ``tests/vcan/with-vcan``.
 """
 
-import os
 import re
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
-from daq.runner import RECEIVE_BUFFER_BYTES
 from daq.service_config import load_service_config
 from tests.daq.service_support import Collector, free_port, subscriber_session
 from tests.examples_support import EXAMPLE_CONFIGS, SentFrames, example_id, machine_part
@@ -32,16 +30,6 @@ DURATION_S = 3.0  # simulated: 300 samples per leg
 #: frame sent right after it may be far apart. The timing rule has its own unit tests.
 MAX_SKEW_S = 10.0
 CANDUMP_LINE = re.compile(r"^\((\d+\.\d+)\) vcan0 ([0-9A-F]{3}|[0-9A-F]{8})#([0-9A-F]*)$")
-
-
-@pytest.fixture(autouse=True, scope="module")
-def receive_buffers_as_on_the_machine() -> None:
-    """Let the service's 4 MiB CAN receive buffer through, as a sysctl drop-in does on the
-    machine: Python has no SO_RCVBUFFORCE, so the request is capped at net.core.rmem_max,
-    whose default in the guest (~300 frames) overflows whenever the slow guest falls
-    behind (issue 10). Only in the User-Mode Linux guest: never on a host's own sysctl."""
-    if os.environ.get("PORTAL_VCAN_GUEST") == "1":
-        Path("/proc/sys/net/core/rmem_max").write_text(str(RECEIVE_BUFFER_BYTES))
 
 
 def service_config(example: Path, tmp_path: Path, port: int) -> Path:
