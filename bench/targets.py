@@ -76,7 +76,7 @@ class ServiceUnderTest:
 
     def __init__(self, config: ServiceConfig, session: zenoh.Session) -> None:
         self.config = config
-        frame_ids = FrameDecoder(config.database, config.machine.protection).frame_ids
+        filters = FrameDecoder(config.database, config.machine.protection).receive_filters
         self.recorder = Recorder(
             config.recording,
             config.database,
@@ -85,7 +85,7 @@ class ServiceUnderTest:
         )
         self.service = Service(
             config,
-            open_bus=bus_factory(config.bus, frame_ids),
+            open_bus=bus_factory(config.bus, filters),
             session=session,
             recorder=self.recorder,
         )
