@@ -20,6 +20,11 @@ order with the frames:
 Every return to ``up`` after ``down`` or ``absent`` carries
 ``reset_counters=True``: the consumer forgets the rolling counters, so the
 first frames after the gap are not flagged.
+
+Each state change is logged once, with a hint. python-can's socketcan backend logs
+its own ERROR ("Could not access SocketCAN device ...") on every failed open; while
+the bus is already ``absent``, the retries' copies of it are dropped (:class:`_Quiet`),
+so a missing interface gives one line per state change, not one a second.
 """
 
 import errno
@@ -27,7 +32,8 @@ import logging
 import queue
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import can
@@ -42,6 +48,9 @@ logger = logging.getLogger(__name__)
 #: Longest wait between two attempts to reopen the bus.
 BACKOFF_MAX_S = 1.0
 BACKOFF_MIN_S = 0.1
+
+#: python-can's socketcan backend logs each failed open here, at ERROR.
+PYTHON_CAN_SOCKETCAN_LOGGER = "can.interfaces.socketcan.socketcan"
 
 BusFactory = Callable[[], can.BusABC]
 #: True/False: the interface is up/down; None: unknown.
@@ -76,6 +85,32 @@ def sysfs_link_probe(channel: str) -> LinkProbe:
             return None
 
     return link_up
+
+
+class _Quiet(logging.Filter):
+    """Drops every record of the reader thread (the one that opens the bus)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.thread = threading.get_ident()
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        return record.thread != self.thread
+
+
+@contextmanager
+def _python_can_quiet(quiet: bool) -> Iterator[None]:
+    """While ``quiet``, python-can's socketcan log lines of this thread are dropped."""
+    if not quiet:
+        yield
+        return
+    target = logging.getLogger(PYTHON_CAN_SOCKETCAN_LOGGER)
+    quiet_filter = _Quiet()
+    target.addFilter(quiet_filter)
+    try:
+        yield
+    finally:
+        target.removeFilter(quiet_filter)
 
 
 class BusReader(Worker):
@@ -150,7 +185,9 @@ class BusReader(Worker):
 
     def _try_open(self) -> bool:
         try:
-            self._bus = self._open_bus()
+            # Already absent: our warning said so; python-can's copy would repeat it.
+            with _python_can_quiet(self.state == BUS_ABSENT):
+                self._bus = self._open_bus()
         except (can.CanError, OSError) as exc:
             error = bus_error(self.channel, exc)
             self._set_state(BUS_ABSENT, str(error), log=logging.WARNING)

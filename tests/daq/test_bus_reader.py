@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import errno
+import logging
 import queue
+import threading
 import time
 import uuid
 from collections import deque
@@ -100,6 +102,39 @@ def test_down_then_link_probe_up_without_frames() -> None:
         assert "ip link set can0 up" in reader.reason
         link["up"] = True
         assert drain(inbox, 1) == [("up", True)]
+
+
+def test_python_cans_own_error_is_logged_once_per_state_change(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    """python-can's socketcan backend logs "Could not access SocketCAN device" at ERROR on
+    each failed open; while the bus stays absent, the retries do not repeat it."""
+    python_can = logging.getLogger("can.interfaces.socketcan.socketcan")
+    attempts: list[int] = []
+    enough = threading.Event()
+    buses: deque[Any] = deque([OSError(errno.ENODEV, "No such device")] * 4)
+    buses.append(ScriptedBus([message(1)]))
+
+    def open_bus() -> can.BusABC:
+        attempts.append(1)
+        bus = buses.popleft()
+        if isinstance(bus, BaseException):
+            python_can.error("Could not access SocketCAN device %s (%s)", "can0", bus)
+            raise bus
+        enough.set()
+        return bus
+
+    inbox: queue.Queue[RawFrame | BusEvent] = queue.Queue()
+    with caplog.at_level(logging.INFO), BusReader(open_bus, inbox, channel="can0"):
+        assert drain(inbox, 3) == [("absent", False), ("up", False), 1]  # first open
+        assert enough.wait(WAIT_S)
+    assert len(attempts) == 5
+    copies = [r for r in caplog.records if r.getMessage().startswith("Could not access")]
+    assert len(copies) == 1  # not 4
+    ours = [r for r in caplog.records if r.name == "daq.bus_reader"]
+    assert [r.levelno for r in ours] == [logging.WARNING, logging.INFO]
+    assert "absent" in ours[0].getMessage() and "no such CAN interface" in ours[0].getMessage()
+    assert python_can.filters == []  # nothing left behind
 
 
 def test_bus_errors_carry_a_hint() -> None:
