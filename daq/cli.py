@@ -22,6 +22,7 @@ SUBCOMMAND_MODULES = (
     "daq.monitor.cli",
     "daq.replay_command",
     "daq.report.command",
+    "daq.router",
     "daq.run_command",
 )
 

@@ -22,17 +22,17 @@ import time
 from collections.abc import Callable
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from importlib import resources
-from typing import Any, cast
+from typing import Any, Self, cast
 from urllib.parse import parse_qs, urlsplit
 
 import zenoh
 
 from daq.dashboard.api import history_document, latest_document
 from daq.dashboard.history import PressureHistory
-from daq.live.feed import LiveFeed, apply_item
+from daq.live.feed import Item, LiveFeed, apply_item
 from daq.live.state import LiveState
 from daq.live.viewer import ViewerConfig
-from daq.payloads import json_bytes
+from daq.payloads import JsonObject, json_bytes
 from dbc.errors import PortalDaqError
 
 logger = logging.getLogger(__name__)
@@ -42,31 +42,34 @@ PAGE = "static/index.html"
 HUB_WAIT_S = 0.1
 
 
-class Dashboard:
-    """Serves ``viewer``'s service on ``address`` (host, port; port 0: any free one)."""
+#: (HTTP status, content type, body) of a GET.
+Response = tuple[int, str, bytes]
+
+
+class HubServer:
+    """What every dashboard shares: a feed drained by one hub thread, an HTTP server.
+
+    Subclasses say what an item does (:meth:`_apply`, called under :attr:`_lock`)
+    and what a GET returns (:meth:`respond`, which takes the lock itself).
+    """
 
     def __init__(
         self,
-        session: zenoh.Session,
-        viewer: ViewerConfig,
+        feed: LiveFeed,
         address: tuple[str, int],
         *,
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
-        self.viewer = viewer
         self.address = address
-        self.feed = LiveFeed(session, viewer.prefix, clock=clock)
+        self.feed = feed
         self._clock = clock
-        self._state = LiveState(viewer.prefix)
-        self._history = PressureHistory(viewer.legs)
         self._lock = threading.Lock()
         self._stop = threading.Event()
         self._server: _Server | None = None
         self._threads: list[threading.Thread] = []
-        self._page = b""
         self._closed = False
 
-    def __enter__(self) -> "Dashboard":
+    def __enter__(self) -> Self:
         self.start()
         return self
 
@@ -86,10 +89,6 @@ class Dashboard:
         """Bind the HTTP address, subscribe, start the threads; PortalDaqError when it cannot."""
         if self._server is not None:
             return
-        try:
-            self._page = resources.files("daq.dashboard").joinpath(PAGE).read_bytes()
-        except OSError as exc:
-            raise PortalDaqError(f"dashboard page {PAGE} missing: reinstall portal-daq") from exc
         host, port = self.address
         try:
             self._server = _Server((host, port), _Handler, self)
@@ -124,20 +123,13 @@ class Dashboard:
             thread.join()
         self.feed.close()
 
-    def page(self) -> bytes:
-        return self._page
+    def respond(self, path: str, query: dict[str, list[str]]) -> Response:
+        """The answer to ``GET path?query`` (HTTP threads)."""
+        raise NotImplementedError
 
-    def latest(self) -> bytes:
-        with self._lock:
-            document = latest_document(
-                self.viewer, self._state, self._clock(), dropped=self.feed.dropped
-            )
-        return json_bytes(document)
-
-    def history(self, since_s: float | None, generation: int | None) -> bytes:
-        with self._lock:
-            document = history_document(self._history, since_s, generation)
-        return json_bytes(document)
+    def _apply(self, item: Item) -> None:
+        """Apply one feed item (hub thread, under the lock)."""
+        raise NotImplementedError
 
     def _hub(self) -> None:
         while not self._stop.is_set():
@@ -145,20 +137,89 @@ class Dashboard:
             if item is None:
                 continue
             with self._lock:
-                before = self._state.ground
-                apply_item(self._state, item)
-                ground = self._state.ground
-                if ground is not None and ground is not before:
-                    self._history.add(ground.value)
+                self._apply(item)
+
+
+def page(name: str) -> bytes:
+    """A page of ``static/``; PortalDaqError when the installation lacks it."""
+    try:
+        return resources.files("daq.dashboard").joinpath(name).read_bytes()
+    except OSError as exc:
+        raise PortalDaqError(f"dashboard page {name} missing: reinstall portal-daq") from exc
+
+
+def html(body: bytes) -> Response:
+    return 200, "text/html; charset=utf-8", body
+
+
+def json_response(document: JsonObject, code: int = 200) -> Response:
+    return code, "application/json", json_bytes(document)
+
+
+def not_found(path: str) -> Response:
+    return json_response({"error": f"no route {path}"}, 404)
+
+
+def history_query(query: dict[str, list[str]]) -> tuple[float | None, int | None]:
+    """``since`` and ``generation`` of ``/api/history``; None when missing or malformed."""
+    return _number(query, "since", float), _number(query, "generation", int)
+
+
+class Dashboard(HubServer):
+    """Serves ``viewer``'s service on ``address`` (host, port; port 0: any free one)."""
+
+    def __init__(
+        self,
+        session: zenoh.Session,
+        viewer: ViewerConfig,
+        address: tuple[str, int],
+        *,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
+        super().__init__(LiveFeed(session, viewer.prefix, clock=clock), address, clock=clock)
+        self.viewer = viewer
+        self._state = LiveState(viewer.prefix)
+        self._history = PressureHistory(viewer.legs)
+        self._page = b""
+
+    def start(self) -> None:
+        self._page = page(PAGE)
+        super().start()
+
+    def latest(self) -> JsonObject:
+        with self._lock:
+            return latest_document(
+                self.viewer, self._state, self._clock(), dropped=self.feed.dropped
+            )
+
+    def history(self, since_s: float | None, generation: int | None) -> JsonObject:
+        with self._lock:
+            return history_document(self._history, since_s, generation)
+
+    def respond(self, path: str, query: dict[str, list[str]]) -> Response:
+        if path in ("/", "/index.html"):
+            return html(self._page)
+        if path == "/api/latest":
+            return json_response(self.latest())
+        if path == "/api/history":
+            return json_response(self.history(*history_query(query)))
+        return not_found(path)
+
+    def _apply(self, item: Item) -> None:
+        before = self._state.ground
+        apply_item(self._state, item)
+        ground = self._state.ground
+        if ground is not None and ground is not before:
+            self._history.add(ground.value)
 
 
 class _Server(ThreadingHTTPServer):
     daemon_threads = True
 
     def __init__(
-        self, address: tuple[str, int], handler: type[BaseHTTPRequestHandler], dashboard: Dashboard
+        self, address: tuple[str, int], handler: type[BaseHTTPRequestHandler], hub: HubServer
     ) -> None:
-        self.dashboard = dashboard
+        self.hub = hub
         if ":" in address[0]:
             self.address_family = socket.AF_INET6
         super().__init__(address, handler)
@@ -168,19 +229,9 @@ class _Handler(BaseHTTPRequestHandler):
     server_version = "portal-daq-dashboard"
 
     def do_GET(self) -> None:
-        dashboard = cast(_Server, self.server).dashboard
+        hub = cast(_Server, self.server).hub
         url = urlsplit(self.path)
-        if url.path in ("/", "/index.html"):
-            self._send(200, "text/html; charset=utf-8", dashboard.page())
-        elif url.path == "/api/latest":
-            self._send(200, "application/json", dashboard.latest())
-        elif url.path == "/api/history":
-            query = parse_qs(url.query)
-            since = _number(query, "since", float)
-            generation = _number(query, "generation", int)
-            self._send(200, "application/json", dashboard.history(since, generation))
-        else:
-            self._send(404, "application/json", json_bytes({"error": f"no route {url.path}"}))
+        self._send(*hub.respond(url.path, parse_qs(url.query)))
 
     def _send(self, code: int, content_type: str, body: bytes) -> None:
         self.send_response(code)

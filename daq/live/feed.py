@@ -6,6 +6,12 @@ their latest values (``get("<prefix>/*")``; late joiner). Callbacks run on
 Zenoh's threads and only put ``(key, payload, received_s)`` into a bounded
 queue (full: dropped and counted). The viewer's one consumer thread drains it
 into a :class:`~daq.live.state.LiveState` with :meth:`LiveFeed.drain`.
+
+The prefix may hold a wildcard (``portal/*``: every machine, the fleet views).
+With ``liveliness=True`` the feed also follows the services' liveliness tokens
+(``<prefix>/alive``, the ones present at start included): an item with
+``alive`` True when a token appears, False when it goes (the service stopped,
+or its session's lease expired).
 """
 
 import logging
@@ -16,7 +22,7 @@ from typing import Any, NamedTuple
 
 import zenoh
 
-from daq.live.state import SUFFIXES, LiveState
+from daq.live.state import ALIVE, SUFFIXES, LiveState
 
 logger = logging.getLogger(__name__)
 
@@ -31,6 +37,8 @@ class Item(NamedTuple):
     received_s: float
     #: From the start-up query: older than anything a subscriber delivers.
     queried: bool
+    #: A liveliness change of the token ``key`` (no payload); None for data.
+    alive: bool | None = None
 
 
 class LiveFeed:
@@ -43,9 +51,11 @@ class LiveFeed:
         *,
         queue_size: int = 2000,
         clock: Callable[[], float] = time.monotonic,
+        liveliness: bool = False,
     ) -> None:
         self.session = session
         self.prefix = prefix
+        self.liveliness = liveliness
         self._clock = clock
         self._queue: queue.Queue[Item] = queue.Queue(maxsize=queue_size)
         self._subscribers: list[Any] = []
@@ -68,6 +78,12 @@ class LiveFeed:
         for suffix in SUFFIXES:
             self._subscribers.append(
                 self.session.declare_subscriber(f"{self.prefix}/{suffix}", self._on_sample)
+            )
+        if self.liveliness:
+            self._subscribers.append(
+                self.session.liveliness().declare_subscriber(
+                    f"{self.prefix}/{ALIVE}", self._on_token, history=True
+                )
             )
         self.session.get(f"{self.prefix}/*", self._on_reply, timeout=QUERY_TIMEOUT_S)
 
@@ -102,6 +118,10 @@ class LiveFeed:
 
     def _on_sample(self, sample: zenoh.Sample) -> None:
         self._enqueue(Item(str(sample.key_expr), sample.payload.to_bytes(), self._clock(), False))
+
+    def _on_token(self, sample: zenoh.Sample) -> None:
+        alive = sample.kind == zenoh.SampleKind.PUT
+        self._enqueue(Item(str(sample.key_expr), b"", self._clock(), False, alive))
 
     def _on_reply(self, reply: zenoh.Reply) -> None:
         sample = reply.ok
