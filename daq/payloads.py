@@ -16,6 +16,7 @@ from dbc.decoding import DecodedFrame
 from estimator.leg import LegEstimate
 from estimator.machine import MachineSnapshot
 from estimator.metrics import SoilMetrics
+from estimator.stability import Stability
 
 JsonObject = dict[str, Any]
 
@@ -74,6 +75,20 @@ def machine_ground(snapshot: MachineSnapshot) -> JsonObject:
         "residual_N": weight.residual_N,
         "legs_in_contact": weight.legs_in_contact,
         "complete": weight.complete,
+        "stability": stability(snapshot.stability),
+    }
+
+
+def stability(margin: Stability | None) -> JsonObject | None:
+    """The ``stability`` member of ``<prefix>/ground``: null when undefined."""
+    if margin is None:
+        return None
+    return {
+        "cop_m": list(margin.cop_m),
+        "margin_m": margin.margin_m,
+        "legs": list(margin.legs),
+        "polygon_m": [list(corner) for corner in margin.polygon_m],
+        "feet_m": {leg: list(xy) for leg, xy in margin.feet_m.items()},
     }
 
 
@@ -96,13 +111,21 @@ def soil_metrics(t_s: float, metrics: Mapping[str, SoilMetrics]) -> JsonObject:
 
 
 def signals(frame: DecodedFrame) -> JsonObject:
-    """``<prefix>/signals/<MESSAGE>`` and ``/signals/<MESSAGE>``: one decoded frame."""
-    return {
+    """``<prefix>/signals/<MESSAGE>`` and ``/signals/<MESSAGE>``: one decoded frame.
+
+    Pressure signals are in Pa; ``source_address`` only for J1939 messages.
+    """
+    payload: JsonObject = {
         "t": frame.t_s,
         "crc_ok": frame.crc_ok,
         "counter_ok": frame.counter_ok,
+        "faults": list(frame.faults),
+        "frames_lost": frame.frames_lost,
         "signals": dict(frame.signals),
     }
+    if frame.source_address is not None:
+        payload["source_address"] = frame.source_address
+    return payload
 
 
 def raw_frame(result: FrameResult) -> JsonObject:
@@ -116,16 +139,19 @@ def raw_frame(result: FrameResult) -> JsonObject:
         "data": frame.data.hex(),
         "error_frame": frame.is_error_frame,
         "remote_frame": frame.is_remote_frame,
+        "fd": frame.is_fd,
         "error": result.error_kind,
         "reason": result.error.reason if result.error is not None else None,
     }
 
 
 def bus_event(event: BusEvent) -> JsonObject:
-    """MCAP ``/daq/bus``: a change of the bus state."""
+    """MCAP ``/daq/bus``: a change of the bus state, or frames lost."""
     return {
         "t": event.t_s,
         "state": event.state,
         "reason": event.reason,
         "reset_counters": event.reset_counters,
+        "kernel_dropped": event.kernel_dropped,
+        "rx_dropped": event.rx_dropped,
     }

@@ -11,7 +11,8 @@ run of the service) carry the same run id, drawn at :meth:`Recorder.start`, and 
 index in the run (:mod:`daq.recording_run`), so that replay chains them. Simulation truth samples
 (:class:`~daq.sim_truth.TruthRecord`, from a simulator bridge) are submitted the same
 way and written to ``/sim/truth``; one that is not a valid sample is counted
-(:attr:`Recorder.rejected`) and skipped.
+(:attr:`Recorder.rejected`) and skipped. The consumer's ``/ground`` snapshots (a
+:class:`~estimator.machine.MachineSnapshot`, with the stability margin) go to ``/ground``.
 
 A write error (disk full, directory gone) is logged and counted, the file is
 abandoned and a new one tried after :data:`RETRY_AFTER_S`; it never stops the
@@ -37,6 +38,7 @@ from daq.pipeline import FrameResult
 from daq.recording_run import run_metadata
 from daq.service_config import RecordingSettings
 from daq.sim_truth import TruthRecord, truth_payload
+from estimator.machine import MachineSnapshot
 
 logger = logging.getLogger(__name__)
 
@@ -45,7 +47,7 @@ RETRY_AFTER_S = 5.0
 #: On close, queued items are still written for at most this long.
 DRAIN_S = 0.5
 
-Item = FrameResult | BusEvent | TruthRecord
+Item = FrameResult | BusEvent | TruthRecord | MachineSnapshot
 
 
 def file_name(machine_id: str, t_s: float) -> str:
@@ -187,6 +189,8 @@ class Recorder(Worker):
                     logger.warning("skipping a truth sample that is not valid (counting them)")
                 return
             self._guarded(lambda: mcap.write_truth(sample))
+        elif isinstance(item, MachineSnapshot):
+            self._guarded(lambda: mcap.write_ground(item))
         else:
             self._guarded(lambda: mcap.write_event(item))
 

@@ -19,7 +19,9 @@ consumer and publisher loops turned within :data:`HEARTBEAT_MAX_AGE_S`. The
 reader's loop turns at least every receive timeout (0.1 s) even on a quiet
 bus, and while the bus is down or being reopened (the service repairs that
 itself, so a restart by systemd would not help); the consumer's loop turns at
-least every 0.1 s, and stops turning only when it hangs on a frame.
+least every 0.1 s, and stops turning only when it hangs on a frame. The status's
+``healthy`` is also false for a status period in which the kernel dropped frames
+(``dropped.kernel`` rose); that does not stop the watchdog (a restart would not help).
 """
 
 import logging
@@ -90,6 +92,8 @@ class Service:
         self._started_monotonic = time.monotonic()
         self._rate_mark = (time.monotonic(), 0)
         self._frames_per_s = 0.0
+        #: The kernel drop count at the previous status (a rise makes that status unhealthy).
+        self._kernel_dropped_mark = 0
         self._started = False
         self._closed = False
 
@@ -185,6 +189,7 @@ class Service:
         if now - mark_t > 0:
             self._frames_per_s = (received - mark_received) / (now - mark_t)
         self._rate_mark = (now, received)
+        kernel_lost = self._kernel_losses()
         bad = dict(self.pipeline.bad)
         recorder = self.recorder
         return {
@@ -196,14 +201,17 @@ class Service:
                 "state": self.reader.state,
                 "reason": self.reader.reason,
                 "reopens": self.reader.reopens,
+                "rcvbuf_bytes": self.reader.rcvbuf_bytes,
             },
             "frames_per_s": self._frames_per_s,
+            # Lost before they reached the bus interface, as the rolling counters tell.
+            "frames_lost": self.pipeline.frames_lost,
             "frames": {
                 "received": received,
                 "processed": self.pipeline.frames,
                 "unknown": bad.get("unknown_id", 0),
                 "bad": sum(bad.values()),
-                "dropped": self.reader.dropped,
+                "dropped": self.reader.dropped + self.reader.kernel_dropped,
             },
             "bad": bad,
             "queues": {
@@ -212,6 +220,7 @@ class Service:
                 "record": recorder.depth if recorder is not None else 0,
             },
             "dropped": {
+                "kernel": self.reader.kernel_dropped,
                 "rx": self.reader.dropped,
                 "publish": self.publisher.dropped,
                 "record": recorder.dropped if recorder is not None else 0,
@@ -223,8 +232,22 @@ class Service:
                 "bytes": recorder.current_bytes,
                 "errors": recorder.errors,
             },
-            "healthy": self.healthy(),
+            "healthy": self.healthy() and kernel_lost == 0,
         }
+
+    def _kernel_losses(self) -> int:
+        """Frames the kernel dropped since the previous status; logs them (one line)."""
+        total = self.reader.kernel_dropped
+        lost, self._kernel_dropped_mark = total - self._kernel_dropped_mark, total
+        if lost:
+            logger.warning(
+                "%d frames lost in the kernel since the last status (%d in all): the CAN "
+                "socket's receive buffer (%s bytes) overflowed while the service stalled",
+                lost,
+                total,
+                self.reader.rcvbuf_bytes,
+            )
+        return lost
 
 
 def status_line(status: JsonObject) -> str:

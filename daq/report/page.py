@@ -86,8 +86,14 @@ def header_rows(content: ReportContent) -> list[tuple[str, str]]:
         ("last frame", _time(recording.end_t_s)),
         ("duration", f"{recording.duration_s:.2f} s"),
         ("frames", str(counts.frames)),
+        (
+            "frames lost before processing",
+            f"{counts.kernel_dropped + counts.rx_dropped} ({counts.kernel_dropped} by the "
+            f"kernel: receive buffer full; {counts.rx_dropped} by the service's queue)",
+        ),
         ("decoded frames per message", _counts(counts.messages)),
         ("bad frames by kind", _counts(counts.bad)),
+        ("frames lost on the bus (by rolling counters)", str(counts.frames_lost)),
         ("leg estimates", f"{counts.estimates} ({source})"),
         ("invalid estimates by reason", _counts(counts.invalid)),
         ("bus state changes", str(counts.bus_events)),

@@ -305,12 +305,21 @@ def test_the_collector_counts_like_the_service_and_sorts_by_time() -> None:
             "/signals/MACHINE_STATE",
             message({"t": t, "crc_ok": crc_ok, "counter_ok": counter_ok, "signals": state_signals}),
         )
+    leg_frame = {"t": 5.3, "crc_ok": True, "counter_ok": False, "signals": {}}
+    collector.add(
+        "/signals/LEG_SB1_F1",
+        message(leg_frame | {"faults": ["counter_repeat"], "frames_lost": 0}),
+    )
+    collector.add("/signals/LEG_SB1_F1", message(leg_frame | {"faults": [], "frames_lost": 2}))
     collector.add("/leg/SB1_F1/ground", leg_payload(5.3, 3300.0))
     collector.add("/leg/SB1_F1/ground", leg_payload(5.1, None, False, ("crc",)))
     collector.add("/leg/SB1_F1/ground", leg_payload(5.2, 33.0, False, ("counter", "range")))
     collector.add(
         "/daq/bus", message({"t": 1.0, "state": "up", "reason": "", "reset_counters": False})
     )
+    loss = {"t": 5.2, "state": "up", "reason": "lost", "reset_counters": False}
+    collector.add("/daq/bus", message(loss | {"kernel_dropped": 40, "rx_dropped": 0}))
+    collector.add("/daq/bus", message(loss | {"kernel_dropped": 2, "rx_dropped": 3}))
     collector.add(
         "/sim/truth", message({"t_unix_s": 5.2, "legs": {"SB1_F1": {"force_true_N": None}}})
     )
@@ -321,10 +330,18 @@ def test_the_collector_counts_like_the_service_and_sorts_by_time() -> None:
     recording = collector.recording("x.mcap", None, machine_id="m")
 
     counts = recording.counts
-    assert counts.frames == 4 and counts.messages == {"MACHINE_STATE": 3}
-    assert counts.bad == {"unknown_id": 2, "wrong_dlc": 1, "crc": 1, "counter": 1}
+    assert counts.frames == 4 and counts.messages == {"LEG_SB1_F1": 2, "MACHINE_STATE": 3}
+    assert counts.bad == {
+        "unknown_id": 2,
+        "wrong_dlc": 1,
+        "crc": 1,
+        "counter": 1,
+        "counter_repeat": 1,
+    }
+    assert counts.frames_lost == 2
     assert counts.estimates == 3 and counts.invalid == {"crc": 1, "counter": 1, "range": 1}
     assert (counts.bus_events, counts.truth_samples) == (1, 2)
+    assert (counts.kernel_dropped, counts.rx_dropped) == (42, 3)
     assert (recording.start_t_s, recording.end_t_s) == (5.0, 5.3)
     leg = recording.legs["SB1_F1"]
     assert leg.t_s.tolist() == [5.1, 5.2, 5.3] and leg.valid.tolist() == [False, False, True]
