@@ -189,7 +189,9 @@ class Service:
         if now - mark_t > 0:
             self._frames_per_s = (received - mark_received) / (now - mark_t)
         self._rate_mark = (now, received)
-        kernel_lost = self._kernel_losses()
+        # Read once: the status must show the very count its health was judged on.
+        kernel_dropped = self.reader.kernel_dropped
+        kernel_lost = self._kernel_losses(kernel_dropped)
         bad = dict(self.pipeline.bad)
         recorder = self.recorder
         return {
@@ -211,7 +213,7 @@ class Service:
                 "processed": self.pipeline.frames,
                 "unknown": bad.get("unknown_id", 0),
                 "bad": sum(bad.values()),
-                "dropped": self.reader.dropped + self.reader.kernel_dropped,
+                "dropped": self.reader.dropped + kernel_dropped,
             },
             "bad": bad,
             "queues": {
@@ -220,7 +222,7 @@ class Service:
                 "record": recorder.depth if recorder is not None else 0,
             },
             "dropped": {
-                "kernel": self.reader.kernel_dropped,
+                "kernel": kernel_dropped,
                 "rx": self.reader.dropped,
                 "publish": self.publisher.dropped,
                 "record": recorder.dropped if recorder is not None else 0,
@@ -235,9 +237,9 @@ class Service:
             "healthy": self.healthy() and kernel_lost == 0,
         }
 
-    def _kernel_losses(self) -> int:
-        """Frames the kernel dropped since the previous status; logs them (one line)."""
-        total = self.reader.kernel_dropped
+    def _kernel_losses(self, total: int) -> int:
+        """Frames the kernel dropped since the previous status (``total`` now); logs
+        them (one line)."""
         lost, self._kernel_dropped_mark = total - self._kernel_dropped_mark, total
         if lost:
             logger.warning(

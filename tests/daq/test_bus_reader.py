@@ -16,6 +16,7 @@ from daq.bus_reader import BusReader, FrameSource, PythonCanSource, bus_error
 from daq.frames import BusEvent, RawFrame
 from daq.runner import bus_factory, kernel_filters
 from daq.service_config import BusSettings
+from dbc.decoding import ReceiveFilter
 
 WAIT_S = 10.0
 
@@ -193,9 +194,10 @@ def test_bus_errors_carry_a_hint() -> None:
 
 
 def test_kernel_filters_pass_exactly_the_dbc_ids() -> None:
-    assert kernel_filters([(0x100, False), (0x18FEF100, True)]) == [
+    filters = [ReceiveFilter(0x100, 0x7FF, False), ReceiveFilter(0xFF2000, 0x3FFFF00, True)]
+    assert kernel_filters(filters) == [
         {"can_id": 0x100, "can_mask": 0x7FF, "extended": False},
-        {"can_id": 0x18FEF100, "can_mask": 0x1FFFFFFF, "extended": True},
+        {"can_id": 0xFF2000, "can_mask": 0x3FFFF00, "extended": True},
     ]
 
 
@@ -203,7 +205,7 @@ def test_kernel_filters_pass_exactly_the_dbc_ids() -> None:
 def test_bus_factory_filters_only_when_asked(filtered: bool) -> None:
     channel = f"test-{uuid.uuid4().hex}"
     settings = BusSettings(interface="virtual", channel=channel, kernel_filters=filtered)
-    source = bus_factory(settings, [(0x100, False)])()
+    source = bus_factory(settings, [ReceiveFilter(0x100, 0x7FF, False)])()
     try:
         with can.Bus(interface="virtual", channel=channel) as sender:
             sender.send(message(0x7AB))

@@ -5,7 +5,6 @@ from __future__ import annotations
 import io
 import json
 import queue
-import threading
 import time
 import uuid
 from collections.abc import Iterator
@@ -37,6 +36,7 @@ from tests.daq.service_support import (
     leg_messages,
     leg_signals,
     pressure_series,
+    running,
     subscriber_session,
     write_service_config,
 )
@@ -57,7 +57,7 @@ def config(tmp_path: Path) -> ServiceConfig:
 def live_service(config: ServiceConfig) -> Iterator[Service]:
     """The service on a virtual bus, with a real Zenoh session and recorder, running
     (:meth:`Service.run`) in a thread as it does in the main thread of the process."""
-    frame_ids = FrameDecoder(config.database, config.machine.protection).frame_ids
+    filters = FrameDecoder(config.database, config.machine.protection).receive_filters
     recorder = Recorder(
         config.recording,
         config.database,
@@ -67,19 +67,12 @@ def live_service(config: ServiceConfig) -> Iterator[Service]:
     with zenoh.open(zenoh_config(config.zenoh)) as session:
         service = Service(
             config,
-            open_bus=bus_factory(config.bus, frame_ids),
+            open_bus=bus_factory(config.bus, filters),
             session=session,
             recorder=recorder,
         )
-        stop = threading.Event()
-        runner = threading.Thread(target=service.run, args=(stop,))
-        runner.start()
-        try:
-            assert service.reader.opened.wait(WAIT_S)
+        with running(service):
             yield service
-        finally:
-            stop.set()
-            runner.join()
 
 
 @contextmanager
