@@ -112,10 +112,10 @@ class Machine:
 
     def __init__(self, config: ServiceConfig, cycle: SimulationResult) -> None:
         self.config = config
-        frame_ids = FrameDecoder(config.database, config.machine.protection).frame_ids
+        filters = FrameDecoder(config.database, config.machine.protection).receive_filters
         self.session = zenoh.open(zenoh_config(config.zenoh))
         self.service = Service(
-            config, open_bus=bus_factory(config.bus, frame_ids), session=self.session
+            config, open_bus=bus_factory(config.bus, filters), session=self.session
         )
         self.bus = can.Bus(interface="virtual", channel=config.bus.channel)
         playout = Playout(
