@@ -71,7 +71,7 @@ class ServiceUnderTest:
             raise ValueError(f"feed must be one of {FEEDS}, got {feed!r}")
         self.config = config
         self.feed = feed
-        frame_ids = FrameDecoder(config.database, config.machine.protection).frame_ids
+        filters = FrameDecoder(config.database, config.machine.protection).receive_filters
         self.recorder = Recorder(
             config.recording,
             config.database,
@@ -80,7 +80,7 @@ class ServiceUnderTest:
         )
         self.service = Service(
             config,
-            open_bus=bus_factory(config.bus, frame_ids),
+            open_bus=bus_factory(config.bus, filters),
             session=session,
             recorder=self.recorder,
         )

@@ -57,7 +57,7 @@ def config(tmp_path: Path) -> ServiceConfig:
 def live_service(config: ServiceConfig) -> Iterator[Service]:
     """The service on a virtual bus, with a real Zenoh session and recorder, running
     (:meth:`Service.run`) in a thread as it does in the main thread of the process."""
-    frame_ids = FrameDecoder(config.database, config.machine.protection).frame_ids
+    filters = FrameDecoder(config.database, config.machine.protection).receive_filters
     recorder = Recorder(
         config.recording,
         config.database,
@@ -67,7 +67,7 @@ def live_service(config: ServiceConfig) -> Iterator[Service]:
     with zenoh.open(zenoh_config(config.zenoh)) as session:
         service = Service(
             config,
-            open_bus=bus_factory(config.bus, frame_ids),
+            open_bus=bus_factory(config.bus, filters),
             session=session,
             recorder=recorder,
         )
