@@ -2,8 +2,10 @@
 
 The session is passed in (opened in ``daq.__main__``). :meth:`ZenohPublisher.submit`
 never blocks: it queues (key, payload) into a bounded queue, or drops and counts.
-The publisher thread serialises to JSON (NaN as ``null``), puts with encoding
-``application/json`` and keeps the latest payload of every key.
+The publisher thread serialises to JSON (NaN as ``null``; a payload may come
+encoded already), puts with encoding ``application/json`` and keeps the latest
+payload of every key. With ``threaded=False`` (the service's event loop) ``submit``
+puts at once, in the caller's thread.
 
 Late joiners: a queryable on ``<prefix>/**`` answers every ``get`` from that
 cache, so ``session.get("<prefix>/**")`` returns the latest value of every key
@@ -40,11 +42,19 @@ class ZenohPublisher(Worker):
 
     thread_name = "zenoh-publisher"
 
-    def __init__(self, session: zenoh.Session, prefix: str, *, queue_size: int = 10_000) -> None:
+    def __init__(
+        self,
+        session: zenoh.Session,
+        prefix: str,
+        *,
+        queue_size: int = 10_000,
+        threaded: bool = True,
+    ) -> None:
         super().__init__()
+        self.threaded = threaded
         self.session = session
         self.prefix = prefix
-        self._queue: queue.Queue[tuple[str, JsonObject]] = queue.Queue(maxsize=queue_size)
+        self._queue: queue.Queue[tuple[str, JsonObject | bytes]] = queue.Queue(maxsize=queue_size)
         self._publishers: dict[str, zenoh.Publisher] = {}
         self._latest: dict[str, tuple[zenoh.KeyExpr, bytes]] = {}
         self._latest_lock = threading.Lock()
@@ -71,8 +81,12 @@ class ZenohPublisher(Worker):
         )
         self._token = self.session.liveliness().declare_token(self.key("alive"))
 
-    def submit(self, suffix: str, payload: JsonObject) -> None:
-        """Queue ``payload`` for ``<prefix>/<suffix>``; never blocks (full: dropped, counted)."""
+    def submit(self, suffix: str, payload: JsonObject | bytes) -> None:
+        """Queue ``payload`` (or its JSON, already encoded) for ``<prefix>/<suffix>``; never
+        blocks (full: dropped, counted). Without a thread of its own: put at once."""
+        if not self.threaded:
+            self._put(suffix, payload)
+            return
         try:
             self._queue.put_nowait((suffix, payload))
         except queue.Full:
@@ -122,9 +136,9 @@ class ZenohPublisher(Worker):
                 continue
             self._put(suffix, payload)
 
-    def _put(self, suffix: str, payload: JsonObject) -> None:
+    def _put(self, suffix: str, payload: JsonObject | bytes) -> None:
         key = self.key(suffix)
-        data = json_bytes(payload)
+        data = payload if isinstance(payload, bytes) else json_bytes(payload)
         try:
             publisher = self._publishers.get(key)
             if publisher is None:

@@ -108,7 +108,8 @@ class SocketCanSource:
         self._socket = sock
 
     def recv(self, timeout_s: float) -> RawFrame | None:
-        """The next frame, or None after ``timeout_s`` without one; raises ``OSError``."""
+        """The next frame, or None after ``timeout_s`` without one (``timeout_s`` 0: at
+        once, ``EAGAIN``); raises ``OSError``."""
         sock = self._socket
         if sock is None:
             raise OSError(errno.EBADF, "the CAN socket is not open")
@@ -117,7 +118,7 @@ class SocketCanSource:
             self._timeout_s = timeout_s
         try:
             buffer, ancillary, _flags, _address = sock.recvmsg(CANFD_MTU, ANCILLARY_BYTES)
-        except TimeoutError:
+        except (TimeoutError, BlockingIOError):  # timeout 0: a non-blocking socket
             return None
         extra = parse_ancillary(ancillary)
         self.kernel_dropped = extra.dropped

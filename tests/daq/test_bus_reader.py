@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import errno
+import logging
 import queue
+import threading
 import time
 import uuid
 from collections import deque
@@ -184,6 +186,33 @@ def test_kernel_drops_are_counted_and_queued_where_they_happened() -> None:
         5,
     ]
     assert reader.kernel_dropped == 7 and reader.rcvbuf_bytes == 4096
+
+
+def test_a_missing_socketcan_interface_is_logged_once_per_state_change(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    """The retries of a bus that stays absent log nothing more: one WARNING at the change
+    (python-can's socketcan backend logged its own ERROR on every retry; the service's own
+    socket logs none)."""
+    settings = BusSettings(interface="socketcan", channel="nosuchcan9")
+    open_socketcan = bus_factory(settings, [])
+    attempts: list[int] = []
+    retried = threading.Event()
+
+    def open_bus() -> FrameSource:
+        attempts.append(1)
+        if len(attempts) >= 4:
+            retried.set()
+        return open_socketcan()
+
+    inbox: queue.Queue[RawFrame | BusEvent] = queue.Queue()
+    with caplog.at_level(logging.DEBUG), BusReader(open_bus, inbox, channel="nosuchcan9"):
+        assert drain(inbox, 1) == [("absent", False)]
+        assert retried.wait(WAIT_S)
+    lines = [r for r in caplog.records if r.levelno >= logging.WARNING]
+    assert len(lines) == 1 and lines[0].name == "daq.bus_reader", lines
+    assert "nosuchcan9: absent" in lines[0].getMessage()
+    assert not [r for r in caplog.records if r.name.startswith("can.")]
 
 
 def test_bus_errors_carry_a_hint() -> None:
