@@ -10,6 +10,8 @@ Topics, each with a JSON Schema (``jsonschema``) and JSON messages:
 ``/daq/bus``             bus state changes (:data:`BUS_TOPIC`)
 ``/sim/truth``           simulation ground truth, when a simulator bridge
                          publishes it (:data:`TRUTH_TOPIC`)
+``/daq/recording``       a gap in the recording: the first message of the file
+                         that resumed it (:data:`RECORDING_TOPIC`)
 =======================  ===================================================
 
 The file also carries the configuration and the DBC as attachments, so that a
@@ -18,6 +20,7 @@ recording replays without the files it was made with.
 
 import json
 from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import IO, Any, cast
 
 from cantools.database.can import Database
@@ -32,6 +35,7 @@ BUS_TOPIC = "/daq/bus"
 SIGNALS_TOPIC = "/signals/{message}"
 LEG_TOPIC = "/leg/{leg}/ground"
 TRUTH_TOPIC = "/sim/truth"
+RECORDING_TOPIC = "/daq/recording"
 #: MCAP profile: none of the standard ones (ros1, ros2) fits JSON messages.
 PROFILE = ""
 #: Attachment names of the configuration and the DBC.
@@ -42,6 +46,21 @@ COMPRESSION = {
     "lz4": CompressionType.LZ4,
     "none": CompressionType.NONE,
 }
+
+
+@dataclass(frozen=True, slots=True)
+class RecordingGap:
+    """Recording stopped (a write error) at ``stopped_t_s`` and resumed at ``resumed_t_s``."""
+
+    #: Wall-clock times, Unix seconds.
+    stopped_t_s: float
+    resumed_t_s: float
+    #: Items (frames with their results, bus events, truth samples) dropped meanwhile.
+    dropped: int
+
+    @property
+    def lost_s(self) -> float:
+        return self.resumed_t_s - self.stopped_t_s
 
 
 class CountingFile:
@@ -160,6 +179,18 @@ class McapFile:
             schemas.BUS_EVENT,
             _ns(event.t_s),
             payloads.bus_event(event),
+        )
+
+    def write_gap(self, gap: RecordingGap) -> None:
+        """The gap before this file, logged at the time recording resumed."""
+        payload = {
+            "t": gap.resumed_t_s,
+            "stopped_t": gap.stopped_t_s,
+            "lost_s": gap.lost_s,
+            "dropped": gap.dropped,
+        }
+        self._write(
+            RECORDING_TOPIC, "portal.RecordingGap", schemas.RECORDING_GAP, _ns(gap.resumed_t_s), payload
         )
 
     def write_truth(self, sample: payloads.JsonObject) -> None:

@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from daq.mcap_file import BUS_TOPIC, RAW_TOPIC, TRUTH_TOPIC
+from daq.mcap_file import BUS_TOPIC, RAW_TOPIC, RECORDING_TOPIC, TRUTH_TOPIC
 from daq.pipeline import COUNTER_FAULT, CRC_FAULT
 from dbc.machine import MachineConfig
 
@@ -176,6 +176,10 @@ class RecordingCounts:
     #: Bus state changes (``/daq/bus``) and truth samples (``/sim/truth``).
     bus_events: int = 0
     truth_samples: int = 0
+    #: Gaps in the recording (``/daq/recording``: recording stopped on a write error)
+    #: and the seconds they lost.
+    recording_gaps: int = 0
+    recording_lost_s: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -216,6 +220,7 @@ class RecordingCollector:
         self._bad: Counter[str] = Counter()
         self._invalid: Counter[str] = Counter()
         self._bus_events = 0
+        self._gaps: list[float] = []
         self._first_s = float("inf")
         self._last_s = float("-inf")
 
@@ -251,6 +256,9 @@ class RecordingCollector:
             self._truth.append(TruthTrack.row(json.loads(data)))
         elif topic == BUS_TOPIC:
             self._bus_events += 1
+        elif topic == RECORDING_TOPIC:
+            lost_s = _number(json.loads(data).get("lost_s"))
+            self._gaps.append(lost_s if lost_s == lost_s else 0.0)
 
     def add_estimate(self, payload: dict[str, Any]) -> None:
         """One leg estimate in the shape of :func:`daq.payloads.leg_ground`."""
@@ -293,6 +301,8 @@ class RecordingCollector:
                 invalid=dict(self._invalid.most_common()),
                 bus_events=self._bus_events,
                 truth_samples=len(self._truth),
+                recording_gaps=len(self._gaps),
+                recording_lost_s=sum(self._gaps),
             ),
             recomputed=recomputed,
             complete=complete,

@@ -73,6 +73,18 @@ def test_missing_config_exits_2() -> None:
     assert_one_line_error(run_cli("--config", "/nonexistent.toml"), 2, "no such file")
 
 
+def test_config_not_utf8_exits_2_naming_the_file(tmp_path: Path) -> None:
+    path = tmp_path / "latin1.toml"
+    text = "# Hydraulik\u00f6l 46 \u00b0C\n" + EXAMPLE_CONFIG.read_text()
+    path.write_bytes(text.encode("latin-1", errors="replace"))
+    assert_one_line_error(run_cli("--config", str(path)), 2, f"{path}: not UTF-8 (byte 0xf6")
+
+
+def test_unreadable_config_exits_2_naming_the_file(tmp_path: Path) -> None:
+    # A directory: unreadable as a file even for root (chmod 000 is not, for root).
+    assert_one_line_error(run_cli("--config", str(tmp_path)), 2, f"{tmp_path}: cannot read it")
+
+
 def test_taken_zenoh_port_exits_1_with_a_hint(tmp_path: Path) -> None:
     port = free_port()
     with zenoh.open(peer_config(listen=f"tcp/127.0.0.1:{port}")):

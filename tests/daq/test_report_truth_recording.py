@@ -185,8 +185,15 @@ def test_the_callback_only_enqueues_and_a_full_queue_drops(tmp_path: Path) -> No
 @pytest.mark.parametrize(
     ("payload", "valid"),
     [
-        (b'{"t_unix_s": 12.5, "legs": {}}', True),
-        (b'{"t_unix_s": 12, "t_cycle_s": 0.0, "cycle": 0, "legs": {"A": {}}}', True),
+        (b'{"t_unix_s": 1750000000.5, "legs": {}}', True),
+        (b'{"t_unix_s": 1750000000, "t_cycle_s": 0.0, "cycle": 0, "legs": {"A": {}}}', True),
+        (b'{"t_unix_s": 1750000000500, "legs": {}}', False),  # milliseconds
+        (b'{"t_unix_s": 12.5, "legs": {}}', False),  # not a plausible Unix time
+        (b'{"t_unix_s": 1750000000, "legs": {"A": {"force_true_N": "1"}}}', False),
+        (b'{"t_unix_s": 1750000000, "legs": {"A": {"force_true_N": 1e999}}}', False),
+        (b'{"t_unix_s": 1750000000, "legs": {"A": {"force_true_N": 1' + b"0" * 400 + b"}}}", False),
+        (b'{"t_unix_s": 1' + b"0" * 400 + b', "legs": {}}', False),
+        (b"[" * 100_000, False),
         (b'{"t_unix_s": null, "legs": {}}', False),
         (b'{"t_unix_s": true, "legs": {}}', False),
         (b'{"t_unix_s": "12.5", "legs": {}}', False),
