@@ -190,7 +190,11 @@ class McapFile:
             "dropped": gap.dropped,
         }
         self._write(
-            RECORDING_TOPIC, "portal.RecordingGap", schemas.RECORDING_GAP, _ns(gap.resumed_t_s), payload
+            RECORDING_TOPIC,
+            "portal.RecordingGap",
+            schemas.RECORDING_GAP,
+            _ns(gap.resumed_t_s),
+            payload,
         )
 
     def write_truth(self, sample: payloads.JsonObject) -> None:

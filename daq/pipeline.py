@@ -5,7 +5,7 @@ offline replay both feed frames through the same :class:`Pipeline`, so live and
 replayed estimates of one recording are identical.
 """
 
-from collections import Counter
+from collections import Counter, defaultdict
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
@@ -60,6 +60,8 @@ class Pipeline:
         #: Frames that could not be used, by :attr:`FrameError.kind`, plus decoded
         #: frames whose CRC (``crc``) or rolling counter (``counter``) failed.
         self.bad: Counter[str] = Counter()
+        #: Invalid leg estimates, by leg and reason (``status_sensor_fault``, ``range`` ...).
+        self.leg_faults: defaultdict[str, Counter[str]] = defaultdict(Counter)
 
     @classmethod
     def from_config(cls, machine: MachineConfig, database: Database) -> "Pipeline":
@@ -97,6 +99,9 @@ class Pipeline:
             self.bad[COUNTER_FAULT] += 1
         update = self.estimator.update
         estimates = tuple([update(leg, sample) for leg, sample in self.sampler.samples(decoded)])
+        for estimate in estimates:
+            if estimate.reasons:
+                self.leg_faults[estimate.leg].update(estimate.reasons)
         return FrameResult(frame, decoded, None, estimates)
 
     def reset_counters(self) -> None:

@@ -6,6 +6,7 @@ explicit keys ``mode``, ``connect``, ``listen``, ``multicast_scouting``.
 
 import json
 import re
+from typing import Any
 
 import zenoh
 
@@ -56,3 +57,25 @@ def _without_source_locations(message: str) -> str:
     """Zenoh's errors end in `` at /root/.cargo/.../tcp.rs:61.``: noise for an operator."""
     lines = message.strip().splitlines()
     return re.sub(r"\s+at \S+\.rs:\d+\.?", "", lines[0]) if lines else ""
+
+
+def config_value(config: zenoh.Config, key: str) -> Any:
+    """The JSON value of ``key`` in ``config``, or None when unset."""
+    try:
+        return json.loads(config.get_json(key))
+    except (zenoh.ZError, ValueError):
+        return None
+
+
+def endpoints(value: Any, mode: str) -> list[str]:
+    """Endpoints as the config holds them: a list, or per mode (Zenoh's defaults)."""
+    if isinstance(value, dict):
+        value = value.get(mode, [])
+    return [str(e) for e in value] if isinstance(value, list) else []
+
+
+def connect_endpoints(settings: ZenohSettings, source: str = "") -> list[str]:
+    """The endpoints the session connects to: ``[zenoh] connect`` or the JSON5 file's."""
+    config = zenoh_config(settings, source)
+    mode = config_value(config, "mode") or "peer"
+    return endpoints(config_value(config, "connect/endpoints"), mode)
