@@ -1,4 +1,5 @@
-"""Command line: ``portal-daq --config FILE`` runs the service, ``portal-daq replay`` replays.
+"""Command line: ``portal-daq --config FILE`` runs the service, ``portal-daq replay`` replays,
+``portal-daq recover`` completes a recording cut short by a crash.
 
 Argument parsing and exit codes only; the work is in :mod:`daq.runner` and
 :mod:`daq.replay`. Exit status: 0 after a clean stop (SIGTERM, SIGINT), 2 for a
@@ -17,6 +18,7 @@ from pathlib import Path
 
 from daq.dashboard.cli import dashboard_main
 from daq.monitor.cli import monitor_main
+from daq.recover import recover_file
 from daq.replay import replay
 from daq.report import report_main
 from daq.runner import run_service
@@ -41,6 +43,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         return monitor_main(args[1:])
     if args[:1] == ["dashboard"]:
         return dashboard_main(args[1:])
+    if args[:1] == ["recover"]:
+        return recover_main(args[1:])
     parser = argparse.ArgumentParser(
         prog=PROG,
         description="CAN-bus DAQ and soil-pressure estimation; `portal-daq replay -h` "
@@ -89,6 +93,29 @@ def replay_main(args: Sequence[str]) -> int:
     except (PortalDaqError, OSError) as exc:
         return fail(exc, 1)
     return 0
+
+
+def recover_main(args: Sequence[str]) -> int:
+    parser = argparse.ArgumentParser(
+        prog=f"{PROG} recover",
+        description="Rewrite a recording cut short by a crash into a complete MCAP file "
+        "(summary, indexes, attachments); exit 3 when data after the cut was lost.",
+    )
+    parser.add_argument("recording", type=Path, help="the cut MCAP file")
+    parser.add_argument("-o", "--out", type=Path, help="output file (default: in place)")
+    options = parser.parse_args(args)
+    setup_logging("WARNING")
+    if options.out is not None and options.out.resolve() == options.recording.resolve():
+        options.out = None
+    try:
+        result = recover_file(options.recording, options.out)
+    except PortalDaqError as exc:
+        return fail(exc, 1)
+    sys.stderr.write(
+        f"{PROG}: recovered {result.messages} messages, {result.attachments} attachments"
+        + (f"; stopped at the cut ({result.stopped_by})\n" if result.stopped_by else "\n")
+    )
+    return 3 if result.stopped_by else 0
 
 
 def setup_logging(level: str) -> None:

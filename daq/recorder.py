@@ -42,6 +42,7 @@ from daq.errors import RecordingError
 from daq.frames import BusEvent
 from daq.mcap_file import CountingFile, McapFile, RecordingGap
 from daq.pipeline import FrameResult
+from daq.recover import is_cut_short, recover_file
 from daq.service_config import RecordingSettings
 from daq.sim_truth import TruthRecord, truth_payload
 
@@ -141,7 +142,28 @@ class Recorder(Worker):
             raise RecordingError(
                 self.directory, f"cannot create it: {exc.strerror or exc}"
             ) from exc
+        self._recover_previous()
         self._guarded(lambda: self._open(self._now()))
+
+    def _recover_previous(self) -> None:
+        """Complete the newest file of this machine if the last run was cut short (a crash)."""
+        files = sorted(self.directory.glob(f"{self._machine_id}_*.mcap"))
+        if not files:
+            return
+        previous = files[-1]
+        try:
+            if not is_cut_short(previous):
+                return
+            result = recover_file(previous, compression=self.settings.compression)
+        except RecordingError as exc:
+            logger.error("cannot recover %s (cut short): %s", previous, exc.reason)
+            return
+        logger.warning(
+            "recovered %s (cut short by a crash): %d messages, %d attachments kept",
+            previous,
+            result.messages,
+            result.attachments,
+        )
 
     def submit(self, item: Item) -> None:
         """Queue ``item`` for writing; never blocks (a full queue drops and counts)."""
