@@ -1,4 +1,4 @@
-"""Crash-cut recordings: SIGKILL the service, then `portal-daq recover` and the restart complete it."""
+"""Crash-cut recordings: SIGKILL the service; `recover` and the restart complete the file."""
 
 from __future__ import annotations
 
