@@ -1,7 +1,15 @@
 """Building the Zenoh session's configuration from ``[zenoh]``; opening it (in __main__).
 
-Order, later winning: Zenoh's defaults, the JSON5 ``config_file``, then the
-explicit keys ``mode``, ``connect``, ``listen``, ``multicast_scouting``.
+Order, later winning: Zenoh's defaults, then either the JSON5 ``config_file`` or,
+without one, :data:`SAFE_DEFAULTS`, then the explicit keys ``mode``, ``connect``,
+``listen``, ``multicast_scouting``.
+
+Zenoh's own defaults suit a lab, not a machine: a peer listens on every interface
+(``tcp/[::]:0``) and announces itself by UDP multicast, so anyone on the network
+finds and reaches it. Without a ``config_file`` the service therefore listens on
+loopback only (:data:`DEFAULT_LISTEN`) and neither scouts by multicast nor gossips;
+reaching it from the network takes an explicit ``listen`` (and, for a locked-down
+surface, the access control of ``deploy/zenoh.json5``).
 """
 
 import json
@@ -14,16 +22,34 @@ from daq.errors import ZenohError
 from daq.service_config import ZenohSettings
 from dbc.errors import ConfigError
 
+#: Where the service listens without a ``config_file`` and without ``listen``.
+DEFAULT_LISTEN = "tcp/127.0.0.1:7447"
+#: A put to a link that stays congested this long (µs) closes the link instead of
+#: stalling the publisher thread (below the watchdog's 2 s heartbeat limit).
+BLOCK_WAIT_BEFORE_CLOSE_US = 1_000_000
+#: Applied when there is no ``config_file`` (the explicit keys still win).
+SAFE_DEFAULTS: dict[str, object] = {
+    "listen/endpoints": [DEFAULT_LISTEN],
+    "scouting/multicast/enabled": False,
+    "scouting/gossip/enabled": False,
+}
+
 
 def zenoh_config(settings: ZenohSettings, source: str = "") -> zenoh.Config:
     """The :class:`zenoh.Config` for ``settings``; a bad JSON5 file is a ConfigError."""
-    config = zenoh.Config()
+    overrides: dict[str, object] = {
+        "transport/link/tx/queue/congestion_control/block/wait_before_close": (
+            BLOCK_WAIT_BEFORE_CLOSE_US
+        )
+    }
     if settings.config_file is not None:
         try:
             config = zenoh.Config.from_file(str(settings.config_file))
         except zenoh.ZError as exc:
             raise ConfigError(settings.config_file, "", f"not a valid Zenoh config: {exc}") from exc
-    overrides: dict[str, object] = {}
+    else:
+        config = zenoh.Config()
+        overrides.update(SAFE_DEFAULTS)
     if settings.mode is not None:
         overrides["mode"] = settings.mode
     if settings.connect:

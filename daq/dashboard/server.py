@@ -130,7 +130,11 @@ class Dashboard:
     def latest(self) -> bytes:
         with self._lock:
             document = latest_document(
-                self.viewer, self._state, self._clock(), dropped=self.feed.dropped
+                self.viewer,
+                self._state,
+                self._clock(),
+                dropped=self.feed.dropped,
+                missed=self.feed.missed,
             )
         return json_bytes(document)
 

@@ -17,7 +17,9 @@ from typing import Any
 
 import can
 import zenoh
+import zenoh.ext
 
+from daq.live.feed import HISTORY, RECOVERY
 from dbc.encoding import FrameEncoder
 from dbc.machine import MachineConfig
 from estimator.equations import foot_force_N
@@ -40,6 +42,7 @@ def service_toml(
     recording: Path | None = None,
     status_period_s: float = 0.2,
     chunk_size: int = 1024 * 1024,
+    truth: bool | None = None,
     extra: str = "",
 ) -> str:
     """A full service config: the example machine plus service tables for a test."""
@@ -65,6 +68,8 @@ chunk_size = {chunk_size}
 max_bytes = {max(chunk_size, 1024 * 1024)}
 flush_period_s = 0.2
 """
+        if truth is not None:
+            text += f"truth = {str(truth).lower()}\n"
     return text + extra + "\n" + EXAMPLE_CONFIG.read_text()
 
 
@@ -89,10 +94,25 @@ def peer_config(*, listen: str | None = None, connect: str | None = None) -> zen
 class Collector:
     """A subscriber on ``key`` that keeps every (key, JSON payload, encoding) it gets."""
 
-    def __init__(self, session: zenoh.Session, key: str) -> None:
+    def __init__(self, session: zenoh.Session, key: str, *, advanced: bool = False) -> None:
+        """``advanced``: a zenoh.ext advanced subscriber with history (the latest sample
+        of each key when it joins) whose miss listener counts :attr:`missed`."""
         self.samples: list[tuple[str, Any, str]] = []
+        self.missed = 0
         self._changed = threading.Condition()
-        self._subscriber = session.declare_subscriber(key, self._on_sample)
+        self._subscriber: Any
+        if advanced:
+            self._subscriber = zenoh.ext.declare_advanced_subscriber(
+                session, key, self._on_sample, history=HISTORY, recovery=RECOVERY
+            )
+            self._listener = self._subscriber.sample_miss_listener(self._on_miss)
+        else:
+            self._subscriber = session.declare_subscriber(key, self._on_sample)
+
+    def _on_miss(self, miss: zenoh.ext.Miss) -> None:
+        with self._changed:
+            self.missed += miss.nb
+            self._changed.notify_all()
 
     def _on_sample(self, sample: zenoh.Sample) -> None:
         payload = json.loads(sample.payload.to_bytes())

@@ -48,7 +48,9 @@ def start_service(config: Path) -> subprocess.Popen[str]:
 def test_sigkilled_recording_is_recovered_by_the_cli_and_at_restart(tmp_path: Path) -> None:
     port = free_port()
     rec = tmp_path / "rec"
-    config = write_service_config(tmp_path, channel="recover-test", port=port, recording=rec)
+    config = write_service_config(
+        tmp_path, channel="recover-test", port=port, recording=rec, truth=True
+    )
     process = start_service(config)
     try:
         with zenoh.open(peer_config(connect=f"tcp/127.0.0.1:{port}")) as session:

@@ -211,6 +211,7 @@ def test_bad_frames_are_counted_and_recorded_raw(config: ServiceConfig) -> None:
 
 
 def test_late_joiner_gets_the_latest_value_of_every_key(config: ServiceConfig) -> None:
+    """zenoh.ext: an advanced subscriber with history gets each key's latest sample."""
     prefix = config.zenoh.key_prefix
     with live_service(config), subscriber_session(zenoh_port(config)) as session:
         collector = connected_collector(session, prefix)
@@ -221,18 +222,11 @@ def test_late_joiner_gets_the_latest_value_of_every_key(config: ServiceConfig) -
         collector.wait_until(lambda: len(collector.of(last_key)) == 5)
         collector.wait_for(f"{prefix}/status")
         with subscriber_session(zenoh_port(config)) as late:
-            replies = {}
-            deadline = time.monotonic() + WAIT_S
-            while last_key not in replies and time.monotonic() < deadline:
-                for reply in late.get(f"{prefix}/**", timeout=5.0):
-                    replies[str(reply.ok.key_expr)] = json.loads(reply.ok.payload.to_bytes())
+            history = Collector(late, f"{prefix}/leg/*/ground", advanced=True)
+            history.wait_until(lambda: len({k for k, _, _ in history.samples}) == len(LEGS))
         for leg in LEGS:
-            assert (
-                replies[f"{prefix}/leg/{leg}/ground"]
-                == collector.of(f"{prefix}/leg/{leg}/ground")[-1]
-            )
-        for key in ("ground", "status", "metrics", "signals/LEG_SB1_F1"):
-            assert f"{prefix}/{key}" in replies
+            key = f"{prefix}/leg/{leg}/ground"
+            assert history.of(key) == [collector.of(key)[-1]]
 
 
 def test_liveliness_token_while_running(config: ServiceConfig) -> None:
