@@ -31,6 +31,7 @@ longer, is a problem). ``problems`` lists what is wrong, one short text each.
 import logging
 import math
 import queue
+import re
 import threading
 import time
 from collections.abc import Callable
@@ -52,6 +53,8 @@ from daq.zenoh_session import connect_endpoints
 
 logger = logging.getLogger(__name__)
 
+#: Numbers in a problem's text: a change of only those is not logged again.
+_NUMBER = re.compile(r"\d+(\.\d+)?")
 #: A thread whose loop has not turned for this long is hung: no WATCHDOG=1.
 HEARTBEAT_MAX_AGE_S = 2.0
 
@@ -264,12 +267,13 @@ class Service:
             silence_s=self.silence_s,
         )
         self._dropped_mark = dict(status["dropped"])
-        if found != self._reported_problems:
+        kinds = [_NUMBER.sub("N", problem) for problem in found]  # "dropped.rx +N"
+        if kinds != self._reported_problems:
             if found:
                 logger.warning("not healthy: %s", "; ".join(found))
             else:
                 logger.info("healthy again")
-            self._reported_problems = found
+            self._reported_problems = kinds
         status["healthy"] = not found
         status["problems"] = found
         return status

@@ -60,6 +60,7 @@ def test_foreign_puts_are_refused_and_the_local_socket_may_put_truth(tmp_path: P
         seen = Collector(service.session, f"{prefix}/**")  # what reaches the service
         connected(foreign)
         connected(simulator)
+        seen.wait_until(lambda: bool(seen.of(f"{prefix}/status")))
         # Subscribing and querying (history) are allowed to anyone.
         status = Collector(foreign, f"{prefix}/status", advanced=True)
         status.wait_until(lambda: bool(status.of(f"{prefix}/status")))
