@@ -1,4 +1,4 @@
-"""``portal-daq dashboard --config FILE [--http HOST:PORT] [--duration S] [--connect EP] ...``.
+"""``portal-daq dashboard --config FILE [--http HOST:PORT] [--allow-host NAME] [--duration S] ...``.
 
 Exit status: 0 after SIGINT/SIGTERM or ``--duration``; 2 for a bad config or
 ``--http`` (one line on stderr); 1 when the Zenoh session or the HTTP address
@@ -31,6 +31,15 @@ def dashboard_main(args: Sequence[str]) -> int:
         metavar="HOST:PORT",
         help=f"where to serve the page (port 0: any free one) [{DEFAULT_HTTP}]",
     )
+    parser.add_argument(
+        "--allow-host",
+        action="append",
+        default=[],
+        metavar="NAME",
+        help="a host name or address the browser may use in the URL, besides localhost, "
+        "127.0.0.1, ::1 and the --http address (repeatable); others are refused (403) "
+        "against DNS rebinding",
+    )
     options = parser.parse_args(args)
     setup_logging(options.log_level)
     try:
@@ -42,7 +51,9 @@ def dashboard_main(args: Sequence[str]) -> int:
     try:
         with (
             open_viewer_session(viewer.zenoh) as session,
-            Dashboard(session, viewer.config, address) as dashboard,
+            Dashboard(
+                session, viewer.config, address, allowed_hosts=options.allow_host
+            ) as dashboard,
         ):
             sys.stdout.write(f"dashboard of {viewer.config.prefix} on {dashboard.url}\n")
             sys.stdout.flush()
