@@ -39,7 +39,7 @@ from bench.probe import ProbeProcess
 from bench.report import markdown_table, targets_met
 from bench.subscriber import peer_config
 from bench.targets import FEEDS, NaiveBaseline, ServiceUnderTest, service_config
-from daq.cli import GIL_SWITCH_INTERVAL_S
+from daq.run_command import GIL_SWITCH_INTERVAL_S
 
 RESULTS = Path(__file__).resolve().parent / "results.json"
 #: The frame rate of a saturated 1 Mbit/s bus: an 8-byte standard frame is up to

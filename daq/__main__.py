@@ -1,4 +1,4 @@
-"""``python -m daq --config FILE`` (the service) and ``python -m daq replay FILE``."""
+"""``python -m daq COMMAND ...``: the same as the ``portal-daq`` console script."""
 
 import sys
 

@@ -9,6 +9,7 @@ all-legs ground message at ``ground_rate_hz`` and the soil metrics every
 """
 
 import logging
+import math
 import queue
 import time
 from collections.abc import Callable
@@ -25,10 +26,12 @@ logger = logging.getLogger(__name__)
 #: On close, queued frames are still processed for at most this long.
 DRAIN_S = 0.5
 
-#: Staleness is judged against the bus, not only the wall clock: a leg is stale when
-#: newer frames of other messages went by without its own (or, on a silent bus, when
-#: the wall clock is this far past the newest frame). Processing that lags the bus by
-#: less than this (a slow moment, a burst) therefore never makes fresh legs "stale".
+#: Staleness is judged against the bus, not the wall clock: a leg is stale when newer
+#: frames of other messages went by without its own (the estimator's bus time, see
+#: :mod:`estimator.machine`), or, on a silent bus, when the monotonic clock has run
+#: this much past the moment the latest frame was handled. Processing that lags the
+#: bus by less than this (a slow moment, a burst) therefore never makes fresh legs
+#: "stale", and a wall clock stepped back or forward changes nothing.
 LAG_TOLERANCE_S = 0.5
 
 
@@ -57,6 +60,7 @@ class Consumer(Worker):
         publisher: Publisher | None = None,
         recorder: Recording | None = None,
         now: Callable[[], float] = time.time,
+        monotonic: Callable[[], float] = time.monotonic,
     ) -> None:
         super().__init__()
         self.pipeline = pipeline
@@ -65,8 +69,9 @@ class Consumer(Worker):
         self._publisher = publisher
         self._recorder = recorder
         self._now = now
-        #: Kernel time stamp of the newest frame handled so far.
-        self._newest_frame_t_s = float("-inf")
+        self._monotonic = monotonic
+        #: ``monotonic()`` when the latest frame was handled.
+        self._latest_handled_s = float("nan")
         #: time.monotonic() of the thread's last loop turn (for the watchdog).
         self.heartbeat = time.monotonic()
         #: Bus events seen that reset the rolling counters.
@@ -82,7 +87,7 @@ class Consumer(Worker):
                 self._recorder.submit(item)
             return None
         result = self.pipeline.process(item)
-        self._newest_frame_t_s = max(self._newest_frame_t_s, item.t_s)
+        self._latest_handled_s = self._monotonic()
         if self._recorder is not None:
             self._recorder.submit(result)
         publisher = self._publisher
@@ -96,8 +101,14 @@ class Consumer(Worker):
         return result
 
     def judged_at(self) -> float:
-        """The time at which legs are judged stale: see :data:`LAG_TOLERANCE_S`."""
-        return max(self._newest_frame_t_s, self._now() - LAG_TOLERANCE_S)
+        """The time, on the frames' clock, at which legs are judged stale: the latest
+        frame's time, plus the silence since it beyond :data:`LAG_TOLERANCE_S` measured
+        on the monotonic clock; the wall clock before the first frame."""
+        latest_t_s = self.pipeline.latest_t_s
+        if math.isnan(latest_t_s):
+            return self._now()
+        silence_s = self._monotonic() - self._latest_handled_s - LAG_TOLERANCE_S
+        return latest_t_s + max(0.0, silence_s)
 
     def _run(self) -> None:
         ground_period_s = 1.0 / self._settings.ground_rate_hz

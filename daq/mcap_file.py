@@ -15,7 +15,9 @@ Topics, each with a JSON Schema (``jsonschema``) and JSON messages:
 =======================  ===================================================
 
 The file also carries the configuration and the DBC as attachments, so that a
-recording replays without the files it was made with.
+recording replays without the files it was made with, and a metadata record
+:data:`RUN_METADATA` saying which run of the service it belongs to (see
+:mod:`daq.recording_run`).
 """
 
 import json
@@ -38,6 +40,9 @@ TRUTH_TOPIC = "/sim/truth"
 RECORDING_TOPIC = "/daq/recording"
 #: MCAP profile: none of the standard ones (ros1, ros2) fits JSON messages.
 PROFILE = ""
+#: Metadata record naming the run a file belongs to: keys ``machine_id``, ``run_id``,
+#: ``file_index`` (decimal).
+RUN_METADATA = "portal-daq.run"
 #: Attachment names of the configuration and the DBC.
 CONFIG_ATTACHMENT = "portal-daq.toml"
 DBC_ATTACHMENT = "portal_sensors.dbc"
@@ -135,8 +140,14 @@ class McapFile:
     def __exit__(self, *exc_info: object) -> None:
         self.close()
 
-    def start(self, attachments: Mapping[str, bytes] = {}, t_s: float = 0.0) -> None:
-        """Write the header and the attachments (e.g. config and DBC)."""
+    def start(
+        self,
+        attachments: Mapping[str, bytes] = {},
+        t_s: float = 0.0,
+        run: Mapping[str, str] | None = None,
+    ) -> None:
+        """Write the header, the attachments (e.g. config and DBC) and the ``run``
+        metadata (:data:`RUN_METADATA`), if given."""
         self._writer.start(profile=PROFILE, library="portal-daq")
         for name, data in attachments.items():
             self._writer.add_attachment(
@@ -146,6 +157,8 @@ class McapFile:
                 media_type="text/plain",
                 data=data,
             )
+        if run is not None:
+            self._writer.add_metadata(RUN_METADATA, dict(run))
         self._started = True
 
     def write_result(self, result: FrameResult) -> None:

@@ -13,7 +13,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import IO
 
-from mcap.records import Attachment, Channel, Footer, Message
+from mcap.records import Attachment, Channel, Footer, Message, Metadata
 from mcap.stream_reader import StreamReader
 
 logger = logging.getLogger(__name__)
@@ -32,8 +32,15 @@ class RecordedAttachment:
     data: bytes
 
 
+@dataclass(frozen=True, slots=True)
+class RecordedMetadata:
+    name: str
+    metadata: dict[str, str]
+
+
 class RecordingStream:
-    """Iterates over the messages and attachments of one MCAP stream, in file order.
+    """Iterates over the messages, attachments and metadata of one MCAP stream, in file
+    order.
 
     After iteration, :attr:`complete` tells whether the file ended properly
     (footer read) and :attr:`stopped_by` why reading stopped early, if it did.
@@ -45,7 +52,7 @@ class RecordingStream:
         self.complete = False
         self.stopped_by: str | None = None
 
-    def __iter__(self) -> Iterator[RecordedMessage | RecordedAttachment]:
+    def __iter__(self) -> Iterator[RecordedMessage | RecordedAttachment | RecordedMetadata]:
         channels: dict[int, Channel] = {}
         records = StreamReader(self._stream, validate_crcs=True).records
         while True:
@@ -71,5 +78,7 @@ class RecordingStream:
                     yield RecordedMessage(channel.topic, record.log_time, record.data)
             elif isinstance(record, Attachment):
                 yield RecordedAttachment(record.name, record.data)
+            elif isinstance(record, Metadata):
+                yield RecordedMetadata(record.name, dict(record.metadata))
             elif isinstance(record, Footer):
                 self.complete = True

@@ -79,9 +79,11 @@ class Pipeline:
     def process(self, frame: RawFrame) -> FrameResult:
         """Decode one frame and feed the leg samples it carries to the estimator.
 
-        Never raises for a bad frame: the error is counted and returned.
+        Never raises for a bad frame: the error is counted and returned. Every
+        frame, good or bad, advances the estimator's bus time (staleness).
         """
         self.frames += 1
+        self.estimator.observe(frame.t_s)
         try:
             if frame.is_error_frame:
                 raise ErrorFrameError(frame.arbitration_id, "CAN error frame")
@@ -108,6 +110,12 @@ class Pipeline:
         """After a gap in reception (bus down, reopened): forget the rolling counters so
         that the first frames after it are not flagged ``counter``."""
         self.decoder.reset_counters()
+
+    @property
+    def latest_t_s(self) -> float:
+        """Frame time of the latest frame processed (not the largest: the clock may
+        step back); NaN before the first."""
+        return self.estimator.latest_t_s
 
     def snapshot(self, now_s: float) -> MachineSnapshot:
         return self.estimator.snapshot(now_s)

@@ -6,7 +6,9 @@ is dropped and counted. The recorder thread serialises to JSON, writes through
 :class:`~daq.mcap_file.McapFile`, writes the chunk in progress out every
 ``flush_period_s`` and starts a new file when one reaches ``max_bytes`` or spans
 ``max_duration_s`` of frame time. Files are named
-``<machine>_<UTC start, YYYYmmddTHHMMSS.mmmZ>.mcap``. Simulation truth samples
+``<machine>_<UTC start, YYYYmmddTHHMMSS.mmmZ>.mcap``. The files of one recorder (one
+run of the service) carry the same run id, drawn at :meth:`Recorder.start`, and their
+index in the run (:mod:`daq.recording_run`), so that replay chains them. Simulation truth samples
 (:class:`~daq.sim_truth.TruthRecord`, from a simulator bridge) are submitted the same
 way and written to ``/sim/truth``; one that is not a valid sample is counted
 (:attr:`Recorder.rejected`) and skipped.
@@ -31,6 +33,7 @@ summary; after a crash the file reads back up to its last written chunk.
 import logging
 import queue
 import time
+import uuid
 from collections.abc import Callable, Mapping
 from datetime import UTC, datetime
 from pathlib import Path
@@ -42,6 +45,7 @@ from daq.errors import RecordingError
 from daq.frames import BusEvent
 from daq.mcap_file import CountingFile, McapFile, RecordingGap
 from daq.pipeline import FrameResult
+from daq.recording_run import run_metadata
 from daq.recover import is_cut_short, recover_file
 from daq.service_config import RecordingSettings
 from daq.sim_truth import TruthRecord, truth_payload
@@ -83,6 +87,7 @@ class Recorder(Worker):
         machine_id: str,
         attachments: Mapping[str, bytes] = {},
         now: Callable[[], float] = time.time,
+        run_id: str | None = None,
     ) -> None:
         if settings.directory is None:
             raise ValueError("settings.directory is None: recording is off")
@@ -93,6 +98,8 @@ class Recorder(Worker):
         self._machine_id = machine_id
         self._attachments = dict(attachments)
         self._now = now
+        #: Names this run of the service in every file's metadata; drawn at start if None.
+        self.run_id = run_id
         self._queue: queue.Queue[Item] = queue.Queue(maxsize=settings.queue_size)
         self._file: McapFile | None = None
         self._stream: CountingFile | None = None
@@ -113,6 +120,7 @@ class Recorder(Worker):
         self.gaps: list[tuple[float, float]] = []
         #: Files begun, and the current one.
         self.paths: list[Path] = []
+        self._files_created = 0
 
     @property
     def depth(self) -> int:
@@ -142,6 +150,8 @@ class Recorder(Worker):
             raise RecordingError(
                 self.directory, f"cannot create it: {exc.strerror or exc}"
             ) from exc
+        if self.run_id is None:
+            self.run_id = uuid.uuid4().hex
         self._recover_previous()
         self._guarded(lambda: self._open(self._now()))
 
@@ -285,15 +295,18 @@ class Recorder(Worker):
             compression=self.settings.compression,
             chunk_size=self.settings.chunk_size,
         )
+        assert self.run_id is not None  # drawn in _before_start
+        run = run_metadata(self._machine_id, self.run_id, self._files_created)
         try:
-            mcap.start(self._attachments, t_s)
+            mcap.start(self._attachments, t_s, run)
             if self.stopped_t_s is not None:
                 mcap.write_gap(self._gap(t_s))
             mcap.flush()  # header, attachments and gap on disk now, or the error now
         except BaseException:
             stream.close()
-            path.unlink(missing_ok=True)  # no empty file per retry
+            path.unlink(missing_ok=True)  # no empty file per retry (and no index taken)
             raise
+        self._files_created += 1
         self._file, self._stream = mcap, stream
         self._last_flush = time.monotonic()
         self.paths.append(path)

@@ -4,21 +4,24 @@ Sources:
 
 - the service's MCAP files: the ``/can/raw`` channel (every frame, bad ones
   included) and ``/daq/bus`` (gaps that reset the rolling counters), in file
-  order, which is the order the live pipeline processed them. The machine
-  configuration and DBC come from the file's attachments unless a config file
-  is given. A file cut short by a crash replays up to its last complete chunk.
+  order, which is the order the live pipeline processed them. The files of one
+  run (a directory, or files in any order: :mod:`daq.recording_run`) are chained
+  in the order of the run. The machine configuration and DBC come from the first
+  file's attachments unless a config file is given. A file cut short by a crash
+  replays up to its last complete chunk.
 - python-can logs (candump ``.log``, ``.asc``, ``.blf``, ... via
-  ``can.LogReader``): need ``--config``.
+  ``can.LogReader``), chained in the order given: need ``--config``.
 
-The frames go through a fresh :class:`~daq.pipeline.Pipeline`, so the
-estimates equal the live ones of the same recording bit for bit.
+The frames go through one fresh :class:`~daq.pipeline.Pipeline`, so the
+estimates equal the live ones of the same recording bit for bit, across file
+rotations too.
 """
 
 import csv
 import json
 import logging
 import tomllib
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import IO
 
@@ -30,6 +33,7 @@ from daq.frames import BusEvent, RawFrame, from_can_message
 from daq.mcap_file import BUS_TOPIC, CONFIG_ATTACHMENT, DBC_ATTACHMENT, RAW_TOPIC
 from daq.mcap_reading import RecordedAttachment, RecordedMessage, RecordingStream
 from daq.pipeline import Pipeline
+from daq.recording_run import MCAP_SUFFIX, expand, run_files
 from dbc.database import load_database_string
 from dbc.errors import ConfigError
 from dbc.machine import MachineConfig, load_machine_config, parse_machine_config
@@ -87,16 +91,19 @@ def write_csv(rows: Iterable[LegEstimate], out: IO[str]) -> int:
     return count
 
 
-def replay(path: Path, out: IO[str], config_path: Path | None = None) -> int:
-    """Replay ``path`` (MCAP or a python-can log) into CSV on ``out``; returns the row count."""
+def replay(paths: Path | Sequence[Path], out: IO[str], config_path: Path | None = None) -> int:
+    """Replay a recording into CSV on ``out``; returns the row count.
+
+    ``paths``: MCAP files or directories of one run, or python-can logs.
+    """
     machine = load_machine_config(config_path) if config_path is not None else None
-    if path.suffix.lower() == ".mcap":
-        with _open(path) as stream:
-            return write_csv(_mcap_estimates(stream, path, machine), out)
+    files = expand([paths] if isinstance(paths, Path) else paths)
+    if all(path.suffix.lower() == MCAP_SUFFIX for path in files):
+        return write_csv(run_estimates(run_files(files), machine), out)
     if machine is None:
-        raise ConfigError(path, "", "replaying a CAN log needs --config (the machine config)")
+        raise ConfigError(files[0], "", "replaying a CAN log needs --config (the machine config)")
     pipeline = Pipeline.from_config(*machine)
-    return write_csv(estimates(pipeline, can_log_frames(path)), out)
+    return write_csv(estimates(pipeline, (f for path in files for f in can_log_frames(path))), out)
 
 
 def can_log_frames(path: Path) -> Iterator[RawFrame]:
@@ -117,21 +124,26 @@ def _open(path: Path) -> IO[bytes]:
         raise RecordingError(path, f"cannot open it: {exc.strerror or exc}") from exc
 
 
-def _mcap_estimates(
-    stream: IO[bytes], path: Path, machine: Machine | None
-) -> Iterator[LegEstimate]:
-    recording = RecordingStream(stream, str(path))
-    attachments: dict[str, bytes] = {}
+def run_estimates(files: Sequence[Path], machine: Machine | None) -> Iterator[LegEstimate]:
+    """The estimates of MCAP ``files`` (one run, in order) chained through one pipeline;
+    ``machine`` None: the configuration embedded in the first file."""
     pipeline: Pipeline | None = None
-    for record in recording:
-        if isinstance(record, RecordedAttachment):
-            attachments[record.name] = record.data
-            continue
-        if pipeline is None:
-            pipeline = Pipeline.from_config(*(machine or _embedded_machine(attachments, path)))
-        item = _item(record)
-        if item is not None:
-            yield from estimates(pipeline, (item,))
+    for path in files:
+        with _open(path) as stream:
+            attachments: dict[str, bytes] = {}
+            for record in RecordingStream(stream, str(path)):
+                if isinstance(record, RecordedAttachment):
+                    attachments[record.name] = record.data
+                    continue
+                if not isinstance(record, RecordedMessage):
+                    continue
+                if pipeline is None:
+                    pipeline = Pipeline.from_config(
+                        *(machine or embedded_machine(attachments, path))
+                    )
+                item = _item(record)
+                if item is not None:
+                    yield from estimates(pipeline, (item,))
 
 
 def _item(record: RecordedMessage) -> RawFrame | BusEvent | None:
@@ -151,7 +163,7 @@ def _item(record: RecordedMessage) -> RawFrame | BusEvent | None:
     return None
 
 
-def _embedded_machine(attachments: dict[str, bytes], path: Path) -> Machine:
+def embedded_machine(attachments: dict[str, bytes], path: Path) -> Machine:
     if CONFIG_ATTACHMENT not in attachments or DBC_ATTACHMENT not in attachments:
         raise ConfigError(path, "", "no configuration in the recording; give --config")
     source = f"{path}:{CONFIG_ATTACHMENT}"

@@ -6,7 +6,6 @@ passed into :class:`~daq.service.Service`.
 
 import logging
 import socket
-import threading
 from pathlib import Path
 
 import can
@@ -19,6 +18,7 @@ from daq.recorder import Recorder
 from daq.sd_notify import SdNotifier
 from daq.service import Service
 from daq.service_config import BusSettings, ServiceConfig
+from daq.stop_signal import Stop
 from daq.zenoh_session import open_session
 from dbc.decoding import FrameDecoder
 
@@ -90,7 +90,7 @@ def recording_attachments(config: ServiceConfig) -> dict[str, bytes]:
         raise RecordingError(exc.filename or config.source, f"cannot read: {exc.strerror}") from exc
 
 
-def run_service(config: ServiceConfig, stop: threading.Event) -> None:
+def run_service(config: ServiceConfig, stop: Stop) -> None:
     """Open everything, run until ``stop`` is set, close everything.
 
     Raises ZenohError, RecordingError (or ConfigError for a bad Zenoh file) at start.

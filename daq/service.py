@@ -32,7 +32,6 @@ import logging
 import math
 import queue
 import re
-import threading
 import time
 from collections.abc import Callable
 
@@ -48,6 +47,7 @@ from daq.recorder import Recorder
 from daq.sd_notify import SdNotifier
 from daq.service_config import ServiceConfig
 from daq.sim_truth import TRUTH_KEY, TruthSubscriber
+from daq.stop_signal import Stop
 from daq.zenoh_links import zenoh_status
 from daq.zenoh_session import connect_endpoints
 
@@ -150,7 +150,7 @@ class Service:
         if self.recorder is not None:
             self.recorder.close()
 
-    def run(self, stop: threading.Event) -> None:
+    def run(self, stop: Stop) -> None:
         """Start, then publish status and notify systemd until ``stop`` is set; then close."""
         notifier = self.notifier
         period_s = self.config.publish.status_period_s

@@ -47,7 +47,10 @@ GEOMETRY_KEYS = (
 )
 LEG_SIGNAL_KEYS = ("piston", "rod", "status")
 ESTIMATOR_KEYS = (
+    "filter",
     "median_window",
+    "hampel_window",
+    "hampel_k",
     "stale_after_cycles",
     "contact_on_N",
     "contact_off_N",
@@ -183,7 +186,9 @@ def parse_machine_config(
     defaults = EstimatorSettings()
     owners = {key: estimator for key in ESTIMATOR_KEYS} | {key: sensors for key in SENSOR_KEYS}
     settings_kwargs: dict[str, Any] = {
+        "filter": estimator.string("filter", defaults.filter),
         "median_window": estimator.integer("median_window", defaults.median_window),
+        "hampel_window": estimator.integer("hampel_window", defaults.hampel_window),
         "status_ok": sensors.string("status_ok", defaults.status_ok),
     }
     for key, table in owners.items():

@@ -37,7 +37,7 @@ endpoint=tcp/127.0.0.1:7447
 cycle_s=$(awk -v s="$SPEED" 'BEGIN { printf "%d", 45 / s + 6 }')
 
 echo "demo: service on vcan0, simulator at ${SPEED}x, monitor for ${cycle_s} s; files in $work"
-"$PY" -m daq --config "$work/portal-daq.toml" --log-level WARNING &
+"$PY" -m daq run --config "$work/portal-daq.toml" --log-level WARNING &
 service=$!
 trap 'kill $service 2>/dev/null || true' EXIT
 "$PY" -m daq monitor --config "$work/portal-daq.toml" --connect "$endpoint" --plain \

@@ -11,8 +11,8 @@ import numpy as np
 import numpy.typing as npt
 
 from estimator.equations import contact_pressure_Pa, foot_force_N
+from estimator.filters import filter_series
 from estimator.geometry import LegGeometry
-from estimator.median import running_median
 from estimator.settings import EstimatorSettings
 from estimator.validity import pressure_in_range
 
@@ -26,7 +26,8 @@ class LegSeries:
 
     t_s: FloatArray
     force_raw_N: FloatArray
-    #: Running median of the valid raw forces, held over invalid samples; NaN before the first.
+    #: The configured filter over the valid raw forces, held over invalid samples; NaN
+    #: before the first.
     force_N: FloatArray
     pressure_Pa: FloatArray
     valid: BoolArray
@@ -39,11 +40,15 @@ def estimate_leg_series(
     leg: LegGeometry,
     settings: EstimatorSettings,
     checks_ok: npt.ArrayLike | None = None,
+    *,
+    cycle_time_s: float,
 ) -> LegSeries:
-    """Eq. (4), validity and the running median over whole arrays.
+    """Eq. (4), validity and the configured filter over whole arrays.
 
     ``checks_ok`` marks the samples whose CRC, counter and status were fine
-    (all of them when omitted); the pressure range is checked here.
+    (all of them when omitted); the pressure range is checked here. As in the
+    streaming path, the filter restarts at a sample more than the stale time
+    (``stale_after_cycles`` x ``cycle_time_s``) past the last valid one.
     """
     t = np.asarray(t_s, dtype=np.float64)
     p_piston = np.asarray(p_piston_Pa, dtype=np.float64)
@@ -59,10 +64,22 @@ def estimate_leg_series(
     if checks_ok is not None:
         valid &= np.asarray(checks_ok, dtype=bool)
     force_raw_N = foot_force_N(p_piston, p_rod, leg)
-    filtered = running_median(force_raw_N[valid], settings.median_window)
-    # Each sample takes the median as of the latest valid sample at or before it.
+    # Outages cut the series into segments, each filtered from an empty filter.
+    index = np.arange(t.size)
+    latest_valid_index = np.maximum.accumulate(np.where(valid, index, -1))
+    before = np.concatenate(([-1], latest_valid_index))[: t.size]
+    t_before = np.where(before >= 0, t[np.maximum(before, 0)], np.nan)
+    segment = np.cumsum((t - t_before) > settings.stale_after_cycles * cycle_time_s)
+    valid_segment = segment[valid]
+    starts = np.flatnonzero(np.diff(valid_segment)) + 1
+    filtered = np.concatenate(
+        [np.empty(0)]
+        + [filter_series(part, settings) for part in np.split(force_raw_N[valid], starts)]
+    )
+    # Each sample takes the filtered value as of the latest valid sample at or before it,
+    # when that sample is of its own segment.
     latest_valid = np.cumsum(valid) - 1
-    seen_valid = latest_valid >= 0
+    seen_valid = (latest_valid >= 0) & (segment[np.maximum(latest_valid_index, 0)] == segment)
     force_N = np.full(t.shape, np.nan)
     force_N[seen_valid] = filtered[latest_valid[seen_valid]]
     return LegSeries(

@@ -20,6 +20,10 @@ class ContactDetector:
         self.off_N = off_N
         self.in_contact = False
 
+    def reset(self) -> None:
+        """Back to the initial state, in the air (e.g. after an outage)."""
+        self.in_contact = False
+
     def update(self, force_N: float) -> bool:
         """Feed a filtered foot force; return whether the foot is on the ground."""
         if math.isnan(force_N):

@@ -4,8 +4,8 @@ from dataclasses import dataclass, replace
 
 from estimator.contact import ContactDetector
 from estimator.equations import contact_pressure_Pa, foot_force_N
+from estimator.filters import make_filter
 from estimator.geometry import LegGeometry
-from estimator.median import RunningMedian
 from estimator.metrics import SoilMetrics, SoilMetricsTracker
 from estimator.settings import EstimatorSettings
 from estimator.validity import STALE, sample_faults
@@ -38,7 +38,8 @@ class LegEstimate:
     leg: str
     #: Frame time of the sample this estimate is based on (NaN before any frame).
     t_s: float
-    #: Running median of the valid raw forces (eq. 4); NaN before the first valid sample.
+    #: The configured filter (running median or Hampel) over the valid raw forces (eq. 4);
+    #: NaN before the first valid sample.
     force_N: float
     #: Eq. (4) on this sample alone, unfiltered (NaN before any frame).
     force_raw_N: float
@@ -54,10 +55,13 @@ class LegEstimate:
 
 
 class LegEstimator:
-    """Feeds one leg's samples through eq. (4), validity, median, contact and metrics.
+    """Feeds one leg's samples through eq. (4), validity, filter, contact and metrics.
 
     Invalid samples are reported (with their raw force) but never enter the
-    median, the contact detector or the soil metrics.
+    filter, the contact detector or the soil metrics. When a sample's frame time is
+    more than :attr:`stale_after_s` past the leg's last valid sample (an outage),
+    the filter and the contact state restart: what they hold describes the foot as
+    it was. A frame time that steps back (the wall clock stepped) restarts nothing.
     """
 
     def __init__(
@@ -70,7 +74,9 @@ class LegEstimator:
         self.settings = settings
         #: No frame for longer than this makes the leg's estimate stale.
         self.stale_after_s = settings.stale_after_cycles * cycle_time_s
-        self._median = RunningMedian(settings.median_window)
+        self._filter = make_filter(settings)
+        #: Frame time of the last valid sample (NaN: none since the start or a restart).
+        self._last_valid_t_s = NAN
         self._contact = ContactDetector(settings.contact_on_N, settings.contact_off_N)
         self._metrics = SoilMetricsTracker(
             settings.pressure_limit_Pa, settings.near_constant_window_s, self.stale_after_s
@@ -107,12 +113,17 @@ class LegEstimator:
             settings=self.settings,
         )
         force_raw_N = foot_force_N(sample.p_piston_Pa, sample.p_rod_Pa, self.leg)
+        if sample.t_s - self._last_valid_t_s > self.stale_after_s:  # after an outage
+            self._filter.clear()
+            self._contact.reset()
+            self._last_valid_t_s = NAN
         if reasons:
-            force_N = self._median.value
+            force_N = self._filter.value
             contact = self._contact.in_contact
         else:
-            force_N = self._median.push(force_raw_N)
+            force_N = self._filter.push(force_raw_N)
             contact = self._contact.update(force_N)
+            self._last_valid_t_s = sample.t_s
         pressure_Pa = contact_pressure_Pa(force_N, self.leg.A_foot_m2)
         if not reasons:
             self._metrics.add(sample.t_s, pressure_Pa)
@@ -130,9 +141,11 @@ class LegEstimator:
         )
         return self._last
 
-    def snapshot(self, now_s: float) -> LegEstimate:
-        """The latest estimate, judged at time ``now_s``: stale if no frame came for too long."""
+    def snapshot(self, age_s: float) -> LegEstimate:
+        """The latest estimate, judged ``age_s`` after its sample: stale if that is longer
+        than :attr:`stale_after_s`. The age is measured by the caller on a clock that
+        does not step (see :mod:`estimator.machine`)."""
         last = self._last
-        if STALE in last.reasons or not now_s - last.t_s > self.stale_after_s:
+        if STALE in last.reasons or not age_s > self.stale_after_s:
             return last
         return replace(last, valid=False, reasons=(*last.reasons, STALE))

@@ -1,5 +1,15 @@
-"""All legs of the machine together: per-leg estimates, snapshots and the weight check."""
+"""All legs of the machine together: per-leg estimates, snapshots and the weight check.
 
+Staleness is judged on *bus time*, not on frame time stamps directly: frame times
+follow the wall clock, which may be stepped (NTP). Bus time is the sum of the
+forward steps between successive frame times of the bus (every message, fed
+through :meth:`MachineEstimator.observe` and :meth:`~MachineEstimator.update`): a
+step back adds nothing, so the legs that keep sending stay fresh across it and a
+silent leg still ages. It derives from frame times alone, so a replay computes the
+same.
+"""
+
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 
@@ -14,6 +24,7 @@ from estimator.weight import WeightCheck, weight_check
 class MachineSnapshot:
     """Every leg's latest estimate at one moment, with the weight check over them."""
 
+    #: The moment judged, on the frames' clock (Unix seconds).
     t_s: float
     legs: Mapping[str, LegEstimate]
     weight: WeightCheck
@@ -37,14 +48,39 @@ class MachineEstimator:
             name: LegEstimator(name, leg, settings, cycle_times_s[name])
             for name, leg in legs.items()
         }
+        #: How long the bus has run: the forward steps between frame times, summed.
+        self.bus_time_s = 0.0
+        #: Frame time of the latest frame observed (NaN before the first).
+        self.latest_t_s = math.nan
+        #: Bus time at each leg's latest sample.
+        self._heard_at_s = dict.fromkeys(self.legs, math.nan)
+
+    def observe(self, t_s: float) -> None:
+        """Note the time stamp of a frame on the bus (any message, in the order received)."""
+        step_s = t_s - self.latest_t_s
+        if 0.0 < step_s < math.inf:  # NaN (the first frame) and a step back add nothing
+            self.bus_time_s += step_s
+        if math.isfinite(t_s):
+            self.latest_t_s = t_s
 
     def update(self, leg: str, sample: LegSample) -> LegEstimate:
-        """Feed one sample of ``leg``; returns that leg's new estimate."""
+        """Feed one sample of ``leg`` (observing its frame time); returns its new estimate."""
+        self.observe(sample.t_s)
+        self._heard_at_s[leg] = self.bus_time_s
         return self.legs[leg].update(sample)
 
     def snapshot(self, now_s: float) -> MachineSnapshot:
-        """All legs judged at ``now_s`` (stale legs marked), plus the weight check."""
-        estimates = {name: leg.snapshot(now_s) for name, leg in self.legs.items()}
+        """All legs judged at ``now_s`` (stale legs marked), plus the weight check.
+
+        ``now_s`` is a time on the frames' clock; the legs are judged at the bus time
+        of the latest frame plus how far ``now_s`` lies past that frame (nothing when
+        it lies before it).
+        """
+        ahead_s = now_s - self.latest_t_s
+        judged_s = self.bus_time_s + (ahead_s if ahead_s > 0.0 else 0.0)
+        estimates = {
+            name: leg.snapshot(judged_s - self._heard_at_s[name]) for name, leg in self.legs.items()
+        }
         return MachineSnapshot(
             t_s=now_s, legs=estimates, weight=weight_check(estimates.values(), self.weight_N)
         )

@@ -39,6 +39,11 @@ class RunningMedian:
     def __len__(self) -> int:
         return len(self._arrival)
 
+    def clear(self) -> None:
+        """Forget every value (e.g. after an outage): the median is NaN again."""
+        self._arrival.clear()
+        self._sorted.clear()
+
     def push(self, value: float) -> float:
         """Add a value, drop the oldest once the window is full, return the median."""
         if len(self._arrival) == self.window:

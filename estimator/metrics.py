@@ -29,8 +29,12 @@ class SoilMetrics:
 class SoilMetricsTracker:
     """Updates :class:`SoilMetrics` sample by sample, O(1) amortised per sample.
 
-    ``max_gap_s`` caps the time one sample-to-sample step may add above the
-    limit, so that a sensor outage is not counted as time above the limit.
+    Times are frame times, which follow the wall clock and may step. Between two
+    samples only a forward step counts: ``max_gap_s`` caps the time one step may add
+    above the limit (a sensor outage is not time above the limit), and a step back
+    adds nothing. A gap longer than ``max_gap_s`` or a step back breaks the run of
+    samples: the sliding window restarts, and a near-constant mean is taken only
+    from a run that spans the whole window.
     The running values are plain attributes; :attr:`metrics` builds the frozen
     :class:`SoilMetrics` from them when asked (once per change), not per sample.
     """
@@ -52,7 +56,8 @@ class SoilMetricsTracker:
         self._metrics: SoilMetrics | None = SoilMetrics()
         self._window: deque[tuple[float, float]] = deque()
         self._window_sum_Pa = 0.0
-        self._first_t_s = NAN
+        #: Frame time of the first sample of the current run (no gap, no step back).
+        self._run_start_t_s = NAN
         self._previous: tuple[float, float] | None = None
 
     @property
@@ -79,19 +84,23 @@ class SoilMetricsTracker:
         if not pressure_Pa <= self._peak_Pa:  # also true while the peak is still NaN
             self._peak_Pa, self._peak_t_s = pressure_Pa, t_s
 
+        step_s = math.nan
         if self._previous is not None:
             previous_t_s, previous_Pa = self._previous
-            if previous_Pa > self.limit_Pa:
-                self._above_s += min(t_s - previous_t_s, self.max_gap_s)
+            step_s = t_s - previous_t_s
+            if previous_Pa > self.limit_Pa and step_s > 0.0:
+                self._above_s += min(step_s, self.max_gap_s)
         self._previous = (t_s, pressure_Pa)
 
-        if math.isnan(self._first_t_s):
-            self._first_t_s = t_s
+        if not 0.0 <= step_s <= self.max_gap_s:  # first sample, a gap or a step back
+            self._window.clear()
+            self._window_sum_Pa = 0.0
+            self._run_start_t_s = t_s
         self._window.append((t_s, pressure_Pa))
         self._window_sum_Pa += pressure_Pa
         while self._window[0][0] <= t_s - self.window_s:
             self._window_sum_Pa -= self._window.popleft()[1]
-        if t_s - self._first_t_s >= self.window_s:
+        if t_s - self._run_start_t_s >= self.window_s:
             mean_Pa = self._window_sum_Pa / len(self._window)
             if not mean_Pa <= self._near_Pa:
                 self._near_Pa, self._near_t_s = mean_Pa, t_s

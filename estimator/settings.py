@@ -3,6 +3,7 @@
 from dataclasses import dataclass
 
 from estimator._checks import require_finite, require_positive
+from estimator.hampel import check_hampel
 
 
 @dataclass(frozen=True, slots=True)
@@ -15,8 +16,15 @@ class EstimatorSettings:
     ValueError: median_window must be an odd integer >= 1, got 4
     """
 
+    #: The force filter: ``"median"`` (the paper's running median) or ``"hampel"``
+    #: (causal Hampel filter, no delay); see :mod:`estimator.filters`.
+    filter: str = "median"
     #: Samples in the running median (odd). The filter delays by (N-1)/2 samples.
     median_window: int = 11
+    #: Trailing samples the Hampel filter judges a sample against (>= 3).
+    hampel_window: int = 7
+    #: A sample farther than k x 1.4826 x MAD from the Hampel prediction is replaced.
+    hampel_k: float = 3.0
     #: A leg's frame is stale when none came for this many cycle times.
     stale_after_cycles: float = 3.0
     #: Lowest pressure the transducers measure; below it a sample is invalid ("range").
@@ -44,6 +52,9 @@ class EstimatorSettings:
             raise ValueError(
                 f"median_window must be an odd integer >= 1, got {self.median_window!r}"
             )
+        if self.filter not in ("median", "hampel"):
+            raise ValueError(f'filter must be "median" or "hampel", got {self.filter!r}')
+        check_hampel(self.hampel_window, self.hampel_k)
         require_positive("stale_after_cycles", self.stale_after_cycles)
         require_finite("pressure_min_Pa", self.pressure_min_Pa)
         require_finite("pressure_max_Pa", self.pressure_max_Pa)

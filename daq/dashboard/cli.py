@@ -10,8 +10,10 @@ import sys
 from collections.abc import Sequence
 
 from daq.dashboard.server import Dashboard
-from daq.live.command import add_viewer_arguments, fail, load_viewer, setup_logging, stop_on_signals
+from daq.live.command import add_viewer_arguments, fail, load_viewer, setup_logging
 from daq.live.session import open_viewer_session
+from daq.stop_signal import StopSignal
+from daq.subcommand import Subcommand
 from dbc.errors import ConfigError, DbcError, PortalDaqError
 
 COMMAND = "dashboard"
@@ -47,9 +49,9 @@ def dashboard_main(args: Sequence[str]) -> int:
         address = http_address(options.http)
     except (ConfigError, DbcError) as exc:
         return fail(COMMAND, exc, 2)
-    stop = stop_on_signals()
     try:
         with (
+            StopSignal() as stop,
             open_viewer_session(viewer.zenoh) as session,
             Dashboard(
                 session, viewer.config, address, allowed_hosts=options.allow_host
@@ -74,3 +76,8 @@ def http_address(text: str) -> tuple[str, int]:
     if not host or not port.isdigit() or int(port) > 65535:
         raise ConfigError("--http", "", f"expected HOST:PORT, e.g. {DEFAULT_HTTP}, got {text!r}")
     return host, int(port)
+
+
+SUBCOMMAND = Subcommand(
+    COMMAND, "live web dashboard of the service, from Zenoh, over HTTP", dashboard_main
+)

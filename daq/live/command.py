@@ -7,9 +7,7 @@ report a bad config in one line with exit status 2 (see :mod:`daq.cli`).
 
 import argparse
 import logging
-import signal
 import sys
-import threading
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -68,14 +66,6 @@ def load_viewer(options: argparse.Namespace) -> Viewer:
         source=config.source,
     )
     return Viewer(viewer_config(config), settings)
-
-
-def stop_on_signals() -> threading.Event:
-    """An event set by SIGINT or SIGTERM (main thread only): the viewer then exits 0."""
-    stop = threading.Event()
-    for signum in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(signum, lambda *_: stop.set())
-    return stop
 
 
 def setup_logging(level: str) -> None:

@@ -9,7 +9,6 @@ they end when ``stop`` is set (SIGINT/SIGTERM), after ``duration_s``, or on
 import curses
 import locale
 import os
-import threading
 import time
 from collections.abc import Callable
 from typing import TextIO
@@ -18,6 +17,7 @@ from daq.live.feed import LiveFeed
 from daq.live.state import LiveState
 from daq.live.viewer import ViewerConfig
 from daq.monitor.view import ALARM, DIM, OK, TITLE, WARN, Line, plain_line, render
+from daq.stop_signal import Stop
 
 #: The curses screen is redrawn this often.
 REFRESH_S = 0.25
@@ -28,7 +28,7 @@ PLAIN_PERIOD_S = 1.0
 def run_curses(
     viewer: ViewerConfig,
     feed: LiveFeed,
-    stop: threading.Event,
+    stop: Stop,
     *,
     duration_s: float | None = None,
 ) -> None:
@@ -57,7 +57,7 @@ def run_curses(
 def run_plain(
     viewer: ViewerConfig,
     feed: LiveFeed,
-    stop: threading.Event,
+    stop: Stop,
     out: TextIO,
     *,
     duration_s: float | None = None,

@@ -8,10 +8,12 @@ import argparse
 import sys
 from collections.abc import Sequence
 
-from daq.live.command import add_viewer_arguments, fail, load_viewer, setup_logging, stop_on_signals
+from daq.live.command import add_viewer_arguments, fail, load_viewer, setup_logging
 from daq.live.feed import LiveFeed
 from daq.live.session import open_viewer_session
 from daq.monitor.app import run_curses, run_plain
+from daq.stop_signal import StopSignal
+from daq.subcommand import Subcommand
 from dbc.errors import ConfigError, DbcError, PortalDaqError
 
 COMMAND = "monitor"
@@ -35,9 +37,9 @@ def monitor_main(args: Sequence[str]) -> int:
         return fail(COMMAND, exc, 2)
     if not options.plain and not sys.stdout.isatty():
         return fail(COMMAND, "standard output is not a terminal: use --plain", 2)
-    stop = stop_on_signals()
     try:
         with (
+            StopSignal() as stop,
             open_viewer_session(viewer.zenoh) as session,
             LiveFeed(session, viewer.config.prefix) as feed,
         ):
@@ -48,3 +50,6 @@ def monitor_main(args: Sequence[str]) -> int:
     except PortalDaqError as exc:
         return fail(COMMAND, exc, 1)
     return 0
+
+
+SUBCOMMAND = Subcommand(COMMAND, "live terminal view of the service, from Zenoh", monitor_main)

@@ -1,4 +1,4 @@
-"""``portal-daq report FILE.mcap [--out DIR] [--config FILE]``: argument parsing and exit codes.
+"""``portal-daq report FILE.mcap... | DIR [--out DIR] [--config FILE]``: arguments, exit codes.
 
 Exit status: 0 when the report was written; 2 for a bad configuration or DBC; 1 when
 the recording cannot be read or the report cannot be written. The reason is one
@@ -13,6 +13,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from daq.subcommand import Subcommand
 from dbc.errors import ConfigError, DbcError, PortalDaqError
 
 PROG = "portal-daq"
@@ -20,8 +21,9 @@ PROG = "portal-daq"
 
 @dataclass(frozen=True, slots=True)
 class ReportOptions:
-    recording: Path
-    #: Output directory; None: ``<recording stem>_report`` next to the recording.
+    #: A recording file, or the files or directory of one run (rotated files).
+    recording: Path | Sequence[Path]
+    #: Output directory; None: ``<stem>_report`` next to the (first) recording given.
     out_dir: Path | None = None
     #: Machine configuration; None: the one embedded in the recording.
     config_path: Path | None = None
@@ -30,7 +32,8 @@ class ReportOptions:
     def directory(self) -> Path:
         if self.out_dir is not None:
             return self.out_dir
-        return self.recording.with_name(f"{self.recording.stem}_report")
+        first = self.recording if isinstance(self.recording, Path) else self.recording[0]
+        return first.with_name(f"{first.stem}_report")
 
 
 def parse_report_args(args: Sequence[str]) -> ReportOptions:
@@ -40,7 +43,12 @@ def parse_report_args(args: Sequence[str]) -> ReportOptions:
         "and force per foot over time, per-cycle peak and near-constant pressures, and, "
         "when it holds simulation truth, calculated vs. true force (paper, Figures 5-8).",
     )
-    parser.add_argument("recording", type=Path, help="a service recording (.mcap)")
+    parser.add_argument(
+        "recording",
+        type=Path,
+        nargs="+",
+        help="a service recording (.mcap); rotated: the files or the directory of the run",
+    )
     parser.add_argument(
         "--out", type=Path, help="output directory (default: <recording stem>_report beside it)"
     )
@@ -48,7 +56,7 @@ def parse_report_args(args: Sequence[str]) -> ReportOptions:
         "--config", type=Path, help="machine config (default: the one embedded in the file)"
     )
     options = parser.parse_args(args)
-    return ReportOptions(options.recording, options.out, options.config)
+    return ReportOptions(tuple(options.recording), options.out, options.config)
 
 
 def report(options: ReportOptions) -> list[Path]:
@@ -62,7 +70,7 @@ def report(options: ReportOptions) -> list[Path]:
 
 
 def report_main(args: Sequence[str]) -> int:
-    """The ``report`` subcommand of :func:`daq.cli.main`; returns the exit status."""
+    """The ``report`` subcommand of ``portal-daq``; returns the exit status."""
     options = parse_report_args(args)
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     try:
@@ -80,3 +88,8 @@ def report_main(args: Sequence[str]) -> int:
 def _fail(message: str, status: int) -> int:
     sys.stderr.write(f"{PROG}: {message}\n")
     return status
+
+
+SUBCOMMAND = Subcommand(
+    "report", "pictures and an HTML page of a recording (with simulation truth)", report_main
+)

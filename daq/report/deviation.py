@@ -11,10 +11,11 @@ valid estimates that have a known true force. The paper filters offline, with a
 median centred on each sample; the service's running median is causal and lags by
 ``h = (N - 1) / 2`` valid samples (50 ms with N = 11 at 10 ms), which alone makes
 several kN of difference while the force oscillates. So the calculated force of a
-frame is the median centred on it: the running median ``h`` valid samples later (the
-last ``h`` frames have none and are left out). The value as published at the frame's
-own time is kept too (:attr:`LegComparison.published_N`), to show what the delay
-costs live.
+frame is the median centred on it: the running median of the valid raw forces ``h``
+valid samples later (the last ``h`` frames have none and are left out). The value as
+published at the frame's own time, by whichever filter was configured (running median
+or Hampel), is kept too (:attr:`LegComparison.published_N`), to show what the live
+filter costs.
 """
 
 import math
@@ -25,6 +26,7 @@ import numpy as np
 import numpy.typing as npt
 
 from daq.report.tracks import FloatArray, LegTrack, TruthTrack
+from estimator.median import running_median
 
 IntArray = npt.NDArray[np.intp]
 
@@ -70,7 +72,8 @@ class LegComparison:
     #: The median of the raw forces centred on the frame (see the module docstring).
     calculated_N: FloatArray
     true_N: FloatArray
-    #: The running median as published at the frame's time (lagging by h samples).
+    #: The configured filter's value as published at the frame's time (the running
+    #: median lags by h samples).
     published_N: FloatArray
 
     @property
@@ -80,7 +83,7 @@ class LegComparison:
 
     @property
     def published_deviation_N(self) -> FloatArray:
-        """Published (lagging) minus true."""
+        """Published (live-filtered) minus true."""
         return np.asarray(self.published_N - self.true_N, dtype=np.float64)
 
 
@@ -99,7 +102,7 @@ class DeviationStats:
     max_abs_N: float
     #: Mean true force over the matched samples (how loaded the leg was).
     mean_true_N: float
-    #: 95 % of the absolute deviations of the published (lagging) values are at most this.
+    #: 95 % of the absolute deviations of the published (live-filtered) values are at most this.
     published_abs95_N: float
 
 
@@ -109,7 +112,10 @@ def compare_leg(
     """``track``'s valid estimates matched to ``truth`` (see the module docstring);
     ``median_window`` is the running median's N."""
     lag = (median_window - 1) // 2
-    usable = np.flatnonzero(track.valid & np.isfinite(track.force_N))
+    usable = np.flatnonzero(
+        track.valid & np.isfinite(track.force_N) & np.isfinite(track.force_raw_N)
+    )
+    centred = running_median(track.force_raw_N[usable], median_window)
     frames = usable[: max(usable.size - lag, 0)]
     true_all = truth.force_true_N.get(track.leg)
     if true_all is None:
@@ -120,11 +126,11 @@ def compare_leg(
     true_N = true_all[index[matched]]
     known = np.isfinite(true_N)
     frames = frames[matched][known]
-    later = usable[np.searchsorted(usable, frames) + lag]  # h valid samples on
+    later = np.searchsorted(usable, frames) + lag  # h valid samples on
     return LegComparison(
         leg=track.leg,
         t_s=track.t_s[frames],
-        calculated_N=track.force_N[later],
+        calculated_N=centred[later],
         true_N=true_N[known],
         published_N=track.force_N[frames],
     )

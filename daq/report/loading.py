@@ -2,10 +2,12 @@
 
 The messages are read in file order with :class:`~daq.mcap_reading.RecordingStream`
 (so a file cut short by a crash reads up to its last complete chunk) and handed to
-the pure :class:`~daq.report.tracks.RecordingCollector`.
+the pure :class:`~daq.report.tracks.RecordingCollector`. A recording rotated into
+several files is given as its files or their directory; the files of one run are
+read in the order of the run (:mod:`daq.recording_run`).
 
-The machine configuration comes from ``config_path`` when given, else from the file's
-embedded attachments; without either, the report still draws what was recorded (with
+The machine configuration comes from ``config_path`` when given, else from the first
+file's embedded attachments; without either, the report still draws what was recorded (with
 the estimator's default settings). A recording without leg estimates but with
 ``/can/raw`` is replayed through :mod:`daq.replay`'s pipeline, which gives the
 estimates the live service would have recorded, bit for bit.
@@ -13,13 +15,15 @@ estimates the live service would have recorded, bit for bit.
 
 import logging
 import re
+from collections.abc import Sequence
 from pathlib import Path
 from typing import IO
 
 from daq.errors import RecordingError
-from daq.mcap_reading import RecordedAttachment, RecordingStream
+from daq.mcap_reading import RecordedAttachment, RecordedMessage, RecordingStream
 from daq.payloads import leg_ground
-from daq.replay import Machine, _embedded_machine, _mcap_estimates
+from daq.recording_run import run_files
+from daq.replay import Machine, embedded_machine, run_estimates
 from daq.report.tracks import Recording, RecordingCollector
 from dbc.errors import ConfigError, DbcError
 from dbc.machine import MachineConfig, load_machine_config
@@ -47,47 +51,51 @@ def _open(path: Path) -> IO[bytes]:
         raise RecordingError(path, f"cannot open it: {exc.strerror or exc}") from exc
 
 
-def load_recording(path: Path, config_path: Path | None = None) -> Recording:
-    """Read ``path`` into a :class:`Recording`.
+def load_recording(paths: Path | Sequence[Path], config_path: Path | None = None) -> Recording:
+    """Read a recording (a file, or the files or directory of one run) into a
+    :class:`Recording`.
 
-    Raises :class:`~daq.errors.RecordingError` (unreadable), or
+    Raises :class:`~daq.errors.RecordingError` (unreadable, several runs), or
     :class:`~daq.errors.ConfigError` / :class:`~daq.errors.DbcError` (a bad
     ``config_path``, or estimates to recompute without any configuration).
     """
+    files = run_files([paths] if isinstance(paths, Path) else paths)
+    first = files[0]
     machine: Machine | None = load_machine_config(config_path) if config_path else None
     collector = RecordingCollector()
     attachments: dict[str, bytes] = {}
-    with _open(path) as stream:
-        reader = RecordingStream(stream, str(path))
-        for record in reader:
-            if isinstance(record, RecordedAttachment):
-                attachments[record.name] = record.data
-            else:
-                collector.add(record.topic, record.data)
+    complete = True
+    for path in files:
+        with _open(path) as stream:
+            reader = RecordingStream(stream, str(path))
+            for record in reader:
+                if isinstance(record, RecordedAttachment):
+                    attachments.setdefault(record.name, record.data)  # the first file's
+                elif isinstance(record, RecordedMessage):
+                    collector.add(record.topic, record.data)
+        complete = complete and reader.complete
     if collector.frames == 0 and not collector.has_estimates and not attachments:
-        logger.warning("%s holds no frames and no estimates of the service", path)
+        logger.warning("%s holds no frames and no estimates of the service", first)
     if machine is None and attachments:
         try:
-            machine = _embedded_machine(attachments, path)
+            machine = embedded_machine(attachments, first)
         except (ConfigError, DbcError) as exc:
-            logger.warning("the configuration embedded in %s is unusable: %s", path, exc)
+            logger.warning("the configuration embedded in %s is unusable: %s", first, exc)
     recomputed = False
     if not collector.has_estimates and collector.frames:
         if machine is None:
             raise ConfigError(
-                path, "", "no leg estimates recorded; recomputing them needs --config"
+                first, "", "no leg estimates recorded; recomputing them needs --config"
             )
-        logger.info("%s has no leg estimates: recomputing them from /can/raw", path)
-        with _open(path) as stream:
-            for estimate in _mcap_estimates(stream, path, machine):
-                collector.add_estimate(leg_ground(estimate))
+        logger.info("%s has no leg estimates: recomputing them from /can/raw", first)
+        for estimate in run_estimates(files, machine):
+            collector.add_estimate(leg_ground(estimate))
         recomputed = True
     config: MachineConfig | None = machine[0] if machine is not None else None
-    machine_id = config.machine_id if config else machine_id_from_name(path) or path.stem
+    machine_id = config.machine_id if config else machine_id_from_name(first) or first.stem
+    name = (
+        first.name if len(files) == 1 else f"{first.name} .. {files[-1].name} ({len(files)} files)"
+    )
     return collector.recording(
-        path.name,
-        config,
-        machine_id=machine_id,
-        recomputed=recomputed,
-        complete=reader.complete,
+        name, config, machine_id=machine_id, recomputed=recomputed, complete=complete
     )

@@ -30,8 +30,9 @@ CYCLE_COUNT = "Machine_CycleCount"
 CYCLE_TIME = "Machine_CycleTime"
 PHASE = "Machine_Phase"
 
-#: (t, force_N, pressure_Pa, valid), (t, count, cycle time, phase), (t, {leg: force}).
-LegRow = tuple[float, float, float, bool]
+#: (t, force_N, pressure_Pa, valid, force_raw_N), (t, count, cycle time, phase),
+#: (t, {leg: force}).
+LegRow = tuple[float, float, float, bool, float]
 StateRow = tuple[float, int, float, str]
 TruthRow = tuple[float, dict[str, float]]
 
@@ -52,11 +53,14 @@ class LegTrack:
 
     leg: str
     t_s: FloatArray
-    #: Running median of the valid raw forces (eq. 4); NaN before the first valid sample.
+    #: The configured filter over the valid raw forces (eq. 4), as published live; NaN
+    #: before the first valid sample.
     force_N: FloatArray
     #: Eq. (5) on ``force_N``.
     pressure_Pa: FloatArray
     valid: BoolArray
+    #: Eq. (4) on each sample alone, unfiltered.
+    force_raw_N: FloatArray
 
     @staticmethod
     def row(payload: Mapping[str, Any]) -> LegRow:
@@ -66,18 +70,20 @@ class LegTrack:
             _number(payload["force_N"]),
             _number(payload["pressure_Pa"]),
             bool(payload["valid"]),
+            _number(payload["force_raw_N"]),
         )
 
     @classmethod
     def of(cls, leg: str, rows: Iterable[LegRow]) -> "LegTrack":
         ordered = sorted(rows, key=lambda row: row[0])
-        columns = list(zip(*ordered, strict=True)) if ordered else [(), (), (), ()]
+        columns = list(zip(*ordered, strict=True)) if ordered else [(), (), (), (), ()]
         return cls(
             leg=leg,
             t_s=np.array(columns[0], dtype=np.float64),
             force_N=np.array(columns[1], dtype=np.float64),
             pressure_Pa=np.array(columns[2], dtype=np.float64),
             valid=np.array(columns[3], dtype=np.bool_),
+            force_raw_N=np.array(columns[4], dtype=np.float64),
         )
 
 

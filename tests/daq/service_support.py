@@ -42,6 +42,7 @@ def service_toml(
     recording: Path | None = None,
     status_period_s: float = 0.2,
     chunk_size: int = 1024 * 1024,
+    max_duration_s: float = 3600.0,
     truth: bool | None = None,
     extra: str = "",
 ) -> str:
@@ -66,6 +67,7 @@ status_period_s = {status_period_s}
 directory = "{recording}"
 chunk_size = {chunk_size}
 max_bytes = {max(chunk_size, 1024 * 1024)}
+max_duration_s = {max_duration_s}
 flush_period_s = 0.2
 """
         if truth is not None:

@@ -1,16 +1,21 @@
-"""MCAP recording: rotation by size and time, reading back a file cut short by a crash."""
+"""MCAP recording: rotation by size and time, the files of one run, reading back a file
+cut short by a crash."""
 
 import json
+import logging
 import time
 from pathlib import Path
 
+import pytest
 from mcap.reader import NonSeekingReader, make_reader
 
+from daq.errors import RecordingError
 from daq.frames import BusEvent, RawFrame
 from daq.mcap_file import CountingFile, McapFile
 from daq.mcap_reading import RecordedMessage, RecordingStream
 from daq.pipeline import Pipeline
 from daq.recorder import Recorder, file_name
+from daq.recording_run import read_run_file, run_files
 from daq.service_config import RecordingSettings
 from dbc.encoding import FrameEncoder
 from tests.daq.service_support import leg_signals
@@ -69,6 +74,39 @@ def test_rotation_by_frame_time(tmp_path: Path) -> None:
         wait_drained(recorder)
     assert len(recorder.paths) == 4
     assert [len(raw_times(path)) for path in recorder.paths] == [10, 10, 10, 5]
+
+
+def record_run(directory: Path, run_id: str, t0: float) -> list[Path]:
+    _, database = example_machine()
+    settings = RecordingSettings(directory=directory, max_duration_s=1.0)
+    with Recorder(settings, database, machine_id="m", run_id=run_id) as recorder:
+        for result in results(35, t0=t0, dt=0.1):
+            recorder.submit(result)
+        wait_drained(recorder)
+    return recorder.paths
+
+
+def test_the_files_of_a_run_carry_its_id_and_their_order(tmp_path: Path) -> None:
+    paths = record_run(tmp_path / "a", "run-a", 1000.0)
+    assert [(f.run, f.index) for f in map(read_run_file, paths)] == [
+        (("m", "run-a"), i) for i in range(4)
+    ]
+    # Given in any order (or as their directory), they come back in the order of the run.
+    assert run_files(paths[::-1]) == paths
+    assert run_files([tmp_path / "a"]) == paths
+
+
+def test_files_of_two_runs_are_refused_and_a_missing_file_is_logged(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    first = record_run(tmp_path, "run-a", 1000.0)
+    second = record_run(tmp_path, "run-b", 5000.0)
+    with pytest.raises(RecordingError, match=r"2 runs .*run run-a of m: .*run run-b of m"):
+        run_files([tmp_path])
+    assert run_files(second) == second
+    with caplog.at_level(logging.WARNING):
+        assert run_files([first[0], first[2], first[3]]) == [first[0], first[2], first[3]]
+    assert "run run-a: file(s) 1 of the run missing" in caplog.text
 
 
 def test_file_names() -> None:

@@ -49,6 +49,7 @@ def track(
         force_N=pressure * 0.33,
         pressure_Pa=pressure,
         valid=np.array(valid if valid is not None else [True] * len(t_s), dtype=np.bool_),
+        force_raw_N=pressure * 0.33,
     )
 
 
@@ -166,14 +167,17 @@ def test_match_nearest_within_half_a_period() -> None:
 
 
 def test_the_calculated_force_is_the_median_centred_on_the_frame() -> None:
-    """Median window 5: the running median 2 valid samples later; invalid ones skipped."""
+    """Median window 5 over the raw forces, centred: the running median 2 valid samples
+    later; invalid ones skipped. Published: the recorded (live-filtered) force."""
     t = np.round(np.arange(12) * 0.01 + 100.0, 6)
     t[9] += 0.004  # 4 ms off its truth sample: more than the 3 ms allowed below
     valid = np.ones(12, dtype=np.bool_)
     valid[6] = False
-    force = 1000.0 * np.arange(12)
-    force[6] = 1e9  # invalid: neither matched nor used as a later value
-    leg = LegTrack("L", t, force, force / 0.33, valid)
+    raw = 2000.0 * np.arange(12)
+    raw[[1, 8]] = [50e3, -50e3]  # spikes: the centred median removes them
+    raw[6] = 1e9  # invalid: neither matched nor used as a later value
+    force = 1000.0 * np.arange(12)  # as published by the live filter
+    leg = LegTrack("L", t, force, force / 0.33, valid, raw)
     true_N = 1000.0 * np.arange(12) + 10.0
     true_N[3] = NAN  # unknown truth: left out
     truth = TruthTrack(np.round(np.arange(12) * 0.01 + 100.0, 6), {"L": true_N})
@@ -182,11 +186,13 @@ def test_the_calculated_force_is_the_median_centred_on_the_frame() -> None:
     # usable frames 0..5, 7..11; the last 2 have no centred median; 3 has no truth,
     # 9 no truth sample near enough
     assert comparison.t_s.tolist() == [t[i] for i in (0, 1, 2, 4, 5, 7, 8)]
-    # frame 4 -> 2 valid samples later is 7 (6 is invalid), 5 -> 8, 7 -> 9, 8 -> 10
-    assert comparison.calculated_N.tolist() == [2e3, 3e3, 4e3, 7e3, 8e3, 9e3, 10e3]
+    # centred window of 5 valid raw forces (6 is invalid): frame 0 (head) -> median of
+    # frames 0..2 = 4k, 1 -> 0..3 (even: (4k + 6k) / 2), 2 -> 0..4, 4 -> 2,3,4,5,7,
+    # 5 -> 3,4,5,7,8 (the -50k spike at 8 is outvoted), 7 -> 4,5,7,8,9, 8 -> 5,7,8,9,10
+    assert comparison.calculated_N.tolist() == [4e3, 5e3, 6e3, 8e3, 8e3, 10e3, 14e3]
     assert comparison.published_N.tolist() == [0.0, 1e3, 2e3, 4e3, 5e3, 7e3, 8e3]
     assert comparison.true_N.tolist() == [10.0, 1010.0, 2010.0, 4010.0, 5010.0, 7010.0, 8010.0]
-    assert comparison.deviation_N.tolist() == [1990.0] * 3 + [2990.0] * 2 + [1990.0] * 2
+    assert comparison.deviation_N.tolist() == [3990.0] * 4 + [2990.0] * 2 + [5990.0]
 
     both = compare({"L": leg, "X": leg}, truth, median_window=5)
     assert list(both) == ["L"]  # no truth for X

@@ -21,6 +21,7 @@ from daq.bus_reader import BusReader
 from daq.frames import BusEvent, RawFrame
 from daq.recorder import Recorder
 from daq.replay import replay
+from daq.report.loading import load_recording
 from daq.runner import bus_factory, recording_attachments
 from daq.service import Service
 from daq.service_config import ServiceConfig, load_service_config
@@ -237,6 +238,43 @@ def test_liveliness_token_while_running(config: ServiceConfig) -> None:
         assert tokens == [f"{prefix}/alive"]
 
 
+def send_and_wait(config: ServiceConfig, messages: list[can.Message]) -> list[Path]:
+    """Run the service, send ``messages``, wait until it processed them; its files."""
+    with live_service(config) as service:
+        with sender(config) as bus:
+            for message in messages:
+                bus.send(message)
+        deadline = time.monotonic() + WAIT_S
+        while service.pipeline.frames < len(messages) and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert service.pipeline.frames == len(messages)
+        recorder = service.recorder
+        assert recorder is not None
+    return recorder.paths
+
+
+def assert_replay_is_live(
+    paths: Path | list[Path], live: list[dict], config_path: Path | None = None
+) -> None:
+    """Replaying ``paths`` gives the ``live`` estimates, bit for bit."""
+    out = io.StringIO()
+    assert replay(paths, out, config_path) == len(live)
+    rows = out.getvalue().splitlines()
+    assert rows[0].startswith("leg,t,force_N,force_raw_N,pressure_Pa")
+    replayed = [row.split(",") for row in rows[1:]]
+    for row, estimate in zip(replayed, live, strict=True):
+        assert row[0] == estimate["leg"]
+        numbers = [float(x) for x in row[1:7]]
+        keys = ("t", "force_N", "force_raw_N", "pressure_Pa", "p_piston_Pa", "p_rod_Pa")
+        assert numbers == [estimate[k] for k in keys]  # bit for bit
+        assert row[7:9] == [str(int(estimate["contact"])), str(int(estimate["valid"]))]
+        assert row[9] == "|".join(estimate["reasons"])
+
+
+def live_estimates(paths: list[Path]) -> list[dict]:
+    return [p for path in paths for topic, p in recorded(path) if topic.startswith("/leg/")]
+
+
 def test_replay_of_the_recording_equals_the_live_estimates(config: ServiceConfig) -> None:
     encoder = encoder_for(config)
     messages = leg_messages(encoder, FRAMES_PER_LEG, time.time())
@@ -249,34 +287,37 @@ def test_replay_of_the_recording_equals_the_live_estimates(config: ServiceConfig
         ),
         can_message(encoder.encode("LEG_SB1_F2", leg_signals("SB1_F2", 1e7, 1e6)), t + 0.02),
     ]
-    with live_service(config) as service:
-        with sender(config) as bus:
-            for message in messages:
-                bus.send(message)
-        deadline = time.monotonic() + WAIT_S
-        while service.pipeline.frames < len(messages) and time.monotonic() < deadline:
-            time.sleep(0.01)
-        assert service.pipeline.frames == len(messages)
-        recorder = service.recorder
-        assert recorder is not None
-    path = recorder.paths[0]
-    live = [p for topic, p in recorded(path) if topic.startswith("/leg/")]
+    paths = send_and_wait(config, messages)
+    live = live_estimates(paths[:1])
     assert len(live) == 6 * FRAMES_PER_LEG + 3
 
     for config_path in (None, Path(config.source)):
-        out = io.StringIO()
-        assert replay(path, out, config_path) == len(live)
-        rows = out.getvalue().splitlines()
-        assert rows[0].startswith("leg,t,force_N,force_raw_N,pressure_Pa")
-        replayed = [row.split(",") for row in rows[1:]]
-        for row, estimate in zip(replayed, live, strict=True):
-            assert row[0] == estimate["leg"]
-            numbers = [float(x) for x in row[1:7]]
-            keys = ("t", "force_N", "force_raw_N", "pressure_Pa", "p_piston_Pa", "p_rod_Pa")
-            assert numbers == [estimate[k] for k in keys]  # bit for bit
-            assert row[7:9] == [str(int(estimate["contact"])), str(int(estimate["valid"]))]
-            assert row[9] == "|".join(estimate["reasons"])
+        assert_replay_is_live(paths[0], live, config_path)
     assert live[-3]["reasons"] == ["counter"] and live[-2]["reasons"] == ["crc"]
+
+
+def test_replay_of_a_run_rotated_every_second_equals_the_live_estimates(tmp_path: Path) -> None:
+    path = write_service_config(
+        tmp_path,
+        channel=f"test-{uuid.uuid4().hex}",
+        port=free_port(),
+        recording=tmp_path / "rec",
+        max_duration_s=1.0,
+    )
+    config = load_service_config(path)
+    # 3.5 s of frame time, every leg on the ground (contact) with a median to carry over.
+    paths = send_and_wait(config, leg_messages(encoder_for(config), 350, time.time()))
+    assert len(paths) == 4
+    live = live_estimates(paths)
+    assert len(live) == 6 * 350
+    second_file = live_estimates(paths[1:2])
+    assert second_file and all(e["contact"] for e in second_file)
+
+    assert_replay_is_live([tmp_path / "rec"], live)  # the directory
+    assert_replay_is_live(paths[::-1], live)  # the files, in any order
+    report_input = load_recording(tmp_path / "rec")  # the report reads the whole run too
+    assert report_input.counts.frames == len(live)
+    assert report_input.name.endswith("(4 files)")
 
 
 def test_mcap_channels_and_schemas_are_readable(config: ServiceConfig) -> None:

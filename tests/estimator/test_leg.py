@@ -72,8 +72,9 @@ def test_invalid_samples_do_not_enter_the_median() -> None:
     good = pressures_for(50_000.0)
     for i in range(3):
         est.update(LegSample(t_s=i * CYCLE_S, p_piston_Pa=good, p_rod_Pa=1e6))
-    # Three huge but invalid samples would carry a window of 3 if they entered it.
-    for i in range(3, 6):
+    # Two huge but invalid samples would carry a window of 3 if they entered it (a
+    # third would come past the stale time, an outage that restarts the median).
+    for i in range(3, 5):
         e = est.update(LegSample(t_s=i * CYCLE_S, p_piston_Pa=30e6, p_rod_Pa=1e6, crc_ok=False))
         assert e.force_N == pytest.approx(50_000.0)
         assert e.force_raw_N > 150_000.0
@@ -86,12 +87,12 @@ def test_estimate_turns_stale_after_three_cycle_times() -> None:
     before = est.snapshot(0.0)
     assert before.valid is False and before.reasons == ("stale",)
     est.update(LegSample(t_s=100.0, p_piston_Pa=5e6, p_rod_Pa=1e6))
-    assert est.snapshot(100.0 + 2.9 * CYCLE_S).valid is True
-    stale = est.snapshot(100.0 + 3.1 * CYCLE_S)
+    assert est.snapshot(2.9 * CYCLE_S).valid is True
+    stale = est.snapshot(3.1 * CYCLE_S)
     assert stale.valid is False and stale.reasons == ("stale",)
-    assert stale.force_N == est.snapshot(100.0).force_N
+    assert stale.force_N == est.snapshot(0.0).force_N
     est.update(LegSample(t_s=100.05, p_piston_Pa=5e6, p_rod_Pa=1e6))
-    assert est.snapshot(100.06).valid is True
+    assert est.snapshot(0.01).valid is True
 
 
 def test_contact_has_hysteresis_on_the_filtered_force() -> None:
@@ -146,6 +147,37 @@ def test_outage_is_not_counted_as_time_above_limit() -> None:
     assert est.metrics.time_above_limit_s == pytest.approx(3 * CYCLE_S)
 
 
+def test_after_an_outage_the_median_and_contact_restart() -> None:
+    est = estimator(pressure_limit_Pa=100e3)
+    down, lifted = pressures_for(45_900.0), pressures_for(200.0)
+    for i in range(100):  # 1 s on the ground
+        est.update(LegSample(t_s=100.0 + i * CYCLE_S, p_piston_Pa=down, p_rod_Pa=1e6))
+    peak_Pa = est.metrics.peak_pressure_Pa
+    # 30 s without a frame; meanwhile the foot was lifted. A CRC error comes first.
+    bad = est.update(LegSample(t_s=131.0, p_piston_Pa=down, p_rod_Pa=1e6, crc_ok=False))
+    assert math.isnan(bad.force_N) and bad.contact is False
+    after = [
+        est.update(LegSample(t_s=131.0 + i * CYCLE_S, p_piston_Pa=lifted, p_rod_Pa=1e6))
+        for i in range(1, 7)
+    ]
+    assert all(e.valid and e.contact is False for e in after)
+    assert [e.force_N for e in after] == pytest.approx([200.0] * 6)
+    assert est.metrics.peak_pressure_Pa == peak_Pa  # the old force fed no metrics
+    assert est.metrics.samples == 106
+
+
+def test_a_clock_step_back_does_not_restart_the_median() -> None:
+    est = estimator(median_window=5)
+    forces = [40_000.0, 41_000.0, 42_000.0, 43_000.0, 44_000.0]
+    for i, force in enumerate(forces):
+        est.update(
+            LegSample(t_s=100.0 + i * CYCLE_S, p_piston_Pa=pressures_for(force), p_rod_Pa=1e6)
+        )
+    stepped = est.update(LegSample(t_s=95.0, p_piston_Pa=pressures_for(90_000.0), p_rod_Pa=1e6))
+    assert stepped.force_N == pytest.approx(43_000.0)  # median of the last five
+    assert stepped.contact is True
+
+
 @settings(max_examples=60, deadline=None)
 @given(
     st.lists(
@@ -157,19 +189,28 @@ def test_outage_is_not_counted_as_time_above_limit() -> None:
         max_size=120,
     ),
     st.integers(min_value=0, max_value=5).map(lambda k: 2 * k + 1),
+    st.sampled_from(["median", "hampel"]),
+    # Mostly the cycle time; outages (> 3 cycles) and clock steps back in between.
+    st.lists(st.sampled_from([CYCLE_S] * 4 + [0.05, 1.0, -2.0]), min_size=120, max_size=120),
 )
 def test_batch_path_is_bit_identical_to_streaming(
-    rows: list[tuple[float, float, bool]], window: int
+    rows: list[tuple[float, float, bool]], window: int, filter_name: str, steps_s: list[float]
 ) -> None:
-    cfg = EstimatorSettings(median_window=window)
+    cfg = EstimatorSettings(filter=filter_name, median_window=window, hampel_window=max(window, 3))
     est = LegEstimator("SB1_F1", LEG, cfg, CYCLE_S)
-    t = [i * CYCLE_S for i in range(len(rows))]
+    t = np.cumsum(steps_s[: len(rows)]).tolist()
     streamed = [
         est.update(LegSample(t_s=ti, p_piston_Pa=pp, p_rod_Pa=pr, crc_ok=ok))
         for ti, (pp, pr, ok) in zip(t, rows, strict=True)
     ]
     series = estimate_leg_series(
-        t, [r[0] for r in rows], [r[1] for r in rows], LEG, cfg, checks_ok=[r[2] for r in rows]
+        t,
+        [r[0] for r in rows],
+        [r[1] for r in rows],
+        LEG,
+        cfg,
+        checks_ok=[r[2] for r in rows],
+        cycle_time_s=CYCLE_S,
     )
     assert series.valid.tolist() == [e.valid for e in streamed]
     assert series.force_raw_N.tobytes() == np.array([e.force_raw_N for e in streamed]).tobytes()
@@ -180,7 +221,8 @@ def test_batch_path_is_bit_identical_to_streaming(
 def test_batch_filter_runs_over_valid_samples_only() -> None:
     cfg = EstimatorSettings(median_window=3)
     pp = [5e6, 6e6, 41e6, 7e6, 8e6]  # the third is out of range
-    series = estimate_leg_series(range(5), pp, [1e6] * 5, LEG, cfg)
+    t = [i * CYCLE_S for i in range(5)]
+    series = estimate_leg_series(t, pp, [1e6] * 5, LEG, cfg, cycle_time_s=CYCLE_S)
     raw_valid = foot_force_N(np.array([5e6, 6e6, 7e6, 8e6]), 1e6, LEG)
     expected = running_median(raw_valid, 3)
     assert series.valid.tolist() == [True, True, False, True, True]
@@ -195,4 +237,6 @@ def test_batch_filter_runs_over_valid_samples_only() -> None:
 
 def test_batch_rejects_mismatched_shapes() -> None:
     with pytest.raises(ValueError, match="one shape"):
-        estimate_leg_series([0.0, 1.0], [1e6], [1e6, 1e6], LEG, EstimatorSettings())
+        estimate_leg_series(
+            [0.0, 1.0], [1e6], [1e6, 1e6], LEG, EstimatorSettings(), cycle_time_s=CYCLE_S
+        )

@@ -71,3 +71,19 @@ def test_every_leg_needs_a_cycle_time() -> None:
 def test_settings_refuse_inconsistent_values(kw: dict[str, object], word: str) -> None:
     with pytest.raises(ValueError, match=word):
         EstimatorSettings(**kw)  # type: ignore[arg-type]
+
+
+def test_staleness_is_judged_on_bus_time_across_a_clock_step_back() -> None:
+    m = machine()
+    for name in LEGS:
+        m.update(name, LegSample(t_s=100.0, p_piston_Pa=pressures_for(30e3), p_rod_Pa=1e6))
+    m.observe(100.02)  # a frame of another message
+    for t_s in (95.03, 95.04, 95.05):  # the clock steps back 5 s; SB2_F3 stays silent
+        for name in LEGS[:5]:
+            m.update(name, LegSample(t_s=t_s, p_piston_Pa=pressures_for(30e3), p_rod_Pa=1e6))
+    # Bus time: 20 ms, nothing for the step back, 2 x 10 ms.
+    assert m.bus_time_s == pytest.approx(0.04)
+    snapshot = m.snapshot(95.05)
+    assert [snapshot.legs[name].valid for name in LEGS] == [True] * 5 + [False]
+    assert snapshot.legs["SB2_F3"].reasons == ("stale",)
+    assert snapshot.t_s == 95.05

@@ -10,8 +10,19 @@ from estimator.metrics import SoilMetrics, SoilMetricsTracker
 LIMIT_PA, WINDOW_S, MAX_GAP_S = 200e3, 0.5, 0.03
 
 
+def runs(samples: list[tuple[float, float]]) -> list[list[tuple[float, float]]]:
+    """The samples cut wherever time steps back or jumps by more than the max gap."""
+    cut: list[list[tuple[float, float]]] = []
+    for i, sample in enumerate(samples):
+        if i == 0 or not 0.0 <= sample[0] - samples[i - 1][0] <= MAX_GAP_S:
+            cut.append([])
+        cut[-1].append(sample)
+    return cut
+
+
 def reference(samples: list[tuple[float, float]]) -> SoilMetrics:
-    """Peak, best window mean (once a window is covered), capped time above the limit."""
+    """Peak, best window mean within a run that spans the window, time above the limit
+    over forward steps only (each capped at the max gap)."""
     if not samples:
         return SoilMetrics()
     peak_Pa, peak_t_s = samples[0][1], samples[0][0]
@@ -21,23 +32,27 @@ def reference(samples: list[tuple[float, float]]) -> SoilMetrics:
     above_s = sum(
         min(t1 - t0, MAX_GAP_S)
         for (t0, p0), (t1, _) in zip(samples, samples[1:], strict=False)
-        if p0 > LIMIT_PA
+        if p0 > LIMIT_PA and t1 > t0
     )
     near_Pa = near_t_s = math.nan
-    first_t_s = samples[0][0]
-    for i, (t_s, _) in enumerate(samples):
-        if t_s - first_t_s < WINDOW_S:
-            continue
-        window = [p for u, p in samples[: i + 1] if u > t_s - WINDOW_S]
-        mean_Pa = sum(window) / len(window)
-        if not mean_Pa <= near_Pa:
-            near_Pa, near_t_s = mean_Pa, t_s
+    for run in runs(samples):
+        for i, (t_s, _) in enumerate(run):
+            if t_s - run[0][0] < WINDOW_S:
+                continue
+            window = [p for u, p in run[: i + 1] if u > t_s - WINDOW_S]
+            mean_Pa = sum(window) / len(window)
+            if not mean_Pa <= near_Pa:
+                near_Pa, near_t_s = mean_Pa, t_s
     return SoilMetrics(peak_Pa, peak_t_s, near_Pa, near_t_s, above_s, len(samples))
 
 
+# Mostly the 10 ms cycle, with gaps (0.1 s > MAX_GAP_S) and clock steps back.
 steps = st.lists(
-    st.tuples(st.sampled_from([0.01, 0.01, 0.02, 0.1]), st.floats(min_value=0.0, max_value=400e3)),
-    max_size=120,
+    st.tuples(
+        st.sampled_from([0.01, 0.01, 0.01, 0.02, 0.1, -0.3]),
+        st.floats(min_value=0.0, max_value=400e3),
+    ),
+    max_size=160,
 )
 
 
@@ -71,3 +86,33 @@ def test_add_and_update_agree_and_reset_starts_afresh() -> None:
     assert a.metrics.samples == 100 and a.metrics.peak_pressure_Pa == 249e3
     a.reset()
     assert a.metrics.samples == 0 and math.isnan(a.metrics.peak_pressure_Pa)
+
+
+def steady(tracker: SoilMetricsTracker, t0_s: float, duration_s: float, p_Pa: float) -> float:
+    """Feed ``p_Pa`` every 10 ms from ``t0_s`` for ``duration_s``; returns the next time."""
+    count = round(duration_s / 0.01)
+    for i in range(count):
+        tracker.add(t0_s + 0.01 * i, p_Pa)
+    return t0_s + 0.01 * count
+
+
+def test_a_clock_step_back_adds_no_negative_time_and_restarts_the_window() -> None:
+    tracker = SoilMetricsTracker(LIMIT_PA, 5.0, MAX_GAP_S)
+    end_s = steady(tracker, 1000.0, 2.0, 250e3)  # above the limit for 2 s
+    steady(tracker, end_s - 60.0, 6.0, 330e3)  # the clock steps back 60 s, 6 s more
+    metrics = tracker.metrics
+    # 2 s + 6 s above the limit; the step itself adds nothing (not -60 s).
+    assert math.isclose(metrics.time_above_limit_s, 8.0 - 2 * 0.01, abs_tol=1e-6)
+    # The 6 s after the step are one run spanning the 5 s window: its mean counts.
+    assert metrics.near_constant_pressure_Pa == 330e3
+    assert math.isclose(metrics.near_constant_t_s, end_s - 60.0 + 5.0, abs_tol=1e-6)
+
+
+def test_after_a_gap_one_sample_is_not_a_near_constant_mean() -> None:
+    tracker = SoilMetricsTracker(LIMIT_PA, 5.0, MAX_GAP_S)
+    end_s = steady(tracker, 1000.0, 6.0, 120e3)
+    tracker.add(end_s + 10.0, 330e3)  # one sample after a 10 s gap
+    assert tracker.metrics.near_constant_pressure_Pa == 120e3
+    steady(tracker, end_s + 10.01, 4.0, 330e3)  # 4 s of the new run: still under 5 s
+    assert tracker.metrics.near_constant_pressure_Pa == 120e3
+    assert tracker.metrics.peak_pressure_Pa == 330e3

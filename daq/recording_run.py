@@ -1,0 +1,124 @@
+"""Which recording files make one run of the service, and in what order.
+
+The recorder starts a new file when one reaches ``max_bytes`` or ``max_duration_s``
+(rotation), while the live pipeline runs on: its median, contact hysteresis and
+rolling counters carry over from one file to the next. A replay equals the live
+estimates only when it chains the files of one run through one pipeline, in order.
+
+How files of one run are recognised: every file carries the MCAP metadata record
+:data:`~daq.mcap_file.RUN_METADATA` with the machine id, a run id drawn when the
+recorder starts (one per start of the service) and the file's index in the run (0,
+1, 2, ...). Not the file names or times: a restart of the service within a second
+is a new run, and a clock step cannot reorder files. A file without that record (a
+recording of an earlier release) is a run of its own.
+
+:func:`run_files` takes files and directories (a directory stands for its ``*.mcap``
+files), checks that they are one run, and orders them. A file missing from the
+middle or the start of a run is logged: the estimates right after it differ from
+the live ones until the median has refilled.
+"""
+
+import logging
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from daq.errors import RecordingError
+from daq.mcap_file import RUN_METADATA
+from daq.mcap_reading import RecordedMessage, RecordedMetadata, RecordingStream
+
+logger = logging.getLogger(__name__)
+
+MCAP_SUFFIX = ".mcap"
+
+
+def run_metadata(machine_id: str, run_id: str, file_index: int) -> dict[str, str]:
+    """The :data:`~daq.mcap_file.RUN_METADATA` record of file ``file_index`` of a run."""
+    return {"machine_id": machine_id, "run_id": run_id, "file_index": str(file_index)}
+
+
+@dataclass(frozen=True, slots=True)
+class RunFile:
+    """A recording file and the run it belongs to (``run`` None: no run metadata)."""
+
+    path: Path
+    #: (machine id, run id).
+    run: tuple[str, str] | None
+    index: int
+
+
+def read_run_file(path: Path) -> RunFile:
+    """The run metadata of ``path``; reads only up to it (it precedes every message)."""
+    try:
+        with open(path, "rb") as stream:
+            for record in RecordingStream(stream, str(path)):
+                if isinstance(record, RecordedMetadata) and record.name == RUN_METADATA:
+                    return _run_file(path, record.metadata)
+                if isinstance(record, RecordedMessage):
+                    break
+    except OSError as exc:
+        raise RecordingError(path, f"cannot open it: {exc.strerror or exc}") from exc
+    return RunFile(path, None, 0)
+
+
+def _run_file(path: Path, metadata: dict[str, str]) -> RunFile:
+    try:
+        return RunFile(
+            path, (metadata["machine_id"], metadata["run_id"]), int(metadata["file_index"])
+        )
+    except (KeyError, ValueError) as exc:
+        raise RecordingError(path, f"unreadable {RUN_METADATA} metadata {metadata}") from exc
+
+
+def expand(paths: Sequence[Path]) -> list[Path]:
+    """The files named, a directory replaced by its ``*.mcap`` files (sorted by name)."""
+    files: list[Path] = []
+    for path in paths:
+        if path.is_dir():
+            found = sorted(p for p in path.iterdir() if p.suffix.lower() == MCAP_SUFFIX)
+            if not found:
+                raise RecordingError(path, "no .mcap files in this directory")
+            files.extend(found)
+        else:
+            files.append(path)
+    if not files:
+        raise RecordingError("", "no recording given")
+    return list(dict.fromkeys(files))
+
+
+def run_files(paths: Sequence[Path]) -> list[Path]:
+    """The MCAP files of ``paths`` in the order of their run.
+
+    Raises :class:`~daq.errors.RecordingError` when they belong to more than one run.
+    """
+    files = [read_run_file(path) for path in expand(paths)]
+    runs: dict[tuple[str, str] | Path, list[RunFile]] = {}
+    for file in files:
+        runs.setdefault(file.run or file.path, []).append(file)
+    if len(runs) > 1:
+        listing = "; ".join(
+            f"{_run_name(key)}: {', '.join(f.path.name for f in members)}"
+            for key, members in runs.items()
+        )
+        raise RecordingError(
+            files[0].path.parent,
+            f"these files are {len(runs)} runs of the service ({listing}); "
+            "give the files of one run",
+        )
+    ordered = sorted(files, key=lambda file: file.index)
+    indexes = [file.index for file in ordered]
+    if len(set(indexes)) != len(indexes):
+        raise RecordingError(files[0].path, f"two files claim one index of the run: {indexes}")
+    missing = sorted(set(range(indexes[-1] + 1)) - set(indexes))
+    if ordered[0].run is not None and missing:
+        logger.warning(
+            "run %s: file(s) %s of the run missing; the estimates after each gap differ "
+            "from the live ones until the median has refilled",
+            ordered[0].run[1],
+            ", ".join(map(str, missing)),
+        )
+    return [file.path for file in ordered]
+
+
+def _run_name(key: tuple[str, str] | Path) -> str:
+    return f"run {key[1]} of {key[0]}" if isinstance(key, tuple) else f"{key.name} (no run id)"

@@ -1,0 +1,49 @@
+"""``portal-daq replay RECORDING... [--config FILE] [--out FILE]``: estimates as CSV.
+
+Argument parsing and exit codes only; the work is in :mod:`daq.replay`. Exit status:
+0 done, 2 for a bad configuration or DBC, 1 when the recording or the output cannot
+be used; the reason is one line on stderr.
+"""
+
+import argparse
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+from daq.replay import replay
+from daq.subcommand import PROG, Subcommand, fail, setup_logging
+from dbc.errors import ConfigError, DbcError, PortalDaqError
+
+
+def replay_main(args: Sequence[str]) -> int:
+    parser = argparse.ArgumentParser(
+        prog=f"{PROG} replay",
+        description="Run a recording (service MCAP, candump .log, .asc, .blf) through the "
+        "decoder and estimator; one CSV row per leg estimate. The files of a rotated "
+        "MCAP recording (or their directory) are chained in the order of their run.",
+    )
+    parser.add_argument(
+        "recording", type=Path, nargs="+", help="MCAP files or a directory of one run, or CAN logs"
+    )
+    parser.add_argument("--config", type=Path, help="machine config (MCAP: default embedded)")
+    parser.add_argument("--out", type=Path, help="CSV file (default: stdout)")
+    options = parser.parse_args(args)
+    setup_logging("WARNING")
+    try:
+        if options.out is None:
+            replay(options.recording, sys.stdout, options.config)
+        else:
+            with open(options.out, "w", newline="") as out:
+                replay(options.recording, out, options.config)
+    except (ConfigError, DbcError) as exc:
+        return fail(exc, 2)
+    except BrokenPipeError:
+        raise  # the reader went away (``| head``): daq.cli exits quietly
+    except (PortalDaqError, OSError) as exc:
+        return fail(exc, 1)
+    return 0
+
+
+SUBCOMMAND = Subcommand(
+    "replay", "estimates of a recording (MCAP, candump .log, .asc, .blf) as CSV", replay_main
+)

@@ -1,0 +1,42 @@
+"""What a ``portal-daq`` subcommand is, and the plumbing the subcommands share.
+
+A subcommand module defines one ``SUBCOMMAND = Subcommand(name, summary, main)``;
+:mod:`daq.cli` lists the module once in ``SUBCOMMAND_MODULES`` and that is all it
+takes for ``portal-daq NAME`` to run it and ``portal-daq --help`` to list it. ``main``
+gets the arguments after the name and returns the exit status (0 done, 2 bad usage or
+configuration, 1 a resource or input that cannot be used), printing the reason as one
+line via :func:`fail`.
+"""
+
+import logging
+import os
+import sys
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+PROG = "portal-daq"
+
+
+@dataclass(frozen=True, slots=True)
+class Subcommand:
+    #: The word after ``portal-daq``.
+    name: str
+    #: One line for ``portal-daq --help``.
+    summary: str
+    #: Parses the remaining arguments itself and returns the exit status.
+    main: Callable[[Sequence[str]], int]
+
+
+def setup_logging(level: str) -> None:
+    """To stderr; under systemd (journald adds time stamps) without time stamps."""
+    under_systemd = "JOURNAL_STREAM" in os.environ or "INVOCATION_ID" in os.environ
+    fmt = "%(levelname)s %(name)s: %(message)s"
+    logging.basicConfig(
+        level=level.upper(), format=fmt if under_systemd else "%(asctime)s " + fmt, force=True
+    )
+
+
+def fail(exc: BaseException | str, status: int) -> int:
+    """One line on stderr, ``portal-daq: REASON``; returns ``status``."""
+    sys.stderr.write(f"{PROG}: {exc}\n")
+    return status

@@ -1,0 +1,90 @@
+"""``portal-daq`` as a subcommand CLI: the help lists every subcommand, a wrong name gets
+a useful error, ``run --config`` and the bare ``--config`` form both run the service, and
+``replay | head`` ends quietly."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import can
+
+from daq.cli import SUBCOMMAND_MODULES, subcommands
+from dbc.encoding import FrameEncoder
+from tests.daq.service_support import leg_messages
+from tests.helpers import EXAMPLE_CONFIG, ROOT, example_machine
+
+#: The subcommands the README documents; others may add more, never fewer.
+DOCUMENTED = {"run", "replay", "report", "monitor", "dashboard"}
+
+
+def run_cli(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "daq", *args], capture_output=True, text=True, timeout=120, cwd=ROOT
+    )
+
+
+def test_help_lists_every_subcommand_with_its_summary() -> None:
+    result = run_cli("--help")
+    assert result.returncode == 0, result.stderr
+    commands = subcommands()
+    assert DOCUMENTED <= set(commands)
+    assert len(commands) == len(SUBCOMMAND_MODULES)  # one subcommand per module, no clash
+    listed = {line.split()[0]: line for line in result.stdout.splitlines() if line.strip()}
+    for command in commands.values():
+        assert command.summary in listed[command.name], result.stdout
+
+
+def test_every_subcommand_has_its_own_help() -> None:
+    for name in subcommands():
+        result = run_cli(name, "--help")
+        assert result.returncode == 0, (name, result.stderr)
+        assert result.stdout.startswith(f"usage: portal-daq {name}"), result.stdout
+
+
+def test_an_unknown_subcommand_names_the_valid_ones() -> None:
+    result = run_cli("bogus")
+    assert result.returncode == 2
+    assert "invalid choice: 'bogus'" in result.stderr
+    assert all(name in result.stderr for name in DOCUMENTED), result.stderr
+    assert "--config" not in result.stderr
+
+
+def test_no_arguments_is_a_usage_error() -> None:
+    result = run_cli()
+    assert result.returncode == 2 and "usage: portal-daq" in result.stderr
+
+
+def test_run_and_the_bare_form_both_read_the_config(tmp_path: Path) -> None:
+    path = tmp_path / "bad.toml"
+    path.write_text(EXAMPLE_CONFIG.read_text().replace("median_window = 11", "median_window = 4"))
+    for args in (("run", "--config", str(path)), ("--config", str(path))):
+        result = run_cli(*args)
+        assert result.returncode == 2, result.stderr
+        (line,) = result.stderr.strip().splitlines()
+        assert line.startswith(f"portal-daq: {path}: estimator.median_window"), line
+
+
+def test_replay_into_a_closed_pipe_ends_quietly(tmp_path: Path) -> None:
+    """``portal-daq replay X | head -1``: no "Broken pipe" message, status 141 like ``cat``."""
+    config, database = example_machine()
+    log = tmp_path / "long.log"
+    with can.Logger(str(log)) as logger:  # ~1 MB of CSV: far more than a pipe's buffer
+        for message in leg_messages(FrameEncoder(database, config.protection), 2000, 1.7e9):
+            message.channel = "can0"
+            logger.on_message_received(message)
+    process = subprocess.Popen(
+        [sys.executable, "-m", "daq", "replay", str(log), "--config", str(EXAMPLE_CONFIG)],
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    assert process.stdout is not None and process.stderr is not None
+    assert process.stdout.readline().startswith("leg,t,")
+    process.stdout.close()
+    with process.stderr:
+        stderr = process.stderr.read()
+    assert process.wait(timeout=120) == 141, stderr
+    assert stderr == ""
