@@ -46,7 +46,10 @@ def zenoh_config(settings: ZenohSettings, source: str = "") -> zenoh.Config:
         try:
             config = zenoh.Config.from_file(str(settings.config_file))
         except zenoh.ZError as exc:
-            raise ConfigError(settings.config_file, "", f"not a valid Zenoh config: {exc}") from exc
+            reason = _without_source_locations(str(exc))  # e.g. not UTF-8
+            raise ConfigError(
+                settings.config_file, "", f"not a valid Zenoh config: {reason}"
+            ) from exc
     else:
         config = zenoh.Config()
         overrides.update(SAFE_DEFAULTS)

@@ -80,6 +80,18 @@ def test_config_not_utf8_exits_2_naming_the_file(tmp_path: Path) -> None:
     assert_one_line_error(run_cli("--config", str(path)), 2, f"{path}: not UTF-8 (byte 0xf6")
 
 
+def test_zenoh_config_not_utf8_exits_2_naming_the_file(tmp_path: Path) -> None:
+    zenoh_file = tmp_path / "zenoh.json5"
+    zenoh_file.write_bytes('// Hydraulik\u00f6l\n{ mode: "peer" }\n'.encode("latin-1"))
+    path = write_service_config(tmp_path, port=free_port())
+    path.write_text(path.read_text().replace("[zenoh]\n", '[zenoh]\nconfig_file = "zenoh.json5"\n'))
+    result = run_cli("--config", str(path))
+    assert result.returncode == 2, result.stderr
+    last = result.stderr.strip().splitlines()[-1]  # after the start-up log lines
+    assert last.startswith(f"portal-daq: {zenoh_file}: not a valid Zenoh config: ")
+    assert "UTF-8" in last and ".rs:" not in last and "Traceback" not in result.stderr
+
+
 def test_unreadable_config_exits_2_naming_the_file(tmp_path: Path) -> None:
     # A directory: unreadable as a file even for root (chmod 000 is not, for root).
     assert_one_line_error(run_cli("--config", str(tmp_path)), 2, f"{tmp_path}: cannot read it")
