@@ -20,11 +20,11 @@ from pathlib import Path
 from typing import IO, Any, cast
 
 from mcap.records import Attachment, Channel, Footer, Header, Message, Metadata, Schema
-from mcap.stream_reader import StreamReader
 from mcap.writer import Writer
 
 from daq.errors import RecordingError
 from daq.mcap_file import COMPRESSION
+from daq.mcap_reading import RecordsToTheCut
 
 logger = logging.getLogger(__name__)
 
@@ -65,18 +65,10 @@ def recover(
     schemas: dict[int, int] = {0: 0}  # schema id 0: no schema
     channels: dict[int, int] = {}
     messages = attachments = metadata = 0
-    stopped_by: str | None = "no footer"
+    footer = False
     started = False
-    records = StreamReader(source, validate_crcs=True).records
-    while True:
-        try:
-            record = next(records)
-        except StopIteration:
-            break
-        # A cut file ends in many ways (EndOfFile, struct.error, a bad chunk): each is the cut.
-        except Exception as exc:  # noqa: BLE001
-            stopped_by = f"{type(exc).__name__}: {exc}".rstrip(": ")
-            break
+    records = RecordsToTheCut(source)
+    for record in records:
         if isinstance(record, Header):
             writer.start(profile=record.profile, library=record.library)
             started = True
@@ -108,10 +100,11 @@ def recover(
             writer.add_metadata(record.name, record.metadata)
             metadata += 1
         elif isinstance(record, Footer):
-            stopped_by = None
+            footer = True
     if not started:
         writer.start()
     writer.finish()  # type: ignore[no-untyped-call]
+    stopped_by = records.stopped_by or (None if footer else "no footer")
     return Recovered(messages, attachments, metadata, stopped_by)
 
 
