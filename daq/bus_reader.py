@@ -1,8 +1,10 @@
 """The reader thread: receives CAN frames and only enqueues them; reopens a lost bus.
 
-The bus is opened by a factory built in ``daq.__main__`` (python-can, from the
-``[bus]`` table), so the reader can reopen it. Its thread calls
-``bus.recv(timeout)`` and puts each frame, as a :class:`~daq.frames.RawFrame`,
+The bus is a frame source (:class:`FrameSource`) opened by a factory built in
+``daq.runner`` (on SocketCAN the service's own socket, :mod:`daq.socketcan`;
+for other interfaces and in tests a python-can bus in a
+:class:`PythonCanSource`), so the reader can reopen it. Its thread calls
+``source.recv(timeout)`` and puts each frame, as a :class:`~daq.frames.RawFrame`,
 into a bounded queue with ``put_nowait``: a full queue drops the frame and
 counts it (``dropped``); the reader never blocks on the consumer.
 
@@ -10,16 +12,24 @@ Bus states (:mod:`daq.frames`), each change queued as a :class:`BusEvent` in
 order with the frames:
 
 - ``up``: frames can arrive.
-- ``down``: the interface was set down (python-can raises ``CanOperationError``
-  with ``ENETDOWN``). The socket stays open and bound, so the first frame after
-  ``ip link set <if> up`` is received; the state returns to ``up`` with that
-  frame, or when the link probe sees the interface up.
+- ``down``: the interface was set down (``ENETDOWN``). The socket stays open and
+  bound, so the first frame after ``ip link set <if> up`` is received; the state
+  returns to ``up`` with that frame, or when the link probe sees the interface up.
 - ``absent``: the bus cannot be opened, or the interface went away (``ENODEV``);
   it is reopened with a backoff of 0.1 s doubling to :data:`BACKOFF_MAX_S`.
 
 Every return to ``up`` after ``down`` or ``absent`` carries
 ``reset_counters=True``: the consumer forgets the rolling counters, so the
 first frames after the gap are not flagged.
+
+Lost frames are queued as events too, in order, so that a recording shows where
+they went missing: one :class:`BusEvent` (state unchanged) with the frames the
+kernel dropped (``kernel_dropped``, its receive buffer was full: the source's
+``SO_RXQ_OVFL`` counter went up) and those the full queue dropped
+(``rx_dropped``) since the previous event. An event that finds the queue full
+waits, in order, until there is room (tried again at every frame and every
+receive timeout); frames meanwhile are dropped and counted, and no waiting
+event is ever replaced or lost.
 """
 
 import errno
@@ -27,8 +37,10 @@ import logging
 import queue
 import threading
 import time
+from collections import deque
 from collections.abc import Callable
 from pathlib import Path
+from typing import Protocol
 
 import can
 
@@ -43,7 +55,41 @@ logger = logging.getLogger(__name__)
 BACKOFF_MAX_S = 1.0
 BACKOFF_MIN_S = 0.1
 
-BusFactory = Callable[[], can.BusABC]
+
+class FrameSource(Protocol):
+    """Where the reader gets frames: an open bus."""
+
+    #: Frames the kernel dropped on this source since it was opened (0 if unknown).
+    kernel_dropped: int
+    #: The kernel receive buffer it got, bytes; None if not a kernel socket.
+    rcvbuf_bytes: int | None
+
+    def recv(self, timeout_s: float) -> RawFrame | None:
+        """The next frame, None after ``timeout_s``; raises ``OSError`` or python-can's
+        ``CanOperationError`` (with an errno) when the bus fails."""
+        ...
+
+    def shutdown(self) -> None: ...
+
+
+class PythonCanSource:
+    """A python-can bus as a :class:`FrameSource` (no kernel drop counter)."""
+
+    kernel_dropped = 0
+    rcvbuf_bytes: int | None = None
+
+    def __init__(self, bus: can.BusABC) -> None:
+        self.bus = bus
+
+    def recv(self, timeout_s: float) -> RawFrame | None:
+        message = self.bus.recv(timeout=timeout_s)
+        return None if message is None else _raw(message)
+
+    def shutdown(self) -> None:
+        self.bus.shutdown()
+
+
+BusFactory = Callable[[], FrameSource]
 #: True/False: the interface is up/down; None: unknown.
 LinkProbe = Callable[[], bool | None]
 Inbox = queue.Queue[RawFrame | BusEvent]
@@ -57,10 +103,15 @@ _HINTS = {
 }
 
 
+def _error_code(exc: BaseException) -> int | None:
+    code = getattr(exc, "error_code", None) or getattr(exc, "errno", None)
+    return code if isinstance(code, int) else None
+
+
 def bus_error(channel: str, exc: BaseException) -> BusError:
     """Translate python-can's or the OS's exception into a :class:`BusError` with a hint."""
-    code = getattr(exc, "error_code", None) or getattr(exc, "errno", None)
-    hint = _HINTS.get(code, "") if isinstance(code, int) else ""
+    code = _error_code(exc)
+    hint = _HINTS.get(code, "") if code is not None else ""
     reason = getattr(exc, "strerror", None) or str(exc) or type(exc).__name__
     return BusError(channel, reason, hint.format(channel=channel))
 
@@ -103,8 +154,14 @@ class BusReader(Worker):
         self._link_up = link_up
         self._recv_timeout_s = recv_timeout_s
         self._now = now
-        self._bus: can.BusABC | None = None
-        self._pending: BusEvent | None = None
+        self._bus: FrameSource | None = None
+        #: Events waiting for room in the queue, oldest first.
+        self._pending: deque[BusEvent] = deque()
+        #: Losses not yet queued as an event: by the kernel, by the full queue.
+        self._unreported_kernel = 0
+        self._unreported_rx = 0
+        #: The open source's kernel drop counter as last seen.
+        self._source_dropped = 0
         #: The bus was opened at least once (the service reports READY then).
         self.opened = threading.Event()
         self.state = BUS_CLOSED
@@ -112,6 +169,10 @@ class BusReader(Worker):
         #: Frames received from the bus, and those dropped because the queue was full.
         self.received = 0
         self.dropped = 0
+        #: Frames the kernel dropped (receive buffer full), over every socket opened.
+        self.kernel_dropped = 0
+        #: The kernel receive buffer of the open socket, bytes (None: not a kernel socket).
+        self.rcvbuf_bytes: int | None = None
         #: Times the bus was reopened after it went away.
         self.reopens = 0
         #: time.monotonic() of the thread's last loop turn (for the watchdog).
@@ -135,18 +196,20 @@ class BusReader(Worker):
                     backoff_s = min(2 * backoff_s, BACKOFF_MAX_S)
                 continue
             try:
-                message = self._bus.recv(timeout=self._recv_timeout_s)
-            except can.CanOperationError as exc:
+                frame = self._bus.recv(self._recv_timeout_s)
+            except (can.CanOperationError, OSError) as exc:
                 self._lost(exc)
                 continue
-            if message is None:
+            if frame is None:
                 if self.state == BUS_DOWN and self._link_up is not None and self._link_up():
                     self._set_state(BUS_UP, "interface up again", reset=True)
+                self._deliver_pending()
                 continue
             self.received += 1
+            self._count_kernel_drops(self._bus.kernel_dropped)
             if self.state != BUS_UP:
                 self._set_state(BUS_UP, "frames again", reset=True)
-            self._offer(_raw(message))
+            self._offer(frame)
 
     def _try_open(self) -> bool:
         try:
@@ -155,6 +218,8 @@ class BusReader(Worker):
             error = bus_error(self.channel, exc)
             self._set_state(BUS_ABSENT, str(error), log=logging.WARNING)
             return False
+        self._source_dropped = 0
+        self.rcvbuf_bytes = self._bus.rcvbuf_bytes
         first = not self.opened.is_set()
         self.opened.set()
         if not first:
@@ -162,14 +227,21 @@ class BusReader(Worker):
         self._set_state(BUS_UP, "opened" if first else "reopened", reset=not first)
         return True
 
-    def _lost(self, exc: can.CanOperationError) -> None:
+    def _lost(self, exc: BaseException) -> None:
         error = bus_error(self.channel, exc)
-        if exc.error_code == errno.ENETDOWN:
+        if _error_code(exc) == errno.ENETDOWN:
             # The socket stays bound: frames after the link returns are received.
             self._set_state(BUS_DOWN, str(error), log=logging.WARNING)
             return
         self._set_state(BUS_ABSENT, str(error), log=logging.WARNING)
         self._shutdown_bus()
+
+    def _count_kernel_drops(self, source_dropped: int) -> None:
+        increase = source_dropped - self._source_dropped
+        if increase > 0:
+            self._source_dropped = source_dropped
+            self.kernel_dropped += increase
+            self._unreported_kernel += increase
 
     def _set_state(
         self, state: str, reason: str, *, reset: bool = False, log: int = logging.INFO
@@ -180,22 +252,48 @@ class BusReader(Worker):
         self.state, self.reason = state, reason
         if changed:
             logger.log(log, "CAN bus %s: %s (%s)", self.channel, state, reason)
-            # An event still waiting for room keeps its reset request.
-            reset = reset or (self._pending is not None and self._pending.reset_counters)
-            self._pending = BusEvent(self._now(), state, reason, reset)
-            self._offer(None)
+            self._note_loss()  # frames lost so far went missing before this change
+            self._pending.append(BusEvent(self._now(), state, reason, reset))
+            self._deliver_pending()
 
-    def _offer(self, frame: RawFrame | None) -> None:
-        """Enqueue without blocking; a pending bus event goes first, and is never lost."""
+    def _note_loss(self) -> None:
+        """Queue the losses not yet reported as one event, behind the pending ones."""
+        kernel, rx = self._unreported_kernel, self._unreported_rx
+        if kernel or rx:
+            self._unreported_kernel = self._unreported_rx = 0
+            reason = f"{kernel + rx} frames lost: {kernel} by the kernel, {rx} by the queue"
+            self._pending.append(
+                BusEvent(self._now(), self.state, reason, kernel_dropped=kernel, rx_dropped=rx)
+            )
+
+    def _deliver_pending(self) -> bool:
+        """Queue waiting events, oldest first, then the unreported losses; True when none
+        is left waiting (a loss is noted only once what waits before it is queued, so
+        a full queue keeps at most one loss event waiting)."""
+        if not self._put_pending():
+            return False
+        self._note_loss()
+        return self._put_pending()
+
+    def _put_pending(self) -> bool:
+        pending = self._pending
         try:
-            if self._pending is not None:
-                self._inbox.put_nowait(self._pending)
-                self._pending = None
-            if frame is not None:
-                self._inbox.put_nowait(frame)
+            while pending:
+                self._inbox.put_nowait(pending[0])
+                pending.popleft()
         except queue.Full:
-            if frame is not None:
-                self.dropped += 1
+            return False
+        return True
+
+    def _offer(self, frame: RawFrame) -> None:
+        """Enqueue without blocking, behind the waiting events; a full queue drops it."""
+        try:
+            if not self._deliver_pending():
+                raise queue.Full
+            self._inbox.put_nowait(frame)
+        except queue.Full:
+            self.dropped += 1
+            self._unreported_rx += 1
 
     def _shutdown_bus(self) -> None:
         bus, self._bus = self._bus, None

@@ -23,6 +23,7 @@ SUBCOMMAND_MODULES = (
     "daq.recover_command",
     "daq.replay_command",
     "daq.report.command",
+    "daq.router",
     "daq.run_command",
 )
 

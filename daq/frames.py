@@ -22,6 +22,8 @@ class RawFrame:
     is_error_frame: bool = False
     #: A remote (RTR) frame; carries no data.
     is_remote_frame: bool = False
+    #: A CAN FD frame (up to 64 data bytes).
+    is_fd: bool = False
 
     @property
     def dlc(self) -> int:
@@ -37,6 +39,7 @@ def from_can_message(message: can.Message) -> RawFrame:
         data=bytes(message.data or b""),
         is_error_frame=bool(message.is_error_frame),
         is_remote_frame=bool(message.is_remote_frame),
+        is_fd=bool(message.is_fd),
     )
 
 
@@ -49,7 +52,7 @@ BUS_CLOSED = "closed"
 
 @dataclass(frozen=True, slots=True)
 class BusEvent:
-    """A change of the bus state, queued in order with the frames around it."""
+    """A change of the bus state, or a loss of frames, queued in order with the frames."""
 
     #: Wall-clock time of the change, Unix seconds.
     t_s: float
@@ -59,3 +62,8 @@ class BusEvent:
     #: Reception resumes after a gap: the consumer resets the rolling counters
     #: (and a replay of the recording does the same at the same place).
     reset_counters: bool = False
+    #: Frames lost just before this event, since the previous one: dropped by the
+    #: kernel (the socket's receive buffer was full) and by the reader (its queue
+    #: was full). An event that reports a loss keeps the state as it was.
+    kernel_dropped: int = 0
+    rx_dropped: int = 0

@@ -156,16 +156,19 @@ def raw_frame(result: FrameResult) -> JsonObject:
         "data": frame.data.hex(),
         "error_frame": frame.is_error_frame,
         "remote_frame": frame.is_remote_frame,
+        "fd": frame.is_fd,
         "error": result.error_kind,
         "reason": result.error.reason if result.error is not None else None,
     }
 
 
 def bus_event(event: BusEvent) -> JsonObject:
-    """MCAP ``/daq/bus``: a change of the bus state."""
+    """MCAP ``/daq/bus``: a change of the bus state, or frames lost."""
     return {
         "t": event.t_s,
         "state": event.state,
         "reason": event.reason,
         "reset_counters": event.reset_counters,
+        "kernel_dropped": event.kernel_dropped,
+        "rx_dropped": event.rx_dropped,
     }

@@ -156,6 +156,7 @@ def _item(record: RecordedMessage) -> RawFrame | BusEvent | None:
             data=bytes.fromhex(raw["data"]),
             is_error_frame=raw["error_frame"],
             is_remote_frame=raw["remote_frame"],
+            is_fd=raw.get("fd", False),  # recordings made before CAN FD lack it
         )
     if record.topic == BUS_TOPIC:
         event = json.loads(record.data)

@@ -5,27 +5,25 @@ passed into :class:`~daq.service.Service`.
 """
 
 import logging
-import socket
 from pathlib import Path
 
 import can
 from can.typechecking import CanFilter
 
-from daq.bus_reader import BusFactory, sysfs_link_probe
+from daq.bus_reader import BusFactory, FrameSource, PythonCanSource, sysfs_link_probe
 from daq.errors import RecordingError
 from daq.mcap_file import CONFIG_ATTACHMENT, DBC_ATTACHMENT
 from daq.recorder import Recorder
 from daq.sd_notify import SdNotifier
 from daq.service import Service
 from daq.service_config import BusSettings, ServiceConfig
+from daq.socketcan import SocketCanSource
+from daq.socketcan_wire import CAN_EFF_MASK, CAN_SFF_MASK
 from daq.stop_signal import Stop
 from daq.zenoh_session import open_session
 from dbc.decoding import FrameDecoder
 
 logger = logging.getLogger(__name__)
-
-CAN_SFF_MASK = 0x7FF
-CAN_EFF_MASK = 0x1FFFFFFF
 
 
 def kernel_filters(frame_ids: list[tuple[int, bool]]) -> list[CanFilter]:
@@ -41,42 +39,48 @@ def kernel_filters(frame_ids: list[tuple[int, bool]]) -> list[CanFilter]:
 
 
 def bus_factory(settings: BusSettings, frame_ids: list[tuple[int, bool]]) -> BusFactory:
-    """Opens the configured bus; kernel filters for ``frame_ids`` if ``kernel_filters``."""
-    filters = kernel_filters(frame_ids) if settings.kernel_filters else None
+    """Opens the configured bus; kernel filters for ``frame_ids`` if ``kernel_filters``.
 
-    def open_bus() -> can.BusABC:
+    SocketCAN is read through the service's own socket (:mod:`daq.socketcan`: FD
+    frames, forced receive buffer, kernel drop counter); any other interface
+    through python-can. A receive buffer smaller than ``receive_buffer_bytes``
+    is warned about once.
+    """
+    ids = frame_ids if settings.kernel_filters else None
+    warned = False
+
+    def open_socketcan() -> FrameSource:
+        nonlocal warned
+        source = SocketCanSource(
+            settings.channel,
+            receive_buffer_bytes=settings.receive_buffer_bytes,
+            receive_own_messages=settings.receive_own_messages,
+            frame_ids=ids,
+        )
+        source.open()
+        granted = source.rcvbuf_bytes or 0
+        if granted < settings.receive_buffer_bytes and not warned:
+            warned = True
+            logger.warning(
+                "the CAN socket's receive buffer is %d bytes, less than the %d asked for "
+                "([bus] receive_buffer_bytes): a stall may drop frames (counted on /status "
+                "as dropped.kernel); give the service CAP_NET_ADMIN or raise "
+                "net.core.rmem_max (deploy/sysctl/)",
+                granted,
+                settings.receive_buffer_bytes,
+            )
+        return source
+
+    def open_python_can() -> FrameSource:
         bus = can.Bus(
             interface=settings.interface,
             channel=settings.channel,
             receive_own_messages=settings.receive_own_messages,
-            can_filters=filters,
+            can_filters=kernel_filters(ids) if ids is not None else None,
         )
-        _enlarge_receive_buffer(bus)
-        return bus
+        return PythonCanSource(bus)
 
-    return open_bus
-
-
-#: Kernel receive buffer of the CAN socket: ~5,000 frames (a CAN skb takes ~800 bytes),
-#: half a second of a saturated bus, so a burst or a slow moment loses nothing.
-RECEIVE_BUFFER_BYTES = 4 * 1024 * 1024
-
-
-def _enlarge_receive_buffer(bus: can.BusABC) -> None:
-    sock = getattr(bus, "socket", None)
-    if not isinstance(sock, socket.socket):
-        return  # not SocketCAN (virtual bus in tests): nothing to size
-    # SO_RCVBUFFORCE passes net.core.rmem_max but needs CAP_NET_ADMIN; without it
-    # SO_RCVBUF gets as much as rmem_max allows.
-    for option in (getattr(socket, "SO_RCVBUFFORCE", None), socket.SO_RCVBUF):
-        if option is None:
-            continue
-        try:
-            sock.setsockopt(socket.SOL_SOCKET, option, RECEIVE_BUFFER_BYTES)
-            return
-        except OSError:
-            continue
-    logger.warning("could not enlarge the CAN socket's receive buffer")
+    return open_socketcan if settings.interface == "socketcan" else open_python_can
 
 
 def recording_attachments(config: ServiceConfig) -> dict[str, bytes]:

@@ -35,10 +35,11 @@ RAW_FRAME = _object(
         "data": {"type": "string", "description": "payload, hex"},
         "error_frame": {"type": "boolean"},
         "remote_frame": {"type": "boolean"},
+        "fd": {"type": "boolean", "description": "a CAN FD frame"},
         "error": {
             "type": ["string", "null"],
             "description": "why the frame could not be used: unknown_id, wrong_dlc, "
-            "decode_error, error_frame, remote_frame; null when it decoded",
+            "decode_error, fd_frame, error_frame, remote_frame; null when it decoded",
         },
         "reason": {"type": ["string", "null"]},
     },
@@ -69,6 +70,14 @@ BUS_EVENT = _object(
         "reset_counters": {
             "type": "boolean",
             "description": "reception resumed after a gap: rolling counters were reset",
+        },
+        "kernel_dropped": {
+            "type": "integer",
+            "description": "frames the kernel dropped just before (receive buffer full)",
+        },
+        "rx_dropped": {
+            "type": "integer",
+            "description": "frames the service's reader dropped just before (queue full)",
         },
     },
 )

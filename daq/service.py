@@ -23,9 +23,10 @@ least every 0.1 s, and stops turning only when it hangs on a frame.
 
 Healthy, on the status topic and STATUS= (:func:`problems`): alive, and during the
 last status period the recorder was recording, nothing was dropped anywhere (every
-key of ``dropped``), every configured Zenoh ``connect`` endpoint was reached, and
-frames came in (none for a whole period, or for the legs' stale time when that is
-longer, is a problem). ``problems`` lists what is wrong, one short text each.
+key of ``dropped``, ``dropped.kernel`` included), every configured Zenoh ``connect``
+endpoint was reached, and frames came in (none for a whole period, or for the legs'
+stale time when that is longer, is a problem). ``problems`` lists what is wrong, one
+short text each. None of these stops the watchdog (a restart would not help).
 """
 
 import logging
@@ -113,6 +114,8 @@ class Service:
         self._last_frame_monotonic = time.monotonic()
         self._dropped_mark: dict[str, int] = {}
         self._reported_problems: list[str] = []
+        #: The kernel drop count at the previous status (for the log line of a rise).
+        self._kernel_dropped_mark = 0
         self._started = False
         self._closed = False
 
@@ -211,6 +214,7 @@ class Service:
         self._rate_mark = (now, received)
         if received != mark_received:
             self._last_frame_monotonic = now
+        self._kernel_losses()  # logs a rise (with the buffer size); health: see problems()
         bad = dict(self.pipeline.bad)
         recorder = self.recorder
         status: JsonObject = {
@@ -222,6 +226,7 @@ class Service:
                 "state": self.reader.state,
                 "reason": self.reader.reason,
                 "reopens": self.reader.reopens,
+                "rcvbuf_bytes": self.reader.rcvbuf_bytes,
             },
             "frames_per_s": self._frames_per_s,
             "frames": {
@@ -229,7 +234,7 @@ class Service:
                 "processed": self.pipeline.frames,
                 "unknown": bad.get("unknown_id", 0),
                 "bad": sum(bad.values()),
-                "dropped": self.reader.dropped,
+                "dropped": self.reader.dropped + self.reader.kernel_dropped,
             },
             "bad": bad,
             "queues": {
@@ -238,6 +243,7 @@ class Service:
                 "record": recorder.depth if recorder is not None else 0,
             },
             "dropped": {
+                "kernel": self.reader.kernel_dropped,
                 "rx": self.reader.dropped,
                 "publish": self.publisher.dropped,
                 "record": recorder.dropped if recorder is not None else 0,
@@ -277,6 +283,19 @@ class Service:
         status["healthy"] = not found
         status["problems"] = found
         return status
+
+    def _kernel_losses(self) -> None:
+        """Frames the kernel dropped since the previous status; logs them (one line)."""
+        total = self.reader.kernel_dropped
+        lost, self._kernel_dropped_mark = total - self._kernel_dropped_mark, total
+        if lost:
+            logger.warning(
+                "%d frames lost in the kernel since the last status (%d in all): the CAN "
+                "socket's receive buffer (%s bytes) overflowed while the service stalled",
+                lost,
+                total,
+                self.reader.rcvbuf_bytes,
+            )
 
 
 def problems(

@@ -43,6 +43,12 @@ class BusSettings:
     #: Frames the reader thread may queue for the consumer; beyond, frames are dropped
     #: and counted (``dropped``).
     queue_size: int = 10_000
+    #: Kernel receive buffer of the SocketCAN socket: ~5,000 frames (a CAN frame takes
+    #: ~800 bytes there), half a second of a saturated bus, so a burst or a stall
+    #: loses nothing. Forced past ``net.core.rmem_max`` when the service may
+    #: (CAP_NET_ADMIN); a smaller buffer granted is warned about once and shown on
+    #: ``/status`` (``bus.rcvbuf_bytes``).
+    receive_buffer_bytes: int = 4 * 1024 * 1024
 
 
 @dataclass(frozen=True, slots=True)
@@ -179,7 +185,24 @@ def _bus(table: TomlTable) -> BusSettings:
         receive_own_messages=table.boolean("receive_own_messages", False),
         kernel_filters=table.boolean("kernel_filters", False),
         queue_size=_positive_int(table, "queue_size", defaults.queue_size),
+        receive_buffer_bytes=_receive_buffer(table, defaults.receive_buffer_bytes),
     )
+
+
+#: Bounds of ``[bus] receive_buffer_bytes``: a few frames, and what setsockopt takes.
+RECEIVE_BUFFER_MIN_BYTES = 1024
+RECEIVE_BUFFER_MAX_BYTES = 1024 * 1024 * 1024
+
+
+def _receive_buffer(table: TomlTable, default: int) -> int:
+    value = table.integer("receive_buffer_bytes", default)
+    if not RECEIVE_BUFFER_MIN_BYTES <= value <= RECEIVE_BUFFER_MAX_BYTES:
+        raise table.error(
+            "receive_buffer_bytes",
+            f"must be between {RECEIVE_BUFFER_MIN_BYTES} and {RECEIVE_BUFFER_MAX_BYTES}, "
+            f"got {value}",
+        )
+    return value
 
 
 def _zenoh(table: TomlTable, config_dir: Path, machine_id: str) -> ZenohSettings:

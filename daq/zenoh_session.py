@@ -27,7 +27,8 @@ DEFAULT_LISTEN = "tcp/127.0.0.1:7447"
 #: A put to a link that stays congested this long (µs) closes the link instead of
 #: stalling the publisher thread (below the watchdog's 2 s heartbeat limit).
 BLOCK_WAIT_BEFORE_CLOSE_US = 1_000_000
-#: Applied when there is no ``config_file`` (the explicit keys still win).
+#: Applied when there is no ``config_file`` (the explicit keys still win); a client
+#: listens nowhere, so it gets no listener.
 SAFE_DEFAULTS: dict[str, object] = {
     "listen/endpoints": [DEFAULT_LISTEN],
     "scouting/multicast/enabled": False,
@@ -46,13 +47,14 @@ def zenoh_config(settings: ZenohSettings, source: str = "") -> zenoh.Config:
         try:
             config = zenoh.Config.from_file(str(settings.config_file))
         except zenoh.ZError as exc:
-            reason = _without_source_locations(str(exc))  # e.g. not UTF-8
             raise ConfigError(
-                settings.config_file, "", f"not a valid Zenoh config: {reason}"
+                settings.config_file, "", f"not a valid Zenoh config: {one_line(str(exc))}"
             ) from exc
     else:
         config = zenoh.Config()
         overrides.update(SAFE_DEFAULTS)
+        if settings.mode == "client":
+            del overrides["listen/endpoints"]
     if settings.mode is not None:
         overrides["mode"] = settings.mode
     if settings.connect:
@@ -71,21 +73,32 @@ def zenoh_config(settings: ZenohSettings, source: str = "") -> zenoh.Config:
 
 def open_session(settings: ZenohSettings, source: str = "") -> zenoh.Session:
     """Open the session; a failure (e.g. the listen port is taken) is a ZenohError."""
-    config = zenoh_config(settings, source)
+    return open_config_session(
+        zenoh_config(settings, source),
+        "check [zenoh] listen/connect: is the port taken by another process, "
+        "is the address on this host?",
+    )
+
+
+def open_config_session(config: zenoh.Config, hint: str) -> zenoh.Session:
+    """Open a session on ``config``; a Zenoh error becomes a ZenohError with ``hint``."""
     try:
         return zenoh.open(config)
     except zenoh.ZError as exc:
-        raise ZenohError(
-            _without_source_locations(str(exc)) or "cannot open the session",
-            "check [zenoh] listen/connect: is the port taken by another process, "
-            "is the address on this host?",
-        ) from exc
+        first = (str(exc).strip().splitlines() or [""])[0]
+        raise ZenohError(one_line(first) or "cannot open the session", hint) from exc
 
 
-def _without_source_locations(message: str) -> str:
-    """Zenoh's errors end in `` at /root/.cargo/.../tcp.rs:61.``: noise for an operator."""
-    lines = message.strip().splitlines()
-    return re.sub(r"\s+at \S+\.rs:\d+\.?", "", lines[0]) if lines else ""
+def one_line(message: str) -> str:
+    """A Zenoh error on one line, without the noise of its source location for an operator
+    (`` at /root/.cargo/.../tcp.rs:61.``).
+
+    >>> one_line("bad --> 1:8\\n  |\\n  = expected array at /x/lib.rs:1486.")
+    'bad --> 1:8 = expected array'
+    """
+    lines = [line.strip() for line in message.strip().splitlines()]
+    text = " ".join(line for line in lines if line and line != "|")
+    return re.sub(r"\s+at \S+\.rs:\d+\.?", "", text)
 
 
 def config_value(config: zenoh.Config, key: str) -> Any:

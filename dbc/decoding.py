@@ -20,7 +20,7 @@ from cantools.database.namedsignalvalue import NamedSignalValue
 from crc import Crc8
 
 from dbc._compiled_codec import CompiledMessage, TableCrc8
-from dbc.errors import FrameLengthError, SignalDecodeError, UnknownFrameError
+from dbc.errors import FdFrameError, FrameLengthError, SignalDecodeError, UnknownFrameError
 from dbc.machine import Protection
 from dbc.protection import CounterCheck, payload_crc
 
@@ -129,10 +129,20 @@ class FrameDecoder:
         return sorted(self._codecs)
 
     def decode(
-        self, arbitration_id: int, data: bytes, t_s: float, is_extended_id: bool = False
+        self,
+        arbitration_id: int,
+        data: bytes,
+        t_s: float,
+        is_extended_id: bool = False,
+        is_fd: bool = False,
     ) -> DecodedFrame:
-        """Decode one frame; raises a :class:`~daq.errors.FrameError` subclass if unusable."""
+        """Decode one frame; raises a :class:`~daq.errors.FrameError` subclass if unusable.
+
+        An FD frame decodes only for a message the DBC defines as FD (else ``fd_frame``).
+        """
         codec = self._codecs.get((arbitration_id, is_extended_id))
+        if is_fd and (codec is None or not codec.message.is_fd):
+            raise FdFrameError(arbitration_id, "CAN FD frame of no FD message in the DBC")
         if codec is None:
             raise UnknownFrameError(arbitration_id, "ID not in the DBC")
         return codec.decode(arbitration_id, bytes(data), t_s)

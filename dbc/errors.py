@@ -13,6 +13,7 @@ own branches in :mod:`daq.errors`::
     │   ├── UnknownFrameError   its ID is not in the DBC
     │   ├── FrameLengthError    its DLC differs from the DBC's length
     │   ├── SignalDecodeError   cantools could not decode it
+    │   ├── FdFrameError        it is a CAN FD frame of a message the DBC does not define as FD
     │   ├── ErrorFrameError     it is a CAN error frame (bus fault report)
     │   └── RemoteFrameError    it is a remote (RTR) frame, which carries no data
     ├── BusError           (daq.errors) the CAN bus cannot be opened or read (retried)
@@ -81,6 +82,12 @@ class SignalDecodeError(FrameError):
     """cantools could not decode the frame's payload."""
 
     kind = "decode_error"
+
+
+class FdFrameError(FrameError):
+    """A CAN FD frame whose ID the DBC does not define as an FD message."""
+
+    kind = "fd_frame"
 
 
 class ErrorFrameError(FrameError):

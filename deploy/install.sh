@@ -11,6 +11,7 @@
 #   /etc/portal-daq/zenoh.json5          the Zenoh session configuration (kept if it exists)
 #   /etc/systemd/system/portal-daq.service
 #   /etc/systemd/network/80-can0.network (can0 at 500 kbit/s, bus-off restart)
+#   /etc/sysctl.d/90-portal-daq.conf     net.core.rmem_max for the CAN receive buffer
 #   /usr/lib/sysusers.d/portal-daq.conf  and the system user portal-daq (systemd-sysusers)
 #   the unit enabled (systemctl --root); started only when installing into / with --start.
 #
@@ -28,7 +29,7 @@ while [ $# -gt 0 ]; do
         --start) START=yes; shift ;;
         --with-vcan) VCAN=yes; shift ;;
         --pip-args) PIP_ARGS=$2; shift 2 ;;
-        -h|--help) sed -n '2,21p' "$0"; exit 0 ;;
+        -h|--help) sed -n '2,22p' "$0"; exit 0 ;;
         *) echo "install.sh: unknown option $1 (see --help)" >&2; exit 2 ;;
     esac
 done
@@ -60,9 +61,11 @@ if [ "$VCAN" = yes ]; then
         "$(at /etc/systemd/network/)"
 fi
 install -D -m 0644 "$SOURCE/deploy/systemd/portal-daq.sysusers" "$(at /usr/lib/sysusers.d/portal-daq.conf)"
+install -D -m 0644 "$SOURCE/deploy/sysctl/90-portal-daq.conf" "$(at /etc/sysctl.d/90-portal-daq.conf)"
 
 if [ "$ROOT" = / ]; then
     systemd-sysusers /usr/lib/sysusers.d/portal-daq.conf
+    sysctl -q -p /etc/sysctl.d/90-portal-daq.conf
     systemctl daemon-reload
     systemctl enable portal-daq.service
     [ "$START" = yes ] && systemctl restart systemd-networkd portal-daq.service

@@ -22,6 +22,7 @@ from types import FrameType
 from typing import IO, Any
 
 import can
+from can.io.generic import MessageWriter
 
 from dbc.encoding import FrameEncoder
 from dbc.errors import ConfigError, PortalDaqError
@@ -35,6 +36,10 @@ from sim_bridge.result import SimulationResult
 from sim_bridge.truth import CsvTruthWriter, McapTruthWriter, TruthSink, ZenohTruthPublisher
 
 logger = logging.getLogger("sim_bridge")
+
+#: python-can log formats ``--frames-log`` writes (by suffix) and ``portal-daq replay``
+#: reads back: candump text, Vector BLF, Vector ASC.
+FRAMES_LOG_SUFFIXES = (".log", ".blf", ".asc")
 
 
 def load_source(source: SourceOptions, config: MachineConfig) -> SimulationResult:
@@ -106,6 +111,21 @@ def _open_output(path: Path, mode: str) -> IO[Any]:
         if "b" in mode:
             return open(path, mode)
         return open(path, mode, newline="", encoding="utf-8")
+    except OSError as exc:
+        raise ConfigError(path, "", f"cannot write it: {exc.strerror or exc}") from exc
+
+
+def _open_frames_log(path: Path) -> MessageWriter:
+    """A python-can writer for ``path``, chosen by its suffix (see FRAMES_LOG_SUFFIXES)."""
+    if path.suffix.lower() not in FRAMES_LOG_SUFFIXES:
+        raise ConfigError(
+            path,
+            "",
+            f"--frames-log: no log format for {path.suffix or 'no suffix'!r}; "
+            f"use {', '.join(FRAMES_LOG_SUFFIXES)}",
+        )
+    try:
+        return can.Logger(path)
     except OSError as exc:
         raise ConfigError(path, "", f"cannot write it: {exc.strerror or exc}") from exc
 
@@ -196,6 +216,9 @@ def main(options: BridgeOptions) -> int:
         if options.truth_mcap is not None:
             stream = stack.enter_context(_open_output(options.truth_mcap, "wb"))
             sinks.append(stack.enter_context(McapTruthWriter(stream, legs)))
+        frames_log: can.Listener | None = None
+        if options.frames_log is not None:
+            frames_log = stack.enter_context(_open_frames_log(options.frames_log))
         if options.zenoh is not None:
             session = _open_zenoh(options.zenoh)
             stack.callback(session.close)
@@ -212,6 +235,7 @@ def main(options: BridgeOptions) -> int:
             truth_sinks=sinks,
             feet_m2=feet_m2,
             truth_every=options.truth_every,
+            frames_log=frames_log,
         )
         logger.info(
             "playing %s of %.2f s on %s %s",

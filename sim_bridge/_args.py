@@ -9,17 +9,22 @@ import argparse
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from importlib import resources
 from pathlib import Path
 
 from sim_bridge.faults import FaultConfig, FaultWindow
 
-DEFAULT_CONFIG = Path("deploy/machine.example.toml")
+#: The example machine configuration, shipped inside the ``dbc`` package next to its DBC
+#: (``deploy/machine.example.toml`` in the repository points to it), so the simulator
+#: runs from any directory and from an installed wheel. An on-disk install, as pip makes.
+DEFAULT_CONFIG = Path(str(resources.files("dbc").joinpath("machine.example.toml")))
 
 EPILOG = """\
 fault windows are in seconds of simulated time since the bridge started:
   TARGET@START:DURATION  e.g. --silent SB2_F3@12:1 (TARGET: a leg, or a message for
                          --freeze-counter/--silent); --pause START:DURATION, e.g. 30:1
-draw the cycle instead: python -m sim_bridge plot --out cycle.png (see plot --help)
+draw the cycle instead: portal-sim plot --out cycle.png (see plot --help);
+portal-sim is python -m sim_bridge
 """
 
 
@@ -67,6 +72,8 @@ class BridgeOptions:
     truth_mcap: Path | None = None
     #: Write every n-th simulation sample as truth.
     truth_every: int = 1
+    #: Also write every frame sent to this python-can log (.log, .blf, .asc); None: no.
+    frames_log: Path | None = None
     #: Publish truth on Zenoh with these options; None: do not.
     zenoh: ZenohOptions | None = None
 
@@ -133,7 +140,8 @@ def _add_source_arguments(parser: argparse.ArgumentParser) -> None:
         "--config",
         type=Path,
         default=DEFAULT_CONFIG,
-        help="machine configuration (legs, DBC signals, foot areas) [%(default)s]",
+        help="machine configuration (legs, DBC signals, foot areas) "
+        "[the packaged example, dbc/machine.example.toml]",
     )
     group.add_argument(
         "--rtol", type=_rtol, default=1e-5, help="model solver's relative tolerance [%(default)g]"
@@ -156,7 +164,7 @@ def _source(parser: argparse.ArgumentParser, args: argparse.Namespace) -> Source
 
 def run_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
-        prog="python -m sim_bridge",
+        prog="portal-sim",
         description="Play the simulated movement cycle onto a CAN bus, with ground truth.",
         epilog=EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -188,6 +196,13 @@ def run_parser() -> argparse.ArgumentParser:
         "--pause", type=_window(False), action="append", default=[], metavar="S:D",
         help="nothing sent",
     )  # fmt: skip
+    parser.add_argument(
+        "--frames-log",
+        type=Path,
+        metavar="FILE",
+        help="also write every frame sent to this python-can log: .log (candump), .blf or "
+        ".asc, for `portal-daq replay FILE --config ...`",
+    )
     truth = parser.add_argument_group("ground truth")
     truth.add_argument("--truth-csv", type=Path, metavar="PATH", help="write truth as CSV")
     truth.add_argument("--truth-mcap", type=Path, metavar="PATH", help="write truth as MCAP")
@@ -209,7 +224,7 @@ def run_parser() -> argparse.ArgumentParser:
 
 def plot_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
-        prog="python -m sim_bridge plot",
+        prog="portal-sim plot",
         description="Draw the cycle's contact pressure (kPa) and force (kN) per foot to a PNG.",
     )
     parser.add_argument("--out", type=Path, required=True, metavar="FILE.png")
@@ -278,6 +293,7 @@ def parse_args(argv: Sequence[str]) -> tuple[BridgeOptions | PlotOptions, argpar
         truth_csv=args.truth_csv,
         truth_mcap=args.truth_mcap,
         truth_every=args.truth_every,
+        frames_log=args.frames_log,
         zenoh=zenoh,
     )
     return options, args

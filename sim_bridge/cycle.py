@@ -4,12 +4,14 @@ Pure functions of the cycle time ``t_s`` (scalars or numpy arrays). Every motion
 cosine-smoothed ramp between two set-points, so velocities start and end at zero:
 
 - move carriage:  t = 2..7 s, over SB2 -> over SB1; then on to the counterweight
-  position behind SB1 while SB2 is lifted (t = 8..12 s);
+  position behind SB1 while SB2 is lifted (t = 7.5..10.5 s); back over SB1 once SB2's
+  feet touch down (t = 43..44.5 s), so all six feet carry the load again;
 - fold:           t = 8..12 s inclination lifts SB2's feet, t = 14..18 s SB2's legs fold
   up (retract), t = 18..23 s the bridge folds (PT1-filtered command, hard stop at 23 s);
 - rotate:         t = 23..32 s the bridge turns 180 deg, from between SB1_F2/F3 to over SB1_F1;
 - unfold:         t = 32.5..39.5 s the bridge unfolds, t = 38..44 s SB2's legs extend
-  while the bridge is lowered; all six feet are down again at t = 44 s.
+  while the bridge is lowered; all six feet are down again at t = 44 s and, with the
+  carriage back over SB1, share the load as at t = 7 s (paper, section 2.1).
 """
 
 import math
@@ -41,11 +43,16 @@ def ramp_rate(t_s: npt.ArrayLike, start_s: float, end_s: float) -> FloatArray:
 
 
 def carriage_m(t_s: npt.ArrayLike, p: ModelParams) -> FloatArray:
-    """Carriage position from SB1's axis towards SB2."""
+    """Carriage position from SB1's axis towards SB2.
+
+    It leaves the counterweight position only after SB2's feet touch down (~43.2 s):
+    earlier, the centre of gravity would pass SB1_F1 and tip the machine over it.
+    """
     return (
         p.carriage_start_m
         + (p.carriage_over_sb1_m - p.carriage_start_m) * ramp(t_s, 2.0, 7.0)
-        + (p.carriage_counterweight_m - p.carriage_over_sb1_m) * ramp(t_s, 7.5, 10.5)
+        + (p.carriage_counterweight_m - p.carriage_over_sb1_m)
+        * (ramp(t_s, 7.5, 10.5) - ramp(t_s, 43.0, 44.5))
     )
 
 
@@ -97,7 +104,7 @@ def phase_index(t_s: npt.ArrayLike) -> npt.NDArray[np.int_]:
     """Index into sim_bridge.result.PHASES: idle, move_carriage, fold, rotate, unfold."""
     t = np.asarray(t_s, dtype=np.float64)
     return np.select(
-        [t < 2.0, t < 7.0, t < 8.0, t < 23.0, t < 32.5, t < 44.0],
-        [0, 1, 0, 2, 3, 4],
+        [t < 2.0, t < 7.0, t < 8.0, t < 23.0, t < 32.5, t < 44.0, t < 44.5],
+        [0, 1, 0, 2, 3, 4, 1],
         default=0,
     )

@@ -7,8 +7,12 @@ the monotonic ``clock``, so a late frame never delays the ones after it. With
 ``as_fast_as_possible`` nothing sleeps (benchmarks).
 
 The **frame time** of an instant is the Unix time (``wall_clock`` at the start, plus the
-monotonic time elapsed since) just before its first frame is sent; it stamps the
+monotonic time elapsed since) just before its first frame is sent, to the microsecond
+(as SocketCAN stamps frames, and as a candump log keeps them); it stamps the
 ``can.Message`` and the ground-truth sample of that simulation time.
+
+Every frame the bus took is also handed to ``frames_log`` (a python-can listener, e.g.
+``can.Logger("cycle.log")``) when given: a log that ``portal-daq replay`` plays back.
 
 A send the bus refuses (``can.CanError``, e.g. a full transmit queue) is counted and
 logged, never fatal. :meth:`Emitter.stop` (safe from a signal handler) ends the run
@@ -91,6 +95,7 @@ class Emitter:
         truth_sinks: Sequence[TruthSink] = (),
         feet_m2: Mapping[str, float] | None = None,
         truth_every: int = 1,
+        frames_log: can.Listener | None = None,
         clock: Callable[[], float] = time.monotonic,
         wall_clock: Callable[[], float] = time.time,
         sleep: Callable[[float], None] = time.sleep,
@@ -107,6 +112,7 @@ class Emitter:
         self._truth_sinks = tuple(truth_sinks)
         self._feet_m2 = dict(feet_m2 or {})
         self._truth_every = truth_every
+        self._frames_log = frames_log
         self._clock = clock
         self._wall_clock = wall_clock
         self._sleep = sleep
@@ -138,7 +144,7 @@ class Emitter:
             position, outgoing = self._playout.frames(instant)
             if not self._afap:
                 self._wait_until(instant.due_s, stats)
-            t_unix_s = self._clock() + unix_offset_s
+            t_unix_s = round(self._clock() + unix_offset_s, 6)
             for item in outgoing:
                 self._send(item.message, item.frame, t_unix_s, stats)
             stats.sim_time_s = instant.sim_t_ns / NS_PER_S
@@ -170,18 +176,19 @@ class Emitter:
     def _send(
         self, message: str, frame: EncodedFrame, t_unix_s: float, stats: EmitterStats
     ) -> None:
+        sent = can.Message(
+            timestamp=t_unix_s,
+            arbitration_id=frame.arbitration_id,
+            is_extended_id=frame.is_extended_id,
+            data=frame.data,
+        )
         try:
-            self._bus.send(
-                can.Message(
-                    timestamp=t_unix_s,
-                    arbitration_id=frame.arbitration_id,
-                    is_extended_id=frame.is_extended_id,
-                    data=frame.data,
-                )
-            )
+            self._bus.send(sent)
         except can.CanError as exc:
             stats.send_errors[message] += 1
             if sum(stats.send_errors.values()) == 1:
                 logger.warning("the bus refused a %s frame: %s (counting the rest)", message, exc)
         else:
             stats.sent[message] += 1
+            if self._frames_log is not None:
+                self._frames_log.on_message_received(sent)

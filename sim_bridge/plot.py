@@ -2,9 +2,10 @@
 
 Two panels over the cycle time: the contact pressure of each foot in kPa (force / foot
 area) and the vertical ground force of each foot in kN, SB1's feet solid, SB2's dashed,
-the movement phases shaded. The values are the simulation's true foot forces; a leg
-without them (an external input without a force column) is drawn from its chamber
-pressures through eq. (4) instead, and its label says so.
+one colour and marker per foot (markers staggered, later feet thinner, so feet with
+equal loads stay visible), the movement phases shaded. The values are the simulation's
+true foot forces; a leg without them (an external input without a force column) is
+drawn from its chamber pressures through eq. (4) instead, and its label says so.
 
 Drawn with matplotlib's object API on the Agg canvas (no pyplot state, no display).
 """
@@ -23,6 +24,7 @@ from estimator.geometry import LegGeometry
 from sim_bridge.result import LEGS, PHASES, FloatArray, SimulationResult
 
 COLOURS = ("tab:blue", "tab:orange", "tab:green")
+MARKERS = ("o", "s", "^")
 
 
 def foot_forces_N(
@@ -56,7 +58,10 @@ def cycle_figure(
         style = {
             "color": COLOURS[column % 3],
             "linestyle": "-" if column < 3 else "--",
-            "linewidth": 1.2,
+            "linewidth": 1.8 - 0.4 * (column % 3),
+            "marker": MARKERS[column % 3],
+            "markersize": 4,
+            "markevery": (0.1 * column / len(LEGS), 0.1),
             "label": leg if is_true else f"{leg} (eq. 4)",
         }
         pressure_axes.plot(t_s, force_N / geometries[leg].A_foot_m2 / 1e3, **style)

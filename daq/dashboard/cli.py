@@ -1,5 +1,8 @@
 """``portal-daq dashboard --config FILE [--http HOST:PORT] [--allow-host NAME] [--duration S] ...``.
 
+``portal-daq dashboard --fleet --connect ROUTER [--mode client] [--root portal]``
+serves the fleet page instead (:mod:`daq.dashboard.fleet`).
+
 Exit status: 0 after SIGINT/SIGTERM or ``--duration``; 2 for a bad config or
 ``--http`` (one line on stderr); 1 when the Zenoh session or the HTTP address
 cannot be had.
@@ -9,8 +12,16 @@ import argparse
 import sys
 from collections.abc import Sequence
 
-from daq.dashboard.server import Dashboard
-from daq.live.command import add_viewer_arguments, fail, load_viewer, setup_logging
+from daq.dashboard.fleet import FleetDashboard
+from daq.dashboard.server import Dashboard, HubServer
+from daq.live.command import (
+    FleetViewer,
+    add_viewer_arguments,
+    fail,
+    load_fleet,
+    load_viewer,
+    setup_logging,
+)
 from daq.live.session import open_viewer_session
 from daq.stop_signal import StopSignal
 from daq.subcommand import Subcommand
@@ -45,21 +56,27 @@ def dashboard_main(args: Sequence[str]) -> int:
     options = parser.parse_args(args)
     setup_logging(options.log_level)
     try:
-        viewer = load_viewer(options)
+        viewer = load_fleet(options) if options.fleet else load_viewer(options)
         address = http_address(options.http)
     except (ConfigError, DbcError) as exc:
         return fail(COMMAND, exc, 2)
     try:
-        with (
-            StopSignal() as stop,
-            open_viewer_session(viewer.zenoh) as session,
-            Dashboard(
-                session, viewer.config, address, allowed_hosts=options.allow_host
-            ) as dashboard,
-        ):
-            sys.stdout.write(f"dashboard of {viewer.config.prefix} on {dashboard.url}\n")
-            sys.stdout.flush()
-            stop.wait(options.duration)
+        with StopSignal() as stop, open_viewer_session(viewer.zenoh) as session:
+            dashboard: HubServer
+            if isinstance(viewer, FleetViewer):
+                dashboard = FleetDashboard(
+                    session, viewer.settings, address, allowed_hosts=options.allow_host
+                )
+                what = f"fleet {viewer.settings.prefix}"
+            else:
+                dashboard = Dashboard(
+                    session, viewer.config, address, allowed_hosts=options.allow_host
+                )
+                what = viewer.config.prefix
+            with dashboard:
+                sys.stdout.write(f"dashboard of {what} on {dashboard.url}\n")
+                sys.stdout.flush()
+                stop.wait(options.duration)
     except PortalDaqError as exc:
         return fail(COMMAND, exc, 1)
     return 0

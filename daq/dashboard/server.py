@@ -28,42 +28,48 @@ import time
 from collections.abc import Callable, Iterable
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from importlib import resources
-from typing import Any, cast
+from typing import Any, Self, cast
 from urllib.parse import parse_qs, urlsplit
 
 import zenoh
 
 from daq.dashboard.api import history_document, latest_document
 from daq.dashboard.history import PressureHistory
-from daq.live.feed import LiveFeed, apply_item
+from daq.live.feed import Item, LiveFeed, apply_item
 from daq.live.state import LiveState
 from daq.live.viewer import ViewerConfig
-from daq.payloads import json_bytes
+from daq.payloads import JsonObject, json_bytes
 from dbc.errors import PortalDaqError
 
 logger = logging.getLogger(__name__)
 
 PAGE = "static/index.html"
+#: The hub thread checks for ``close`` this often while no payload comes.
+HUB_WAIT_S = 0.1
 #: Host names always accepted in the ``Host`` header.
 LOCAL_HOSTS = ("localhost", "127.0.0.1", "::1")
 _WILDCARDS = ("", "0.0.0.0", "::")
-#: The hub thread checks for ``close`` this often while no payload comes.
-HUB_WAIT_S = 0.1
 
 
-class Dashboard:
-    """Serves ``viewer``'s service on ``address`` (host, port; port 0: any free one)."""
+#: (HTTP status, content type, body) of a GET.
+Response = tuple[int, str, bytes]
+
+
+class HubServer:
+    """What every dashboard shares: a feed drained by one hub thread, an HTTP server.
+
+    Subclasses say what an item does (:meth:`_apply`, called under :attr:`_lock`)
+    and what a GET returns (:meth:`respond`, which takes the lock itself).
+    """
 
     def __init__(
         self,
-        session: zenoh.Session,
-        viewer: ViewerConfig,
+        feed: LiveFeed,
         address: tuple[str, int],
         *,
         allowed_hosts: Iterable[str] = (),
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
-        self.viewer = viewer
         self.address = address
         #: Host names accepted in a request's ``Host`` header (lower case).
         self.allowed_hosts = frozenset(
@@ -71,18 +77,15 @@ class Dashboard:
             for name in (*LOCAL_HOSTS, *allowed_hosts, address[0])
             if name not in _WILDCARDS
         )
-        self.feed = LiveFeed(session, viewer.prefix, clock=clock)
+        self.feed = feed
         self._clock = clock
-        self._state = LiveState(viewer.prefix)
-        self._history = PressureHistory(viewer.legs)
         self._lock = threading.Lock()
         self._stop = threading.Event()
         self._server: _Server | None = None
         self._threads: list[threading.Thread] = []
-        self._page = b""
         self._closed = False
 
-    def __enter__(self) -> "Dashboard":
+    def __enter__(self) -> Self:
         self.start()
         return self
 
@@ -102,10 +105,6 @@ class Dashboard:
         """Bind the HTTP address, subscribe, start the threads; PortalDaqError when it cannot."""
         if self._server is not None:
             return
-        try:
-            self._page = resources.files("daq.dashboard").joinpath(PAGE).read_bytes()
-        except OSError as exc:
-            raise PortalDaqError(f"dashboard page {PAGE} missing: reinstall portal-daq") from exc
         host, port = self.address
         try:
             self._server = _Server((host, port), _Handler, self)
@@ -140,24 +139,13 @@ class Dashboard:
             thread.join()
         self.feed.close()
 
-    def page(self) -> bytes:
-        return self._page
+    def respond(self, path: str, query: dict[str, list[str]]) -> Response:
+        """The answer to ``GET path?query`` (HTTP threads)."""
+        raise NotImplementedError
 
-    def latest(self) -> bytes:
-        with self._lock:
-            document = latest_document(
-                self.viewer,
-                self._state,
-                self._clock(),
-                dropped=self.feed.dropped,
-                missed=self.feed.missed,
-            )
-        return json_bytes(document)
-
-    def history(self, since_s: float | None, generation: int | None) -> bytes:
-        with self._lock:
-            document = history_document(self._history, since_s, generation)
-        return json_bytes(document)
+    def _apply(self, item: Item) -> None:
+        """Apply one feed item (hub thread, under the lock)."""
+        raise NotImplementedError
 
     def _hub(self) -> None:
         while not self._stop.is_set():
@@ -165,20 +153,95 @@ class Dashboard:
             if item is None:
                 continue
             with self._lock:
-                before = self._state.ground
-                apply_item(self._state, item)
-                ground = self._state.ground
-                if ground is not None and ground is not before:
-                    self._history.add(ground.value)
+                self._apply(item)
+
+
+def page(name: str) -> bytes:
+    """A page of ``static/``; PortalDaqError when the installation lacks it."""
+    try:
+        return resources.files("daq.dashboard").joinpath(name).read_bytes()
+    except OSError as exc:
+        raise PortalDaqError(f"dashboard page {name} missing: reinstall portal-daq") from exc
+
+
+def html(body: bytes) -> Response:
+    return 200, "text/html; charset=utf-8", body
+
+
+def json_response(document: JsonObject, code: int = 200) -> Response:
+    return code, "application/json", json_bytes(document)
+
+
+def not_found(path: str) -> Response:
+    return json_response({"error": f"no route {path}"}, 404)
+
+
+def history_query(query: dict[str, list[str]]) -> tuple[float | None, int | None]:
+    """``since`` and ``generation`` of ``/api/history``; None when missing or malformed."""
+    return _number(query, "since", float), _number(query, "generation", int)
+
+
+class Dashboard(HubServer):
+    """Serves ``viewer``'s service on ``address`` (host, port; port 0: any free one)."""
+
+    def __init__(
+        self,
+        session: zenoh.Session,
+        viewer: ViewerConfig,
+        address: tuple[str, int],
+        *,
+        allowed_hosts: Iterable[str] = (),
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
+        feed = LiveFeed(session, viewer.prefix, clock=clock)
+        super().__init__(feed, address, allowed_hosts=allowed_hosts, clock=clock)
+        self.viewer = viewer
+        self._state = LiveState(viewer.prefix)
+        self._history = PressureHistory(viewer.legs)
+        self._page = b""
+
+    def start(self) -> None:
+        self._page = page(PAGE)
+        super().start()
+
+    def latest(self) -> JsonObject:
+        with self._lock:
+            return latest_document(
+                self.viewer,
+                self._state,
+                self._clock(),
+                dropped=self.feed.dropped,
+                missed=self.feed.missed,
+            )
+
+    def history(self, since_s: float | None, generation: int | None) -> JsonObject:
+        with self._lock:
+            return history_document(self._history, since_s, generation)
+
+    def respond(self, path: str, query: dict[str, list[str]]) -> Response:
+        if path in ("/", "/index.html"):
+            return html(self._page)
+        if path == "/api/latest":
+            return json_response(self.latest())
+        if path == "/api/history":
+            return json_response(self.history(*history_query(query)))
+        return not_found(path)
+
+    def _apply(self, item: Item) -> None:
+        before = self._state.ground
+        apply_item(self._state, item)
+        ground = self._state.ground
+        if ground is not None and ground is not before:
+            self._history.add(ground.value)
 
 
 class _Server(ThreadingHTTPServer):
     daemon_threads = True
 
     def __init__(
-        self, address: tuple[str, int], handler: type[BaseHTTPRequestHandler], dashboard: Dashboard
+        self, address: tuple[str, int], handler: type[BaseHTTPRequestHandler], hub: HubServer
     ) -> None:
-        self.dashboard = dashboard
+        self.hub = hub
         if ":" in address[0]:
             self.address_family = socket.AF_INET6
         super().__init__(address, handler)
@@ -188,22 +251,13 @@ class _Handler(BaseHTTPRequestHandler):
     server_version = "portal-daq-dashboard"
 
     def do_GET(self) -> None:
-        dashboard = cast(_Server, self.server).dashboard
+        hub = cast(_Server, self.server).hub
         url = urlsplit(self.path)
-        if not host_allowed(self.headers.get("Host"), dashboard.allowed_hosts):
+        if not host_allowed(self.headers.get("Host"), hub.allowed_hosts):
             error = "Host not allowed (see portal-daq dashboard --allow-host)"
-            self._send(403, "application/json", json_bytes({"error": error}))
-        elif url.path in ("/", "/index.html"):
-            self._send(200, "text/html; charset=utf-8", dashboard.page())
-        elif url.path == "/api/latest":
-            self._send(200, "application/json", dashboard.latest())
-        elif url.path == "/api/history":
-            query = parse_qs(url.query)
-            since = _number(query, "since", float)
-            generation = _number(query, "generation", int)
-            self._send(200, "application/json", dashboard.history(since, generation))
+            self._send(*json_response({"error": error}, 403))
         else:
-            self._send(404, "application/json", json_bytes({"error": f"no route {url.path}"}))
+            self._send(*hub.respond(url.path, parse_qs(url.query)))
 
     def _send(self, code: int, content_type: str, body: bytes) -> None:
         self.send_response(code)

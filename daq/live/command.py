@@ -1,6 +1,7 @@
 """Command-line plumbing shared by ``portal-daq monitor`` and ``portal-daq dashboard``.
 
 Both read the service's config file (prefix, legs, pressure limit, ``[zenoh]``),
+or with ``--fleet`` show every machine found on a router (:mod:`daq.live.fleet`),
 take the same Zenoh overrides, stop cleanly on SIGINT/SIGTERM (exit 0), and
 report a bad config in one line with exit status 2 (see :mod:`daq.cli`).
 """
@@ -13,9 +14,11 @@ from pathlib import Path
 
 import zenoh
 
+from daq.live.fleet import DEFAULT_ROOT, FleetSettings
 from daq.live.session import viewer_zenoh_config
 from daq.live.viewer import ViewerConfig, viewer_config
-from daq.service_config import load_service_config
+from daq.service_config import ZenohSettings, load_service_config
+from dbc.errors import ConfigError
 
 PROG = "portal-daq"
 
@@ -32,8 +35,21 @@ def add_viewer_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--config",
         type=Path,
-        required=True,
-        help="the service's TOML file (key prefix, legs, pressure limit, [zenoh])",
+        help="the service's TOML file (key prefix, legs, pressure limit, [zenoh]); "
+        "required but with --fleet",
+    )
+    fleet = parser.add_argument_group(
+        "fleet", "every machine found on a site router through its liveliness token"
+    )
+    fleet.add_argument(
+        "--fleet",
+        action="store_true",
+        help="show every machine under --root (connect to the router with --connect)",
+    )
+    fleet.add_argument(
+        "--root",
+        default=DEFAULT_ROOT,
+        help=f"machines are <root>/<machine id> [{DEFAULT_ROOT}]",
     )
     parser.add_argument(
         "--duration", type=_positive, metavar="S", help="stop after S seconds (default: run)"
@@ -55,8 +71,18 @@ def add_viewer_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
+@dataclass(frozen=True)
+class FleetViewer:
+    """A fleet view's settings and the Zenoh configuration of its session (not open yet)."""
+
+    settings: FleetSettings
+    zenoh: zenoh.Config
+
+
 def load_viewer(options: argparse.Namespace) -> Viewer:
     """Read the config; raises ConfigError or DbcError (exit status 2)."""
+    if options.config is None:
+        raise ConfigError("--config", "", "required (or --fleet)")
     config = load_service_config(options.config)
     settings = viewer_zenoh_config(
         config.zenoh,
@@ -66,6 +92,35 @@ def load_viewer(options: argparse.Namespace) -> Viewer:
         source=config.source,
     )
     return Viewer(viewer_config(config), settings)
+
+
+def load_fleet(options: argparse.Namespace) -> FleetViewer:
+    """The fleet view's settings: from ``--config`` when given (its ``[zenoh]``, pressure
+    limit and status period), else defaults with multicast scouting off (``--connect``
+    says where the router is). Raises ConfigError or DbcError (exit status 2)."""
+    if not options.config and not options.connect:
+        raise ConfigError("--fleet", "", "needs --connect ROUTER_ENDPOINT (or --config)")
+    zenoh_settings = ZenohSettings(multicast_scouting=False)
+    settings = FleetSettings(options.root)
+    source = "--fleet"
+    if options.config is not None:
+        config = load_service_config(options.config)
+        viewer = viewer_config(config)
+        zenoh_settings, source = config.zenoh, config.source
+        settings = FleetSettings(
+            options.root,
+            pressure_limit_Pa=viewer.pressure_limit_Pa,
+            status_stale_s=viewer.status_stale_s,
+            ground_stale_s=viewer.ground_stale_s,
+        )
+    session = viewer_zenoh_config(
+        zenoh_settings,
+        mode=options.mode,
+        connect=options.connect,
+        listen=options.listen,
+        source=source,
+    )
+    return FleetViewer(settings, session)
 
 
 def setup_logging(level: str) -> None:

@@ -10,6 +10,12 @@ numbers and heartbeats. Callbacks run on Zenoh's threads and only put
 ``(key, payload, received_s)`` into a bounded queue (full: dropped and counted).
 The viewer's one consumer thread drains it into a :class:`~daq.live.state.LiveState`
 with :meth:`LiveFeed.drain`.
+
+The prefix may hold a wildcard (``portal/*``: every machine, the fleet views).
+With ``liveliness=True`` the feed also follows the services' liveliness tokens
+(``<prefix>/alive``, the ones present at start included): an item with
+``alive`` True when a token appears, False when it goes (the service stopped,
+or its session's lease expired).
 """
 
 import logging
@@ -21,7 +27,7 @@ from typing import Any, NamedTuple
 import zenoh
 import zenoh.ext
 
-from daq.live.state import SUFFIXES, LiveState
+from daq.live.state import ALIVE, SUFFIXES, LiveState
 
 logger = logging.getLogger(__name__)
 
@@ -36,6 +42,8 @@ class Item(NamedTuple):
     payload: bytes
     #: ``clock()`` (monotonic seconds) when the callback ran.
     received_s: float
+    #: A liveliness change of the token ``key`` (no payload); None for data.
+    alive: bool | None = None
 
 
 class LiveFeed:
@@ -48,9 +56,11 @@ class LiveFeed:
         *,
         queue_size: int = 2000,
         clock: Callable[[], float] = time.monotonic,
+        liveliness: bool = False,
     ) -> None:
         self.session = session
         self.prefix = prefix
+        self.liveliness = liveliness
         self._clock = clock
         self._queue: queue.Queue[Item] = queue.Queue(maxsize=queue_size)
         self._entities: list[Any] = []
@@ -82,6 +92,12 @@ class LiveFeed:
             )
             self._entities.append(subscriber.sample_miss_listener(self._on_miss))
             self._entities.append(subscriber)
+        if self.liveliness:
+            self._entities.append(
+                self.session.liveliness().declare_subscriber(
+                    f"{self.prefix}/{ALIVE}", self._on_token, history=True
+                )
+            )
 
     def close(self) -> None:
         """Undeclare the subscribers (the session stays open: its owner closes it). Idempotent."""
@@ -113,7 +129,13 @@ class LiveFeed:
             return None
 
     def _on_sample(self, sample: zenoh.Sample) -> None:
-        item = Item(str(sample.key_expr), sample.payload.to_bytes(), self._clock())
+        self._enqueue(Item(str(sample.key_expr), sample.payload.to_bytes(), self._clock()))
+
+    def _on_token(self, sample: zenoh.Sample) -> None:
+        alive = sample.kind == zenoh.SampleKind.PUT
+        self._enqueue(Item(str(sample.key_expr), b"", self._clock(), alive))
+
+    def _enqueue(self, item: Item) -> None:
         try:
             self._queue.put_nowait(item)
         except queue.Full:

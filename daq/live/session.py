@@ -22,9 +22,8 @@ from typing import Any
 
 import zenoh
 
-from daq.errors import ZenohError
 from daq.service_config import ZenohSettings
-from daq.zenoh_session import config_value, endpoints, zenoh_config
+from daq.zenoh_session import config_value, endpoints, open_config_session, zenoh_config
 from dbc.errors import ConfigError
 
 #: The viewer's own listener when none is given.
@@ -88,11 +87,6 @@ def viewer_zenoh_config(
 
 def open_viewer_session(config: zenoh.Config) -> zenoh.Session:
     """Open the session; a failure (e.g. ``--listen`` on a taken port) is a ZenohError."""
-    try:
-        return zenoh.open(config)
-    except zenoh.ZError as exc:
-        first = (str(exc).strip().splitlines() or ["cannot open the session"])[0]
-        raise ZenohError(
-            re.sub(r"\s+at \S+\.rs:\d+\.?", "", first),
-            "check --connect/--listen/--mode and [zenoh]: is the service's address right?",
-        ) from exc
+    return open_config_session(
+        config, "check --connect/--listen/--mode and [zenoh]: is the service's address right?"
+    )

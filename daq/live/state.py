@@ -26,6 +26,8 @@ T = TypeVar("T")
 #: The keys a viewer subscribes to, relative to the service's prefix.
 GROUND, STATUS, METRICS = "ground", "status", "metrics"
 SUFFIXES = (GROUND, STATUS, METRICS)
+#: The service's liveliness token (no payload: it exists while the service runs).
+ALIVE = "alive"
 
 
 @dataclass(frozen=True, slots=True)
@@ -57,6 +59,9 @@ class GroundReading:
     residual_N: float | None
     legs_in_contact: int | None
     complete: bool
+    #: ``stability.margin_m`` when the service publishes it: signed distance (m) from the
+    #: centre of pressure to the nearest support-polygon edge; None when absent or null.
+    stability_margin_m: float | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -128,15 +133,6 @@ class LiveState:
     def key(self, suffix: str) -> str:
         return f"{self.prefix}/{suffix}"
 
-    def holds(self, key: str) -> bool:
-        """Whether a value for ``key`` is held already."""
-        held = {
-            self.key(GROUND): self.ground,
-            self.key(STATUS): self.status,
-            self.key(METRICS): self.metrics,
-        }
-        return held.get(key) is not None
-
     def apply(self, key: str, payload: bytes, received_s: float) -> bool:
         """Take one payload received on ``key``; False (and counted) when unusable.
 
@@ -193,6 +189,7 @@ def parse_ground(data: Mapping[str, Any]) -> GroundReading:
         residual_N=_number(data, "residual_N"),
         legs_in_contact=None if count is None else int(count),
         complete=data.get("complete") is True,
+        stability_margin_m=_number(_table(data, "stability"), "margin_m"),
     )
 
 

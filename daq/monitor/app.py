@@ -1,9 +1,11 @@
 """The monitor's loops: curses full screen, or one plain line per second. Thin I/O only.
 
-Both drain the :class:`~daq.live.feed.LiveFeed` into a
-:class:`~daq.live.state.LiveState` and hand it to :mod:`daq.monitor.view`;
-they end when ``stop`` is set (SIGINT/SIGTERM), after ``duration_s``, or on
-``q`` in the curses screen.
+Both drain the :class:`~daq.live.feed.LiveFeed` into a view's state and draw it:
+:class:`MachineView` (one service: :class:`~daq.live.state.LiveState`,
+:mod:`daq.monitor.view`) or :class:`FleetView` (every machine on a router:
+:class:`~daq.live.fleet.FleetState`, :mod:`daq.monitor.fleet_view`). They end
+when ``stop`` is set (SIGINT/SIGTERM), after ``duration_s``, or on ``q`` in the
+curses screen.
 """
 
 import curses
@@ -11,11 +13,13 @@ import locale
 import os
 import time
 from collections.abc import Callable
-from typing import TextIO
+from typing import Protocol, TextIO
 
 from daq.live.feed import LiveFeed
+from daq.live.fleet import FleetSettings, FleetState
 from daq.live.state import LiveState
 from daq.live.viewer import ViewerConfig
+from daq.monitor.fleet_view import fleet_plain_line, fleet_render
 from daq.monitor.view import ALARM, DIM, OK, TITLE, WARN, Line, plain_line, render
 from daq.stop_signal import Stop
 
@@ -25,9 +29,53 @@ REFRESH_S = 0.25
 PLAIN_PERIOD_S = 1.0
 
 
+class View(Protocol):
+    """What the loops draw: a state fed from the feed, as a screen or one line."""
+
+    def drain(self) -> None: ...
+    def render(self, now_s: float) -> list[Line]: ...
+    def plain(self, now_s: float, wall_s: float) -> str: ...
+
+
+class MachineView:
+    """One service's view (``portal-daq monitor --config FILE``)."""
+
+    def __init__(self, viewer: ViewerConfig, feed: LiveFeed) -> None:
+        self.viewer = viewer
+        self.feed = feed
+        self.state = LiveState(viewer.prefix)
+
+    def drain(self) -> None:
+        self.feed.drain(self.state)
+
+    def render(self, now_s: float) -> list[Line]:
+        return render(self.viewer, self.state, now_s)
+
+    def plain(self, now_s: float, wall_s: float) -> str:
+        return plain_line(self.viewer, self.state, now_s, wall_s)
+
+
+class FleetView:
+    """Every machine's view (``portal-daq monitor --fleet``); the feed follows liveliness."""
+
+    def __init__(self, settings: FleetSettings, feed: LiveFeed) -> None:
+        self.settings = settings
+        self.feed = feed
+        self.fleet = FleetState(settings)
+
+    def drain(self) -> None:
+        while (item := self.feed.wait(0.0)) is not None:
+            self.fleet.apply(item)
+
+    def render(self, now_s: float) -> list[Line]:
+        return fleet_render(self.settings, self.fleet.summaries(now_s))
+
+    def plain(self, now_s: float, wall_s: float) -> str:
+        return fleet_plain_line(self.fleet.summaries(now_s), wall_s)
+
+
 def run_curses(
-    viewer: ViewerConfig,
-    feed: LiveFeed,
+    view: View,
     stop: Stop,
     *,
     duration_s: float | None = None,
@@ -44,10 +92,9 @@ def run_curses(
         _hide_cursor()
         tones = _tones()
         screen.timeout(int(REFRESH_S * 1000))
-        state = LiveState(viewer.prefix)
         while not stop.is_set() and (deadline is None or time.monotonic() < deadline):
-            feed.drain(state)
-            _draw(screen, render(viewer, state, time.monotonic()), tones)
+            view.drain()
+            _draw(screen, view.render(time.monotonic()), tones)
             if screen.getch() in (ord("q"), ord("Q")):
                 break
 
@@ -55,8 +102,7 @@ def run_curses(
 
 
 def run_plain(
-    viewer: ViewerConfig,
-    feed: LiveFeed,
+    view: View,
     stop: Stop,
     out: TextIO,
     *,
@@ -70,7 +116,6 @@ def run_plain(
     With ``duration_s`` it returns at ``start + duration_s``: ``--duration 3`` writes
     three lines, ``--duration 2.5`` two.
     """
-    state = LiveState(viewer.prefix)
     start = clock()
     deadline = None if duration_s is None else start + duration_s
     tick = 0
@@ -82,8 +127,8 @@ def run_plain(
             return
         if stop.wait(max(0.0, due - clock())):
             return
-        feed.drain(state)
-        out.write(plain_line(viewer, state, clock(), wall()) + "\n")
+        view.drain()
+        out.write(view.plain(clock(), wall()) + "\n")
         out.flush()
 
 

@@ -1,5 +1,8 @@
 """``portal-daq monitor --config FILE [--plain] [--duration S] [--connect EP] ...``.
 
+``portal-daq monitor --fleet --connect ROUTER [--plain]``: every machine on a router
+(one row each; :mod:`daq.monitor.fleet_view`).
+
 Exit status: 0 after SIGINT/SIGTERM, ``q``, or ``--duration``; 2 for a bad
 config (one line on stderr); 1 when the Zenoh session cannot be opened.
 """
@@ -8,10 +11,20 @@ import argparse
 import sys
 from collections.abc import Sequence
 
-from daq.live.command import add_viewer_arguments, fail, load_viewer, setup_logging
+import zenoh
+
+from daq.live.command import (
+    FleetViewer,
+    Viewer,
+    add_viewer_arguments,
+    fail,
+    load_fleet,
+    load_viewer,
+    setup_logging,
+)
 from daq.live.feed import LiveFeed
 from daq.live.session import open_viewer_session
-from daq.monitor.app import run_curses, run_plain
+from daq.monitor.app import FleetView, MachineView, View, run_curses, run_plain
 from daq.stop_signal import StopSignal
 from daq.subcommand import Subcommand
 from dbc.errors import ConfigError, DbcError, PortalDaqError
@@ -32,24 +45,31 @@ def monitor_main(args: Sequence[str]) -> int:
     options = parser.parse_args(args)
     setup_logging(options.log_level)
     try:
-        viewer = load_viewer(options)
+        viewer = load_fleet(options) if options.fleet else load_viewer(options)
     except (ConfigError, DbcError) as exc:
         return fail(COMMAND, exc, 2)
     if not options.plain and not sys.stdout.isatty():
         return fail(COMMAND, "standard output is not a terminal: use --plain", 2)
     try:
-        with (
-            StopSignal() as stop,
-            open_viewer_session(viewer.zenoh) as session,
-            LiveFeed(session, viewer.config.prefix) as feed,
-        ):
-            if options.plain:
-                run_plain(viewer.config, feed, stop, sys.stdout, duration_s=options.duration)
-            else:
-                run_curses(viewer.config, feed, stop, duration_s=options.duration)
+        with StopSignal() as stop, open_viewer_session(viewer.zenoh) as session:
+            feed, view = feed_and_view(viewer, session)
+            with feed:
+                if options.plain:
+                    run_plain(view, stop, sys.stdout, duration_s=options.duration)
+                else:
+                    run_curses(view, stop, duration_s=options.duration)
     except PortalDaqError as exc:
         return fail(COMMAND, exc, 1)
     return 0
+
+
+def feed_and_view(viewer: Viewer | FleetViewer, session: zenoh.Session) -> tuple[LiveFeed, View]:
+    """The feed (not started) and the view it feeds: one service, or every machine."""
+    if isinstance(viewer, FleetViewer):
+        feed = LiveFeed(session, viewer.settings.prefix, liveliness=True)
+        return feed, FleetView(viewer.settings, feed)
+    feed = LiveFeed(session, viewer.config.prefix)
+    return feed, MachineView(viewer.config, feed)
 
 
 SUBCOMMAND = Subcommand(COMMAND, "live terminal view of the service, from Zenoh", monitor_main)

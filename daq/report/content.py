@@ -1,18 +1,24 @@
-"""What a report says about one recording: cycles, metrics, deviations; and line gaps.
+"""What a report says about one recording: cycles, metrics, deviations; time axis, gaps.
 
 Pure: :func:`analyse` turns a :class:`~daq.report.tracks.Recording` into a
 :class:`ReportContent`, which the figures (:mod:`daq.report.figures`) and the page
 (:mod:`daq.report.page`) only draw.
+
+Times shown: with ``MACHINE_STATE`` in the recording, the machine's time in cycle (as
+the paper's figures; a cycle played at half speed still spans its 45 s); without it,
+seconds since the first frame. The header keeps the wall-clock times.
 """
 
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
+from datetime import UTC, datetime
 
 import numpy as np
 
 from daq.report.cycles import (
     Cycle,
+    CycleClock,
     CycleMetrics,
     PhaseSpan,
     cycle_metrics,
@@ -36,6 +42,36 @@ GAP_PERIODS = 3.0
 
 
 @dataclass(frozen=True)
+class TimeAxis:
+    """Frame time (Unix s) -> the time the report shows."""
+
+    #: The recording's first frame time.
+    start_t_s: float
+    #: Time in cycle from ``MACHINE_STATE``; None: seconds since ``start_t_s``.
+    clock: CycleClock | None
+
+    def __call__(self, t_s: FloatArray) -> FloatArray:
+        if self.clock is not None:
+            return self.clock(t_s)
+        return np.asarray(t_s, dtype=np.float64) - self.start_t_s
+
+    def at(self, t_s: float) -> float:
+        """One time; NaN stays NaN."""
+        return float(self(np.array([t_s]))[0])
+
+    @property
+    def in_cycle(self) -> bool:
+        return self.clock is not None
+
+    @property
+    def label(self) -> str:
+        if self.clock is not None:
+            return "time in cycle / s (MACHINE_STATE)"
+        start = datetime.fromtimestamp(self.start_t_s, UTC)
+        return f"time since {start:%Y-%m-%d %H:%M:%S} UTC / s"
+
+
+@dataclass(frozen=True)
 class ReportContent:
     """Everything the report shows, computed."""
 
@@ -49,11 +85,15 @@ class ReportContent:
     #: Leg -> a step between two estimates longer than this is a gap (and, in the
     #: metrics, adds at most this to the time above the limit).
     gap_after_s: Mapping[str, float]
-    #: Only with truth in the recording: leg -> matched samples, and their statistics.
+    #: Only with truth in the recording: leg -> matched samples, and the statistics of
+    #: their stance (foot on the ground) and swing samples.
     comparisons: Mapping[str, LegComparison]
     deviations: Mapping[str, DeviationStats]
-    #: The leg with the highest mean true force (for Figure 5), if any.
+    swing_deviations: Mapping[str, DeviationStats]
+    #: The leg with the highest mean true stance force (for Figure 5), if any.
     most_loaded: str | None
+    #: The times shown in the pictures and tables.
+    time: TimeAxis
 
 
 def gap_after_s(recording: Recording) -> dict[str, float]:
@@ -84,8 +124,11 @@ def analyse(recording: Recording) -> ReportContent:
     )
     comparisons = {}
     if len(recording.truth):
-        comparisons = compare(recording.legs, recording.truth, settings.median_window)
+        comparisons = compare(
+            recording.legs, recording.truth, settings.median_window, settings.contact_on_N
+        )
     deviations = {leg: deviation_stats(c) for leg, c in comparisons.items()}
+    clock = CycleClock.of(recording.state, cycles) if len(recording.state) else None
     return ReportContent(
         recording=recording,
         settings=settings,
@@ -95,7 +138,9 @@ def analyse(recording: Recording) -> ReportContent:
         gap_after_s=gaps,
         comparisons=comparisons,
         deviations=deviations,
+        swing_deviations={leg: deviation_stats(c, stance=False) for leg, c in comparisons.items()},
         most_loaded=most_loaded(deviations),
+        time=TimeAxis(recording.start_t_s, clock),
     )
 
 
@@ -120,5 +165,25 @@ def with_gaps(
     midpoints = (t_s[breaks - 1] + t_s[breaks]) / 2
     return (
         np.insert(t_s, breaks, midpoints).astype(np.float64),
+        np.insert(shown, breaks, np.nan).astype(np.float64),
+    )
+
+
+def on_axis(
+    time: TimeAxis, t_s: FloatArray, values: FloatArray, valid: BoolArray | None, gap_after_s: float
+) -> tuple[FloatArray, FloatArray]:
+    """:func:`with_gaps`, then the times as ``time`` shows them, broken (a NaN point)
+    wherever the shown time runs backwards: at a new cycle, lines start afresh.
+
+    >>> import numpy as np
+    >>> x, v = on_axis(TimeAxis(10.0, None), np.array([10.0, 11.0]), np.ones(2), None, 5.0)
+    >>> x.tolist(), v.tolist()
+    ([0.0, 1.0], [1.0, 1.0])
+    """
+    t, shown = with_gaps(t_s, values, valid, gap_after_s)
+    x = time(t)
+    breaks = np.flatnonzero(np.diff(x) < 0) + 1
+    return (
+        np.insert(x, breaks, np.nan).astype(np.float64),
         np.insert(shown, breaks, np.nan).astype(np.float64),
     )

@@ -168,3 +168,62 @@ def cycle_metrics(
         for cycle in cycles
         for leg, track in tracks.items()
     ]
+
+
+@dataclass(frozen=True)
+class CycleClock:
+    """Frame time -> time in cycle, from the ``MACHINE_STATE`` frames of each cycle.
+
+    Between two state frames of a cycle the time in cycle is interpolated linearly (so a
+    cycle played at half speed maps onto the machine's own seconds); before the first
+    and after the last it runs on at the cycle's mean rate (1 with a single frame). A
+    cycle without state frames (the part of the recording before the first) runs at 1
+    from its start.
+    """
+
+    cycles: tuple[Cycle, ...]
+    #: Per cycle: its state frames' times and times in cycle, and the rate between them.
+    frame_t_s: tuple[FloatArray, ...]
+    cycle_time_s: tuple[FloatArray, ...]
+    rate: tuple[float, ...]
+
+    @classmethod
+    def of(cls, state: StateTrack, cycles: Sequence[Cycle]) -> "CycleClock":
+        frames, times, rates = [], [], []
+        usable = np.isfinite(state.cycle_time_s)
+        for cycle in cycles:
+            inside = cycle.contains(state.t_s) & usable
+            t_s, time_s = state.t_s[inside], state.cycle_time_s[inside]
+            span_s = float(t_s[-1] - t_s[0]) if t_s.size > 1 else 0.0
+            rate = float(time_s[-1] - time_s[0]) / span_s if span_s > 0 else 1.0
+            frames.append(t_s)
+            times.append(time_s)
+            rates.append(rate if rate > 0 else 1.0)
+        return cls(tuple(cycles), tuple(frames), tuple(times), tuple(rates))
+
+    def __call__(self, t_s: FloatArray) -> FloatArray:
+        """The time in cycle of each frame time (NaN outside every cycle).
+
+        >>> import numpy as np
+        >>> state = StateTrack(np.array([100.0, 102.0, 104.0]), np.array([0, 0, 0]),
+        ...                    np.array([1.0, 2.0, 3.0]), ("idle",) * 3)
+        >>> clock = CycleClock.of(state, [Cycle(0, 98.0, 110.0, final=True)])
+        >>> clock(np.array([98.0, 101.0, 104.0, 106.0])).tolist()
+        [0.0, 1.5, 3.0, 4.0]
+        """
+        t = np.asarray(t_s, dtype=np.float64)
+        out = np.full(t.shape, np.nan)
+        for cycle, frames, times, rate in zip(
+            self.cycles, self.frame_t_s, self.cycle_time_s, self.rate, strict=True
+        ):
+            inside = cycle.contains(t)
+            if frames.size == 0:
+                out[inside] = (t[inside] - cycle.start_s) * rate
+                continue
+            here = t[inside]
+            mapped = np.interp(here, frames, times)
+            before, after = here < frames[0], here > frames[-1]
+            mapped[before] = times[0] - (frames[0] - here[before]) * rate
+            mapped[after] = times[-1] + (here[after] - frames[-1]) * rate
+            out[inside] = mapped
+        return out

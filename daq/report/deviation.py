@@ -16,6 +16,11 @@ valid samples later (the last ``h`` frames have none and are left out). The valu
 published at the frame's own time, by whichever filter was configured (running median
 or Hampel), is kept too (:attr:`LegComparison.published_N`), to show what the live
 filter costs.
+
+The paper's comparison is about feet on the ground. A sample is *stance* when its true
+force is above the estimator's contact threshold (``contact_on_N``), else *swing* (the
+leg lifted or folded: its cylinder pressures then carry the leg's own inertia and the
+cylinder friction, nothing eq. (4) models). The statistics are taken over each apart.
 """
 
 import math
@@ -25,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from daq.report.tracks import FloatArray, LegTrack, TruthTrack
+from daq.report.tracks import BoolArray, FloatArray, LegTrack, TruthTrack
 from estimator.median import running_median
 
 IntArray = npt.NDArray[np.intp]
@@ -75,6 +80,8 @@ class LegComparison:
     #: The configured filter's value as published at the frame's time (the running
     #: median lags by h samples).
     published_N: FloatArray
+    #: The foot was on the ground: true force above the contact threshold.
+    stance: BoolArray
 
     @property
     def deviation_N(self) -> FloatArray:
@@ -107,10 +114,10 @@ class DeviationStats:
 
 
 def compare_leg(
-    track: LegTrack, truth: TruthTrack, tolerance_s: float, median_window: int
+    track: LegTrack, truth: TruthTrack, tolerance_s: float, median_window: int, contact_N: float
 ) -> LegComparison:
     """``track``'s valid estimates matched to ``truth`` (see the module docstring);
-    ``median_window`` is the running median's N."""
+    ``median_window`` is the running median's N, ``contact_N`` the stance threshold."""
     lag = (median_window - 1) // 2
     usable = np.flatnonzero(
         track.valid & np.isfinite(track.force_N) & np.isfinite(track.force_raw_N)
@@ -133,34 +140,42 @@ def compare_leg(
         calculated_N=centred[later],
         true_N=true_N[known],
         published_N=track.force_N[frames],
+        stance=np.asarray(true_N[known] > contact_N, dtype=np.bool_),
     )
 
 
 def compare(
-    tracks: Mapping[str, LegTrack], truth: TruthTrack, median_window: int
+    tracks: Mapping[str, LegTrack], truth: TruthTrack, median_window: int, contact_N: float
 ) -> dict[str, LegComparison]:
-    """Every leg that has truth, matched within half the truth's sample period."""
+    """Every leg that has truth, matched within half the truth's sample period; stance
+    where the true force is above ``contact_N``."""
     tolerance_s = sample_period_s(truth.t_s) / 2
     if not math.isfinite(tolerance_s):
         tolerance_s = 0.0  # one truth sample: only an estimate at the same instant
     return {
-        leg: compare_leg(track, truth, tolerance_s, median_window)
+        leg: compare_leg(track, truth, tolerance_s, median_window, contact_N)
         for leg, track in tracks.items()
         if leg in truth.force_true_N
     }
 
 
-def deviation_stats(comparison: LegComparison) -> DeviationStats:
-    """The statistics of one leg's deviation; NaN when nothing matched.
+def deviation_stats(comparison: LegComparison, stance: bool = True) -> DeviationStats:
+    """The statistics of one leg's deviation over its stance (or swing) samples; NaN
+    when there are none.
 
     >>> import numpy as np
     >>> zero = np.zeros(6)
     >>> calculated = np.array([-3.0, -1, 0, 2, 4, 10])
-    >>> s = deviation_stats(LegComparison("L", zero, calculated, zero, zero))
-    >>> (s.median_N, s.mean_N, s.abs50_N, s.abs95_N, s.max_abs_N)
-    (1.0, 2.0, 2.5, 8.5, 10.0)
+    >>> on_ground = np.array([True] * 5 + [False])
+    >>> c = LegComparison("L", zero, calculated, zero, zero, on_ground)
+    >>> s = deviation_stats(c)
+    >>> (s.samples, s.median_N, s.mean_N, s.abs50_N, s.abs95_N, s.max_abs_N)
+    (5, 0.0, 0.4, 2.0, 3.8, 4.0)
+    >>> deviation_stats(c, stance=False).max_abs_N
+    10.0
     """
-    deviation = comparison.deviation_N
+    use = comparison.stance if stance else ~comparison.stance
+    deviation = comparison.deviation_N[use]
     if deviation.size == 0:
         nan = math.nan
         return DeviationStats(comparison.leg, 0, nan, nan, nan, nan, nan, nan, nan)
@@ -173,8 +188,8 @@ def deviation_stats(comparison: LegComparison) -> DeviationStats:
         abs50_N=float(np.quantile(magnitude, 0.5)),
         abs95_N=float(np.quantile(magnitude, 0.95)),
         max_abs_N=float(np.max(magnitude)),
-        mean_true_N=float(np.mean(comparison.true_N)),
-        published_abs95_N=float(np.quantile(np.abs(comparison.published_deviation_N), 0.95)),
+        mean_true_N=float(np.mean(comparison.true_N[use])),
+        published_abs95_N=float(np.quantile(np.abs(comparison.published_deviation_N[use]), 0.95)),
     )
 
 

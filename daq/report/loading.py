@@ -6,6 +6,10 @@ the pure :class:`~daq.report.tracks.RecordingCollector`. A recording rotated int
 several files is given as its files or their directory; the files of one run are
 read in the order of the run (:mod:`daq.recording_run`).
 
+A file that is not MCAP, or a recording that holds neither CAN frames nor leg estimates
+(e.g. only the simulator's truth), has nothing to report:
+:class:`~daq.errors.RecordingError`.
+
 The machine configuration comes from ``config_path`` when given, else from the first
 file's embedded attachments; without either, the report still draws what was recorded (with
 the estimator's default settings). A recording without leg estimates but with
@@ -19,10 +23,12 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import IO
 
+from mcap.writer import MCAP0_MAGIC
+
 from daq.errors import RecordingError
 from daq.mcap_reading import RecordedAttachment, RecordedMessage, RecordingStream
 from daq.payloads import leg_ground
-from daq.recording_run import run_files
+from daq.recording_run import expand, run_files
 from daq.replay import Machine, embedded_machine, run_estimates
 from daq.report.tracks import Recording, RecordingCollector
 from dbc.errors import ConfigError, DbcError
@@ -51,6 +57,17 @@ def _open(path: Path) -> IO[bytes]:
         raise RecordingError(path, f"cannot open it: {exc.strerror or exc}") from exc
 
 
+def _check_magic(path: Path) -> None:
+    """RecordingError unless ``path`` starts like an MCAP file."""
+    with _open(path) as stream:
+        try:
+            start = stream.read(len(MCAP0_MAGIC))
+        except OSError as exc:
+            raise RecordingError(path, f"cannot read it: {exc.strerror or exc}") from exc
+    if start != MCAP0_MAGIC:
+        raise RecordingError(path, "not an MCAP file (a service recording is .mcap)")
+
+
 def load_recording(paths: Path | Sequence[Path], config_path: Path | None = None) -> Recording:
     """Read a recording (a file, or the files or directory of one run) into a
     :class:`Recording`.
@@ -59,7 +76,10 @@ def load_recording(paths: Path | Sequence[Path], config_path: Path | None = None
     :class:`~daq.errors.ConfigError` / :class:`~daq.errors.DbcError` (a bad
     ``config_path``, or estimates to recompute without any configuration).
     """
-    files = run_files([paths] if isinstance(paths, Path) else paths)
+    given = [paths] if isinstance(paths, Path) else paths
+    for path in expand(given):
+        _check_magic(path)
+    files = run_files(given)
     first = files[0]
     machine: Machine | None = load_machine_config(config_path) if config_path else None
     collector = RecordingCollector()
@@ -74,8 +94,13 @@ def load_recording(paths: Path | Sequence[Path], config_path: Path | None = None
                 elif isinstance(record, RecordedMessage):
                     collector.add(record.topic, record.data)
         complete = complete and reader.complete
-    if collector.frames == 0 and not collector.has_estimates and not attachments:
-        logger.warning("%s holds no frames and no estimates of the service", first)
+    if collector.frames == 0 and not collector.has_estimates:
+        truth = f" ({collector.truth_samples} simulation truth samples only)"
+        raise RecordingError(
+            first if len(files) == 1 else first.parent,
+            "holds no CAN frames (/can/raw) and no leg estimates: nothing to report"
+            + (truth if collector.truth_samples else ""),
+        )
     if machine is None and attachments:
         try:
             machine = embedded_machine(attachments, first)

@@ -30,9 +30,9 @@ CYCLE_COUNT = "Machine_CycleCount"
 CYCLE_TIME = "Machine_CycleTime"
 PHASE = "Machine_Phase"
 
-#: (t, force_N, pressure_Pa, valid, force_raw_N), (t, count, cycle time, phase),
+#: (t, force_N, pressure_Pa, valid, force_raw_N, contact), (t, count, cycle time, phase),
 #: (t, {leg: force}).
-LegRow = tuple[float, float, float, bool, float]
+LegRow = tuple[float, float, float, bool, float, bool]
 StateRow = tuple[float, int, float, str]
 TruthRow = tuple[float, dict[str, float]]
 
@@ -61,6 +61,9 @@ class LegTrack:
     valid: BoolArray
     #: Eq. (4) on each sample alone, unfiltered.
     force_raw_N: FloatArray
+    #: The estimator's contact decision (hysteresis on ``force_N``): off the ground, a
+    #: foot has no soil pressure, whatever eq. (5) gives.
+    contact: BoolArray
 
     @staticmethod
     def row(payload: Mapping[str, Any]) -> LegRow:
@@ -71,12 +74,13 @@ class LegTrack:
             _number(payload["pressure_Pa"]),
             bool(payload["valid"]),
             _number(payload["force_raw_N"]),
+            bool(payload["contact"]),
         )
 
     @classmethod
     def of(cls, leg: str, rows: Iterable[LegRow]) -> "LegTrack":
         ordered = sorted(rows, key=lambda row: row[0])
-        columns = list(zip(*ordered, strict=True)) if ordered else [(), (), (), (), ()]
+        columns = list(zip(*ordered, strict=True)) if ordered else [()] * 6
         return cls(
             leg=leg,
             t_s=np.array(columns[0], dtype=np.float64),
@@ -84,6 +88,7 @@ class LegTrack:
             pressure_Pa=np.array(columns[2], dtype=np.float64),
             valid=np.array(columns[3], dtype=np.bool_),
             force_raw_N=np.array(columns[4], dtype=np.float64),
+            contact=np.array(columns[5], dtype=np.bool_),
         )
 
 
@@ -182,6 +187,10 @@ class RecordingCounts:
     #: Bus state changes (``/daq/bus``) and truth samples (``/sim/truth``).
     bus_events: int = 0
     truth_samples: int = 0
+    #: Frames lost before the service could handle them, as its ``/daq/bus`` loss
+    #: events tell: by the kernel (socket receive buffer full) and by its queue.
+    kernel_dropped: int = 0
+    rx_dropped: int = 0
     #: Gaps in the recording (``/daq/recording``: recording stopped on a write error)
     #: and the seconds they lost.
     recording_gaps: int = 0
@@ -226,6 +235,7 @@ class RecordingCollector:
         self._bad: Counter[str] = Counter()
         self._invalid: Counter[str] = Counter()
         self._bus_events = 0
+        self._dropped: Counter[str] = Counter()
         self._gaps: list[float] = []
         self._first_s = float("inf")
         self._last_s = float("-inf")
@@ -237,6 +247,10 @@ class RecordingCollector:
     @property
     def frames(self) -> int:
         return self._frames
+
+    @property
+    def truth_samples(self) -> int:
+        return len(self._truth)
 
     def add(self, topic: str, data: bytes) -> None:
         """One recorded message (its JSON bytes); topics a report does not use are skipped."""
@@ -261,7 +275,10 @@ class RecordingCollector:
         elif topic == TRUTH_TOPIC:
             self._truth.append(TruthTrack.row(json.loads(data)))
         elif topic == BUS_TOPIC:
-            self._bus_events += 1
+            event = json.loads(data)
+            lost = {key: event.get(key, 0) for key in ("kernel_dropped", "rx_dropped")}
+            self._dropped.update(lost)
+            self._bus_events += not any(lost.values())  # a loss keeps the state
         elif topic == RECORDING_TOPIC:
             lost_s = _number(json.loads(data).get("lost_s"))
             self._gaps.append(lost_s if lost_s == lost_s else 0.0)
@@ -307,6 +324,8 @@ class RecordingCollector:
                 invalid=dict(self._invalid.most_common()),
                 bus_events=self._bus_events,
                 truth_samples=len(self._truth),
+                kernel_dropped=self._dropped["kernel_dropped"],
+                rx_dropped=self._dropped["rx_dropped"],
                 recording_gaps=len(self._gaps),
                 recording_lost_s=sum(self._gaps),
             ),

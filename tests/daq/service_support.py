@@ -43,6 +43,7 @@ def service_toml(
     status_period_s: float = 0.2,
     chunk_size: int = 1024 * 1024,
     max_duration_s: float = 3600.0,
+    receive_buffer_bytes: int | None = None,
     truth: bool | None = None,
     extra: str = "",
 ) -> str:
@@ -51,7 +52,10 @@ def service_toml(
 [bus]
 interface = "{interface}"
 channel = "{channel}"
-
+"""
+    if receive_buffer_bytes is not None:
+        text += f"receive_buffer_bytes = {receive_buffer_bytes}\n"
+    text += f"""
 [zenoh]
 mode = "peer"
 listen = ["tcp/127.0.0.1:{port}"]
@@ -137,6 +141,18 @@ class Collector:
         """The first payload on ``key`` (received from now on) satisfying ``predicate``."""
         with self._changed:
             start = len(self.samples)
+        return self.first(key, predicate, timeout, start=start)
+
+    def first(
+        self,
+        key: str,
+        predicate: Callable[[Any], bool] = lambda _: True,
+        timeout: float = WAIT_S,
+        *,
+        start: int = 0,
+    ) -> Any:
+        """The first payload on ``key`` satisfying ``predicate``, among those received
+        since sample ``start`` (0: ever), waiting for one if there is none yet."""
         found: list[Any] = []
 
         def seen() -> bool:

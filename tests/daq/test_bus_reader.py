@@ -12,7 +12,7 @@ from typing import Any
 import can
 import pytest
 
-from daq.bus_reader import BusReader, bus_error
+from daq.bus_reader import BusReader, FrameSource, PythonCanSource, bus_error
 from daq.frames import BusEvent, RawFrame
 from daq.runner import bus_factory, kernel_filters
 from daq.service_config import BusSettings
@@ -53,9 +53,12 @@ def drain(inbox: queue.Queue[RawFrame | BusEvent], count: int) -> list[Any]:
     items = []
     for _ in range(count):
         item = inbox.get(timeout=WAIT_S)
-        items.append(
-            (item.state, item.reset_counters) if isinstance(item, BusEvent) else item.arbitration_id
-        )
+        if not isinstance(item, BusEvent):
+            items.append(item.arbitration_id)
+        elif item.kernel_dropped or item.rx_dropped:
+            items.append(("lost", item.kernel_dropped, item.rx_dropped))
+        else:
+            items.append((item.state, item.reset_counters))
     return items
 
 
@@ -66,11 +69,11 @@ def test_down_keeps_the_socket_away_reopens_and_both_reset_counters() -> None:
     second = ScriptedBus([message(3)])
     buses: deque[Any] = deque([first, OSError(errno.ENODEV, "No such device"), second])
 
-    def open_bus() -> can.BusABC:
+    def open_bus() -> FrameSource:
         bus = buses.popleft()
         if isinstance(bus, BaseException):
             raise bus
-        return bus
+        return PythonCanSource(bus)
 
     inbox: queue.Queue[RawFrame | BusEvent] = queue.Queue()
     with BusReader(open_bus, inbox, channel="can0") as reader:
@@ -93,13 +96,93 @@ def test_down_then_link_probe_up_without_frames() -> None:
     link = {"up": False}
     inbox: queue.Queue[RawFrame | BusEvent] = queue.Queue()
     reader = BusReader(
-        lambda: ScriptedBus([enetdown]), inbox, channel="can0", link_up=lambda: link["up"]
+        lambda: PythonCanSource(ScriptedBus([enetdown])),
+        inbox,
+        channel="can0",
+        link_up=lambda: link["up"],
     )
     with reader:
         assert drain(inbox, 2) == [("up", False), ("down", False)]
         assert "ip link set can0 up" in reader.reason
         link["up"] = True
         assert drain(inbox, 1) == [("up", True)]
+
+
+def test_an_event_finding_the_queue_full_waits_and_is_never_replaced() -> None:
+    """Down, then up again, while the consumer is stuck: both events reach it, in order,
+    on receive timeouts alone (no frame comes after them)."""
+    enetdown = can.CanOperationError("Network is down", errno.ENETDOWN)
+    link = {"up": False}
+    inbox: queue.Queue[RawFrame | BusEvent] = queue.Queue(maxsize=2)
+    script = [message(1), message(2), enetdown]
+    reader = BusReader(
+        lambda: PythonCanSource(ScriptedBus(script)),
+        inbox,
+        channel="can0",
+        link_up=lambda: link["up"],
+    )
+    with reader:
+        deadline = time.monotonic() + WAIT_S
+        while reader.state != "down" and time.monotonic() < deadline:
+            time.sleep(0.01)
+        link["up"] = True
+        while reader.state != "up" and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert drain(inbox, 2) == [("up", False), 1]  # the queue was full after these
+        items = drain(inbox, 3)
+    assert reader.dropped == 1
+    assert items == [("lost", 0, 1), ("down", False), ("up", True)]
+
+
+class DroppingSource:
+    """A kernel socket as the reader sees it: frames with a rising drop counter, then
+    (with ``then``) an error."""
+
+    rcvbuf_bytes = 4096
+
+    def __init__(self, script: list[tuple[int, int]], then: OSError | None = None) -> None:
+        self.script = deque(script)
+        self.then = then
+        self.kernel_dropped = 0
+
+    def recv(self, timeout_s: float) -> RawFrame | None:
+        if not self.script:
+            if self.then is not None:
+                raise self.then
+            time.sleep(0.01)
+            return None
+        frame_id, self.kernel_dropped = self.script.popleft()
+        return RawFrame(0.0, frame_id, False, b"")
+
+    def shutdown(self) -> None:
+        pass
+
+
+def test_kernel_drops_are_counted_and_queued_where_they_happened() -> None:
+    enodev = OSError(errno.ENODEV, "No such device")
+    sources = deque(
+        [
+            DroppingSource([(1, 0), (2, 3), (3, 3), (4, 5)], then=enodev),
+            DroppingSource([(5, 2)]),  # a new socket counts from 0 again
+        ]
+    )
+    inbox: queue.Queue[RawFrame | BusEvent] = queue.Queue()
+    with BusReader(sources.popleft, inbox, channel="can0") as reader:
+        items = drain(inbox, 11)
+    assert items == [
+        ("up", False),
+        1,
+        ("lost", 3, 0),
+        2,
+        3,
+        ("lost", 2, 0),
+        4,
+        ("absent", False),
+        ("up", True),
+        ("lost", 2, 0),
+        5,
+    ]
+    assert reader.kernel_dropped == 7 and reader.rcvbuf_bytes == 4096
 
 
 def test_bus_errors_carry_a_hint() -> None:
@@ -120,14 +203,15 @@ def test_kernel_filters_pass_exactly_the_dbc_ids() -> None:
 def test_bus_factory_filters_only_when_asked(filtered: bool) -> None:
     channel = f"test-{uuid.uuid4().hex}"
     settings = BusSettings(interface="virtual", channel=channel, kernel_filters=filtered)
-    with (
-        bus_factory(settings, [(0x100, False)])() as bus,
-        can.Bus(interface="virtual", channel=channel) as sender,
-    ):
-        sender.send(message(0x7AB))
-        sender.send(message(0x100))
-        received = [bus.recv(timeout=WAIT_S)]
-        if not filtered:
-            received.append(bus.recv(timeout=WAIT_S))
-    ids = [m.arbitration_id for m in received if m is not None]
+    source = bus_factory(settings, [(0x100, False)])()
+    try:
+        with can.Bus(interface="virtual", channel=channel) as sender:
+            sender.send(message(0x7AB))
+            sender.send(message(0x100))
+            received = [source.recv(WAIT_S)]
+            if not filtered:
+                received.append(source.recv(WAIT_S))
+    finally:
+        source.shutdown()
+    ids = [frame.arbitration_id for frame in received if frame is not None]
     assert ids == ([0x100] if filtered else [0x7AB, 0x100])

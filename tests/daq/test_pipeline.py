@@ -41,11 +41,25 @@ def test_bad_frames_are_counted_by_kind_never_raised() -> None:
         RawFrame(0, 0x100, True, good.data),  # extended 0x100 is not the DBC's 0x100
         RawFrame(0, 0x100, False, b"", is_remote_frame=True),
         RawFrame(0, 0x4, False, bytes(8), is_error_frame=True),
+        RawFrame(0, 0x100, False, good.data, is_fd=True),  # the leg's message is classic
     ]
     kinds = [pipeline.process(frame).error_kind for frame in frames]
-    assert kinds == ["unknown_id", "wrong_dlc", "unknown_id", "remote_frame", "error_frame"]
-    assert pipeline.bad == {"unknown_id": 2, "wrong_dlc": 1, "remote_frame": 1, "error_frame": 1}
-    assert pipeline.frames == 5
+    assert kinds == [
+        "unknown_id",
+        "wrong_dlc",
+        "unknown_id",
+        "remote_frame",
+        "error_frame",
+        "fd_frame",
+    ]
+    assert pipeline.bad == {
+        "unknown_id": 2,
+        "wrong_dlc": 1,
+        "remote_frame": 1,
+        "error_frame": 1,
+        "fd_frame": 1,
+    }
+    assert pipeline.frames == 6
 
 
 def test_reset_counters_forgives_the_jump_after_a_gap() -> None:

@@ -50,6 +50,7 @@ def track(
         pressure_Pa=pressure,
         valid=np.array(valid if valid is not None else [True] * len(t_s), dtype=np.bool_),
         force_raw_N=pressure * 0.33,
+        contact=pressure > 0,
     )
 
 
@@ -177,12 +178,12 @@ def test_the_calculated_force_is_the_median_centred_on_the_frame() -> None:
     raw[[1, 8]] = [50e3, -50e3]  # spikes: the centred median removes them
     raw[6] = 1e9  # invalid: neither matched nor used as a later value
     force = 1000.0 * np.arange(12)  # as published by the live filter
-    leg = LegTrack("L", t, force, force / 0.33, valid, raw)
+    leg = LegTrack("L", t, force, force / 0.33, valid, raw, force > 0)
     true_N = 1000.0 * np.arange(12) + 10.0
     true_N[3] = NAN  # unknown truth: left out
     truth = TruthTrack(np.round(np.arange(12) * 0.01 + 100.0, 6), {"L": true_N})
 
-    comparison = compare_leg(leg, truth, 0.003, median_window=5)
+    comparison = compare_leg(leg, truth, 0.003, median_window=5, contact_N=4000.0)
     # usable frames 0..5, 7..11; the last 2 have no centred median; 3 has no truth,
     # 9 no truth sample near enough
     assert comparison.t_s.tolist() == [t[i] for i in (0, 1, 2, 4, 5, 7, 8)]
@@ -193,8 +194,10 @@ def test_the_calculated_force_is_the_median_centred_on_the_frame() -> None:
     assert comparison.published_N.tolist() == [0.0, 1e3, 2e3, 4e3, 5e3, 7e3, 8e3]
     assert comparison.true_N.tolist() == [10.0, 1010.0, 2010.0, 4010.0, 5010.0, 7010.0, 8010.0]
     assert comparison.deviation_N.tolist() == [3990.0] * 4 + [2990.0] * 2 + [5990.0]
+    # stance: true force above the contact threshold (4010 N is, 2010 N is not)
+    assert comparison.stance.tolist() == [False] * 3 + [True] * 4
 
-    both = compare({"L": leg, "X": leg}, truth, median_window=5)
+    both = compare({"L": leg, "X": leg}, truth, median_window=5, contact_N=4000.0)
     assert list(both) == ["L"]  # no truth for X
     # half of the 10 ms truth period: frame 9, 4 ms off, is matched now
     assert both["L"].t_s.tolist() == comparison.t_s.tolist() + [t[9]]
@@ -204,7 +207,7 @@ def test_deviation_statistics_are_of_the_absolute_deviation() -> None:
     deviation = np.array([-10.0, -4.0, -2.0, 0.0, 1.0, 3.0])
     true_N = np.array([100.0, 200.0, 300.0, 400.0, 500.0, 600.0])
     comparison = LegComparison(
-        "L", np.arange(6.0), true_N + deviation, true_N, true_N + 2 * deviation
+        "L", np.arange(6.0), true_N + deviation, true_N, true_N + 2 * deviation, true_N > 0
     )
     stats = deviation_stats(comparison)
     # |deviation| sorted: 0 1 2 3 4 10; linear quantiles at 2.5 and 4.75 of 5
@@ -219,8 +222,23 @@ def test_deviation_statistics_are_of_the_absolute_deviation() -> None:
         mean_true_N=350.0,
         published_abs95_N=17.0,
     )
-    empty = deviation_stats(LegComparison("E", *(np.zeros(0),) * 4))
+    assert deviation_stats(comparison, stance=False).samples == 0
+    empty = deviation_stats(LegComparison("E", *(np.zeros(0),) * 4, np.zeros(0, dtype=bool)))
     assert empty.samples == 0 and math.isnan(empty.abs95_N)
+
+
+def test_stance_and_swing_samples_are_counted_and_judged_apart() -> None:
+    """A lifted leg's big deviations (true force 0) do not enter the stance figures."""
+    true_N = np.array([50e3, 52e3, 54e3, 0.0, 0.0, 0.0, 0.0, 9e3])
+    deviation = np.array([100.0, -200.0, 300.0, -4500.0, 3500.0, 4000.0, -100.0, 50.0])
+    comparison = LegComparison(
+        "L", np.arange(8.0), true_N + deviation, true_N, true_N, true_N > 8000.0
+    )
+    stance, swing = deviation_stats(comparison), deviation_stats(comparison, stance=False)
+    assert (stance.samples, swing.samples) == (4, 4)
+    assert stance.max_abs_N == 300.0 and stance.abs95_N == pytest.approx(285.0)
+    assert stance.mean_true_N == pytest.approx((50e3 + 52e3 + 54e3 + 9e3) / 4)
+    assert swing.max_abs_N == 4500.0 and swing.mean_true_N == 0.0
 
 
 def test_the_most_loaded_leg_has_the_highest_mean_true_force_not_peak() -> None:
@@ -246,12 +264,21 @@ def test_invalid_samples_and_missing_frames_become_gaps() -> None:
     assert values[~np.isnan(values)].tolist() == [1.0, 3.0, 4.0, 5.0]
 
 
-def test_leg_styles_colour_by_foot_and_dash_by_base() -> None:
-    styles = leg_styles(["SB1_F1", "SB1_F2", "SB2_F1", "SB2_F2"])
-    assert styles["SB1_F2"] == {"color": "tab:orange", "linestyle": "-"}
-    assert styles["SB2_F2"] == {"color": "tab:orange", "linestyle": "--"}
+def test_leg_styles_colour_and_marker_by_foot_dash_by_base_all_distinct() -> None:
+    legs = ["SB1_F1", "SB1_F2", "SB1_F3", "SB2_F1", "SB2_F2", "SB2_F3"]
+    styles = leg_styles(legs)
+    assert (styles["SB1_F2"]["color"], styles["SB1_F2"]["linestyle"]) == ("tab:orange", "-")
+    assert (styles["SB2_F2"]["color"], styles["SB2_F2"]["linestyle"]) == ("tab:orange", "--")
+    # SB1_F2 and SB1_F3 carry equal loads for long stretches: besides the colour, marker,
+    # marker positions and line width tell them apart, so neither hides the other
+    f2, f3 = styles["SB1_F2"], styles["SB1_F3"]
+    assert f2["marker"] != f3["marker"] and f2["markevery"] != f3["markevery"]
+    assert f2["linewidth"] > f3["linewidth"]
+    assert len({(s["color"], s["linestyle"], s["marker"]) for s in styles.values()}) == 6
+    assert len({s["markevery"] for s in styles.values()}) == 6
     other = leg_styles(["front", "rear"])
     assert other["front"]["color"] != other["rear"]["color"]
+    assert other["front"]["marker"] != other["rear"]["marker"]
 
 
 def message(payload: dict) -> bytes:  # type: ignore[type-arg]
@@ -284,6 +311,9 @@ def test_the_collector_counts_like_the_service_and_sorts_by_time() -> None:
     collector.add(
         "/daq/bus", message({"t": 1.0, "state": "up", "reason": "", "reset_counters": False})
     )
+    loss = {"t": 5.2, "state": "up", "reason": "lost", "reset_counters": False}
+    collector.add("/daq/bus", message(loss | {"kernel_dropped": 40, "rx_dropped": 0}))
+    collector.add("/daq/bus", message(loss | {"kernel_dropped": 2, "rx_dropped": 3}))
     collector.add(
         "/sim/truth", message({"t_unix_s": 5.2, "legs": {"SB1_F1": {"force_true_N": None}}})
     )
@@ -298,6 +328,7 @@ def test_the_collector_counts_like_the_service_and_sorts_by_time() -> None:
     assert counts.bad == {"unknown_id": 2, "wrong_dlc": 1, "crc": 1, "counter": 1}
     assert counts.estimates == 3 and counts.invalid == {"crc": 1, "counter": 1, "range": 1}
     assert (counts.bus_events, counts.truth_samples) == (1, 2)
+    assert (counts.kernel_dropped, counts.rx_dropped) == (42, 3)
     assert (recording.start_t_s, recording.end_t_s) == (5.0, 5.3)
     leg = recording.legs["SB1_F1"]
     assert leg.t_s.tolist() == [5.1, 5.2, 5.3] and leg.valid.tolist() == [False, False, True]

@@ -246,6 +246,24 @@ def test_the_command_line(tmp_path: Path) -> None:
     assert help_text.returncode == 0 and "--config" in help_text.stdout
 
 
+def test_input_without_frames_or_estimates_exits_1_with_one_line(tmp_path: Path) -> None:
+    """A TOML file, or an MCAP file with only the simulator's truth: nothing to report."""
+    toml = run_cli(str(EXAMPLE_CONFIG), "--out", str(tmp_path / "toml"))
+    assert toml.returncode == 1
+    assert toml.stderr.splitlines() == [
+        f"portal-daq: {EXAMPLE_CONFIG}: not an MCAP file (a service recording is .mcap)"
+    ]
+    full = record(tmp_path / "full.mcap", seconds=0.5, truth=True)
+    truth_only = strip(full, tmp_path / "truth.mcap", keep=("/sim/truth",), attachments=True)
+    result = run_cli(str(truth_only), "--out", str(tmp_path / "truth"))
+    assert result.returncode == 1
+    assert result.stderr.splitlines() == [
+        f"portal-daq: {truth_only}: holds no CAN frames (/can/raw) and no leg estimates: "
+        "nothing to report (50 simulation truth samples only)"
+    ]
+    assert not (tmp_path / "toml").exists() and not (tmp_path / "truth").exists()
+
+
 def test_truth_json_written_by_the_recorder_reads_back(tmp_path: Path) -> None:
     path = record(tmp_path / "run.mcap", seconds=0.05, truth=True)
     with open(path, "rb") as file:

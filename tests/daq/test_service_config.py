@@ -19,6 +19,7 @@ def test_example_loads_with_documented_values() -> None:
     assert config.machine.machine_id == "pam-proto-1"
     assert (config.bus.interface, config.bus.channel) == ("socketcan", "can0")
     assert config.bus.kernel_filters is False and config.bus.receive_own_messages is False
+    assert config.bus.receive_buffer_bytes == 4 * 1024 * 1024
     assert config.zenoh.key_prefix == "portal/pam-proto-1"
     assert config.zenoh.config_file == EXAMPLE.parent / "zenoh.json5"
     assert config.publish.ground_rate_hz == 10.0 and config.publish.signals is True
@@ -55,6 +56,8 @@ def refused(tmp_path: Path, text: str) -> ConfigError:
         ('[bus]\ninterface = "socketcam"', "bus.interface", "unknown python-can interface"),
         ("[bus]\nreceive_own_messages = 1", "bus.receive_own_messages", "true or false"),
         ("[bus]\nqueue_size = 0", "bus.queue_size", "> 0"),
+        ("[bus]\nreceive_buffer_bytes = 100", "bus.receive_buffer_bytes", "between 1024 and"),
+        ('[bus]\nreceive_buffer_bytes = "4M"', "bus.receive_buffer_bytes", "integer"),
         ('[zenoh]\nmode = "peers"', "zenoh.mode", "must be one of"),
         ('[zenoh]\nconnect = "tcp/1.2.3.4:7447"', "zenoh.connect", "list of non-empty strings"),
         ('[zenoh]\nkey_prefix = "portal/*"', "zenoh.key_prefix", "does not match"),
@@ -75,6 +78,12 @@ def test_wrong_service_table_is_refused_naming_the_key(
     error = refused(tmp_path, text)
     assert error.key == key
     assert reason in str(error)
+
+
+def test_receive_buffer_size_is_read(tmp_path: Path) -> None:
+    path = tmp_path / "portal-daq.toml"
+    path.write_text("[bus]\nreceive_buffer_bytes = 65536\n" + MACHINE_ONLY.read_text())
+    assert load_service_config(path).bus.receive_buffer_bytes == 65536
 
 
 def test_relative_paths_are_relative_to_the_config_file(tmp_path: Path) -> None:

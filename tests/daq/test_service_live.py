@@ -17,7 +17,7 @@ import pytest
 import zenoh
 from mcap.reader import make_reader
 
-from daq.bus_reader import BusReader
+from daq.bus_reader import BusReader, PythonCanSource
 from daq.frames import BusEvent, RawFrame
 from daq.recorder import Recorder
 from daq.replay import replay
@@ -354,7 +354,9 @@ def test_reader_never_blocks_and_counts_overflow() -> None:
     channel = f"test-{uuid.uuid4().hex}"
     inbox: queue.Queue[RawFrame | BusEvent] = queue.Queue(maxsize=5)
     reader = BusReader(
-        lambda: can.Bus(interface="virtual", channel=channel), inbox, channel=channel
+        lambda: PythonCanSource(can.Bus(interface="virtual", channel=channel)),
+        inbox,
+        channel=channel,
     )
     with reader:
         assert reader.opened.wait(WAIT_S)

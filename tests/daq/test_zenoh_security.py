@@ -102,6 +102,8 @@ def test_without_a_config_file_the_service_listens_on_loopback_and_does_not_scou
     explicit = zenoh_config(ZenohSettings(listen=("tcp/10.0.0.2:7447",), multicast_scouting=True))
     assert config_value(explicit, "listen/endpoints") == ["tcp/10.0.0.2:7447"]
     assert config_value(explicit, "scouting/multicast/enabled") is True
+    client = zenoh_config(ZenohSettings(mode="client", connect=("tcp/10.0.0.1:7447",)))
+    assert config_value(client, "listen/endpoints") != ["tcp/127.0.0.1:7447"]
 
 
 def test_production_example_is_locked_down() -> None:

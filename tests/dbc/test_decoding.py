@@ -2,12 +2,19 @@
 
 import numpy as np
 import pytest
+from cantools.database.can import Database, Message, Signal
 from hypothesis import given
 from hypothesis import strategies as st
 
 from dbc.decoding import FrameDecoder
 from dbc.encoding import FrameEncoder
-from dbc.errors import FrameError, FrameLengthError, SignalDecodeError, UnknownFrameError
+from dbc.errors import (
+    FdFrameError,
+    FrameError,
+    FrameLengthError,
+    SignalDecodeError,
+    UnknownFrameError,
+)
 from dbc.protection import CounterCheck, crc8_sae_j1850, payload_crc
 from dbc.samples import LegSampler
 from estimator import foot_force_N
@@ -137,6 +144,24 @@ def test_unknown_id_and_wrong_dlc_raise_frame_errors_with_kinds() -> None:
     with pytest.raises(FrameLengthError):
         decoder.decode(0x100, bytes(9), 0.0)
     assert issubclass(SignalDecodeError, FrameError)
+
+
+@pytest.mark.parametrize("compiled", [True, False])
+def test_fd_frames_decode_only_for_messages_the_dbc_defines_as_fd(compiled: bool) -> None:
+    def message(frame_id: int, name: str, length: int, is_fd: bool) -> Message:
+        signal = Signal(f"{name}_value", start=8 * (length - 2), length=16)
+        return Message(frame_id, name, length, [signal], is_fd=is_fd)
+
+    database = Database([message(0x200, "FD", 12, True), message(0x201, "CLASSIC", 2, False)])
+    decoder = FrameDecoder(database, {}, compiled=compiled)
+    data = bytes(10) + (0x1234).to_bytes(2, "little")
+    assert decoder.decode(0x200, data, 1.0, is_fd=True).signals == {"FD_value": 0x1234}
+    with pytest.raises(FdFrameError, match="0x201") as classic:
+        decoder.decode(0x201, b"\x01\x02", 1.0, is_fd=True)
+    assert classic.value.kind == "fd_frame"
+    with pytest.raises(FdFrameError):  # an FD frame of no message at all: fd_frame too
+        decoder.decode(0x7AA, bytes(12), 1.0, is_fd=True)
+    assert decoder.decode(0x201, b"\x01\x02", 1.0).signals == {"CLASSIC_value": 0x0201}
 
 
 def test_status_outside_value_table_reaches_the_estimator_as_a_number() -> None:

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import pytest
 
+from daq.service_config import BusSettings
 from tests.helpers import ROOT
 
 DEPLOY = ROOT / "deploy"
@@ -78,6 +79,15 @@ def test_systemd_analyze_catches_a_broken_unit(tmp_path: Path) -> None:
     assert "ProtectSystem" in result.stderr or "protect system" in result.stderr
 
 
+def test_sysctl_drop_in_allows_the_default_can_receive_buffer() -> None:
+    lines = (DEPLOY / "sysctl" / "90-portal-daq.conf").read_text().splitlines()
+    pairs = [line.split("=", 1) for line in lines if line.strip() and not line.startswith("#")]
+    settings = {key.strip(): value.strip() for key, value in pairs}
+    rmem_max = int(settings["net.core.rmem_max"])
+    # SO_RCVBUF without CAP_NET_ADMIN is clamped to rmem_max: it must not clamp the default.
+    assert rmem_max >= BusSettings().receive_buffer_bytes
+
+
 def test_networkd_brings_can0_up_with_bitrate_and_bus_off_restart() -> None:
     can0 = unit_sections(DEPLOY / "network" / "80-can0.network")
     assert can0["Match"]["Name"] == "can0"
@@ -122,6 +132,7 @@ def test_install_script_into_a_temporary_root(tmp_path: Path) -> None:
     assert enabled.is_symlink()
     assert (root / "etc/systemd/network/80-can0.network").is_file()
     assert (root / "etc/systemd/network/80-vcan0.netdev").is_file()
+    assert (root / "etc/sysctl.d/90-portal-daq.conf").is_file()
     passwd = (root / "etc/passwd").read_text()
     assert any(line.startswith("portal-daq:") for line in passwd.splitlines())
 

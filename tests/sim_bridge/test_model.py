@@ -68,6 +68,21 @@ def test_near_constant_230_kPa_on_sb1_f1_at_40_to_43_s(result: SimulationResult)
     assert sb1_f1.std() / sb1_f1.mean() < 0.03, "nearly constant"
 
 
+def test_the_cycle_ends_with_the_load_on_all_six_feet(result: SimulationResult) -> None:
+    """Section 2.1: "At t = 44 s, all six legs are on the ground again and the load of the
+    machine is once again carried by all six legs" (Figure 7's end state)."""
+    contact_on_N = 8_000.0  # deploy/machine.example.toml [estimator]
+    at_44s = result.force_true_N[np.searchsorted(result.t_s, 44.0)]
+    assert np.all(at_44s > contact_on_N), at_44s
+    end = result.force_true_N[-1]
+    assert result.t_s[-1] == pytest.approx(45.0)
+    assert end.sum() == pytest.approx(ModelParams().mass_kg * G_M_S2, rel=2e-3)
+    share = end / end.sum()
+    assert np.all((share > 0.08) & (share < 0.30)), share  # every foot a plausible share
+    assert np.all(end[3:] > 2 * contact_on_N), end  # SB2's feet well above the threshold
+    assert 0.25 <= share[3:].sum() <= 0.5, share  # SB2 carries a real part, SB1 the most
+
+
 def test_ground_spring_compresses_about_0_2_mm(result: SimulationResult) -> None:
     assert 0.15e-3 <= result.ground_compression_m.max() <= 0.3e-3
 

@@ -30,6 +30,23 @@ def test_two_panels_of_pressure_and_force_per_foot(result: SimulationResult) -> 
     assert sb1_f1[7] == result.force_true_N[7, 0] / 0.33 / 1e3
 
 
+def test_feet_with_equal_loads_stay_apart(result: SimulationResult) -> None:
+    """SB1_F2 and SB1_F3 carry equal loads in the model: marker, marker positions and
+    line width differ, so the one drawn later does not hide the other."""
+    lines = {
+        line.get_label(): line for line in cycle_figure(result, GEOMETRIES).axes[0].get_lines()
+    }
+    f2, f3 = lines["SB1_F2"], lines["SB1_F3"]
+    assert f2.get_marker() != f3.get_marker() and f2.get_markevery() != f3.get_markevery()
+    assert f2.get_linewidth() > f3.get_linewidth()
+    assert (
+        len(
+            {(line.get_color(), line.get_linestyle(), line.get_marker()) for line in lines.values()}
+        )
+        == 6
+    )
+
+
 def test_legs_without_a_true_force_are_drawn_from_eq_4(result: SimulationResult) -> None:
     eq_4_N = result.force_true_N[:, 1].copy()  # the synthetic truth is eq. (4) of the pressures
     result.force_true_N[:, 1] = math.nan

@@ -1,0 +1,84 @@
+"""The installed wheel works outside the repository: ``portal-sim`` (with the packaged
+example machine config as its default), ``portal-sim plot`` and ``portal-daq``.
+
+The wheel is built with ``pip wheel --no-deps`` from a copy of the source tree (so the
+checkout gets no ``build/``), installed into a fresh venv with its dependencies from the
+same package index this machine's pip uses, and run from a directory that is not the
+repository, with nothing of the repository on ``sys.path``.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from tests.helpers import ROOT
+
+IGNORE = shutil.ignore_patterns(
+    ".git", ".venv", "build", "dist", "*.egg-info", "__pycache__", ".*_cache", ".hypothesis"
+)
+
+
+def run(*args: str | Path, cwd: Path) -> subprocess.CompletedProcess[str]:
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "VIRTUAL_ENV")}
+    return subprocess.run(
+        [str(a) for a in args], capture_output=True, text=True, timeout=900, cwd=cwd, env=env
+    )
+
+
+@pytest.fixture(scope="module")
+def venv(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    work = tmp_path_factory.mktemp("wheel")
+    source = work / "source"
+    shutil.copytree(ROOT, source, symlinks=True, ignore=IGNORE)
+    built = run(sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", work / "dist",
+                source, cwd=work)  # fmt: skip
+    assert built.returncode == 0, built.stderr
+    (wheel,) = (work / "dist").glob("portal_daq-*.whl")
+    fresh = work / "venv"
+    assert run(sys.executable, "-m", "venv", fresh, cwd=work).returncode == 0
+    installed = run(fresh / "bin" / "python", "-m", "pip", "install", "-q", wheel, cwd=work)
+    assert installed.returncode == 0, installed.stderr
+    return fresh
+
+
+def installed_default_config(venv: Path, cwd: Path) -> Path:
+    code = "import sim_bridge._args as a; print(a.DEFAULT_CONFIG)"
+    where = run(venv / "bin" / "python", "-c", code, cwd=cwd)
+    assert where.returncode == 0, where.stderr
+    return Path(where.stdout.strip())
+
+
+def test_the_wheel_ships_the_example_config_as_the_simulators_default(venv: Path) -> None:
+    elsewhere = venv.parent / "elsewhere"
+    elsewhere.mkdir(exist_ok=True)
+    default = installed_default_config(venv, elsewhere)
+    assert default.is_file() and default.is_relative_to(venv), default
+    assert not default.is_relative_to(ROOT)
+
+
+def test_portal_sim_and_plot_run_from_another_directory(venv: Path) -> None:
+    elsewhere = venv.parent / "elsewhere"
+    elsewhere.mkdir(exist_ok=True)
+    sim = run(venv / "bin" / "portal-sim", "--interface", "virtual", "--as-fast-as-possible",
+              "--rtol", "1e-3", "--duration", "0.3", "--frames-log", "cycle.log",
+              "--truth-csv", "truth.csv", cwd=elsewhere)  # fmt: skip
+    assert sim.returncode == 0, sim.stderr
+    assert len((elsewhere / "truth.csv").read_text().splitlines()) == 1 + 30
+    plot = run(venv / "bin" / "portal-sim", "plot", "--rtol", "1e-3", "--out", "cycle.png",
+               cwd=elsewhere)  # fmt: skip
+    assert plot.returncode == 0, plot.stderr
+    assert (elsewhere / "cycle.png").read_bytes().startswith(b"\x89PNG")
+    default = installed_default_config(venv, elsewhere)
+    replayed = run(venv / "bin" / "portal-daq", "replay", "cycle.log", "--config", default,
+                   cwd=elsewhere)  # fmt: skip
+    assert replayed.returncode == 0, replayed.stderr
+    assert len(replayed.stdout.splitlines()) == 1 + 6 * 30
+    listed = run(venv / "bin" / "portal-daq", "--help", cwd=elsewhere)
+    assert listed.returncode == 0
+    assert all(f"  {name} " in listed.stdout for name in ("run", "replay", "report"))

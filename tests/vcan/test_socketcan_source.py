@@ -1,0 +1,90 @@
+"""The service's own SocketCAN socket on a real vcan0: FD frames, buffer size, drop counter.
+
+Run through ``tests/vcan/with-vcan`` (User-Mode Linux, as root there). No timing is
+asserted; every wait is a receive with a timeout.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import time
+from collections.abc import Iterator
+
+import can
+import pytest
+
+from daq.frames import RawFrame
+from daq.socketcan import SocketCanSource
+
+pytestmark = pytest.mark.vcan
+
+CHANNEL = "vcan0"
+RECV_TIMEOUT_S = 5.0
+
+
+@pytest.fixture(scope="module", autouse=True)
+def fd_capable_vcan0() -> None:
+    """vcan0 with the CAN FD MTU (72), so that FD frames can be sent at all."""
+    subprocess.run(["ip", "link", "set", CHANNEL, "down"], check=True)
+    subprocess.run(["ip", "link", "set", CHANNEL, "mtu", "72"], check=True)
+    subprocess.run(["ip", "link", "set", CHANNEL, "up"], check=True)
+
+
+@pytest.fixture
+def sender() -> Iterator[can.BusABC]:
+    bus = can.Bus(interface="socketcan", channel=CHANNEL)
+    try:
+        yield bus
+    finally:
+        bus.shutdown()
+
+
+def source(receive_buffer_bytes: int = 4 * 1024 * 1024) -> SocketCanSource:
+    return SocketCanSource(CHANNEL, receive_buffer_bytes=receive_buffer_bytes)
+
+
+def receive_all(socket_source: SocketCanSource, timeout_s: float = 1.0) -> list[RawFrame]:
+    frames = []
+    while (frame := socket_source.recv(timeout_s)) is not None:
+        frames.append(frame)
+    return frames
+
+
+def test_classic_and_fd_frames_from_cansend_with_kernel_time_stamps() -> None:
+    with source() as socket_source:
+        before = time.time()
+        subprocess.run(["cansend", CHANNEL, "123#0102"], check=True)
+        subprocess.run(["cansend", CHANNEL, "100##1" + "11" * 12], check=True)
+        subprocess.run(["cansend", CHANNEL, "18FEF100#AA"], check=True)
+        classic, fd, extended = (socket_source.recv(RECV_TIMEOUT_S) for _ in range(3))
+    assert classic is not None
+    assert (classic.arbitration_id, classic.data, classic.is_fd) == (0x123, b"\x01\x02", False)
+    assert fd is not None and (fd.arbitration_id, fd.is_fd, fd.data) == (0x100, True, b"\x11" * 12)
+    assert extended is not None and (extended.arbitration_id, extended.is_extended_id) == (
+        0x18FEF100,
+        True,
+    )
+    assert classic is not None and before - 1.0 < classic.t_s < time.time() + 1.0
+
+
+def test_the_receive_buffer_is_forced_past_rmem_max_as_root() -> None:
+    with open("/proc/sys/net/core/rmem_max") as file:
+        rmem_max = int(file.read())
+    asked = 4 * rmem_max  # SO_RCVBUF alone would be clamped to rmem_max
+    with source(asked) as socket_source:
+        # Linux doubles what it grants for its bookkeeping.
+        assert socket_source.rcvbuf_bytes == 2 * asked
+
+
+def test_the_kernel_drop_counter_accounts_for_every_frame_sent(sender: can.BusABC) -> None:
+    sent = 300
+    with source(2048) as socket_source:  # room for a handful of frames
+        for i in range(sent):
+            sender.send(can.Message(arbitration_id=0x7AA, data=i.to_bytes(2, "big")), timeout=5)
+        early = receive_all(socket_source)
+        # The count travels with the frames queued after the drops: send one more.
+        sender.send(can.Message(arbitration_id=0x7AB, data=b""), timeout=5)
+        late = receive_all(socket_source)
+    assert [frame.arbitration_id for frame in late] == [0x7AB]
+    assert 0 < len(early) < sent
+    assert socket_source.kernel_dropped == sent - len(early)
