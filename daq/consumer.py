@@ -20,6 +20,7 @@ from daq._worker import Worker
 from daq.frames import BusEvent, RawFrame
 from daq.pipeline import FrameResult, Pipeline
 from daq.service_config import PublishSettings
+from estimator.machine import MachineSnapshot
 
 logger = logging.getLogger(__name__)
 
@@ -40,7 +41,7 @@ class Publisher(Protocol):
 
 
 class Recording(Protocol):
-    def submit(self, item: FrameResult | BusEvent) -> None: ...
+    def submit(self, item: FrameResult | BusEvent | MachineSnapshot) -> None: ...
 
 
 class Consumer(Worker):
@@ -68,6 +69,9 @@ class Consumer(Worker):
         self._settings = settings
         self._publisher = publisher
         self._recorder = recorder
+        #: ``/ground`` snapshots are taken at the publish rate for the publisher and
+        #: the recorder.
+        self._snapshots = publisher is not None or recorder is not None
         self._now = now
         self._monotonic = monotonic
         #: ``monotonic()`` when the latest frame was handled.
@@ -117,10 +121,13 @@ class Consumer(Worker):
         timeout_s = min(0.1, ground_period_s)
         while True:
             self.heartbeat = now = time.monotonic()
-            if self._publisher is not None and now >= next_ground:
+            if self._snapshots and now >= next_ground:
                 next_ground = max(next_ground + ground_period_s, now)
                 snapshot = self.pipeline.snapshot(self.judged_at())
-                self._publisher.submit("ground", payloads.machine_ground(snapshot))
+                if self._publisher is not None:
+                    self._publisher.submit("ground", payloads.machine_ground(snapshot))
+                if self._recorder is not None:
+                    self._recorder.submit(snapshot)
             if self._publisher is not None and now >= next_metrics:
                 next_metrics = max(next_metrics + metrics_period_s, now)
                 metrics = payloads.soil_metrics(self._now(), self.pipeline.metrics())
@@ -128,7 +135,7 @@ class Consumer(Worker):
             if self._stop.is_set():
                 break
             wait_s = timeout_s
-            if self._publisher is not None:
+            if self._snapshots:
                 wait_s = max(0.0, min(timeout_s, next_ground - time.monotonic()))
             try:
                 item = self._inbox.get(timeout=wait_s)

@@ -7,6 +7,8 @@ Topics, each with a JSON Schema (``jsonschema``) and JSON messages:
 ``/can/raw``             every frame, bad ones included (:data:`RAW_TOPIC`)
 ``/signals/<MESSAGE>``   the decoded signals of each good frame
 ``/leg/<LEG>/ground``    each leg estimate
+``/ground``              all legs, weight check and stability margin, at the
+                         publish rate (:data:`GROUND_TOPIC`)
 ``/daq/bus``             bus state changes (:data:`BUS_TOPIC`)
 ``/sim/truth``           simulation ground truth, when a simulator bridge
                          publishes it (:data:`TRUTH_TOPIC`)
@@ -31,6 +33,7 @@ from mcap.writer import CompressionType, Writer
 from daq import payloads, schemas
 from daq.frames import BusEvent
 from daq.pipeline import FrameResult
+from estimator.machine import MachineSnapshot
 
 RAW_TOPIC = "/can/raw"
 BUS_TOPIC = "/daq/bus"
@@ -38,6 +41,7 @@ SIGNALS_TOPIC = "/signals/{message}"
 LEG_TOPIC = "/leg/{leg}/ground"
 TRUTH_TOPIC = "/sim/truth"
 RECORDING_TOPIC = "/daq/recording"
+GROUND_TOPIC = "/ground"
 #: MCAP profile: none of the standard ones (ros1, ros2) fits JSON messages.
 PROFILE = ""
 #: Metadata record naming the run a file belongs to: keys ``machine_id``, ``run_id``,
@@ -208,6 +212,16 @@ class McapFile:
             schemas.RECORDING_GAP,
             _ns(gap.resumed_t_s),
             payload,
+        )
+
+    def write_ground(self, snapshot: MachineSnapshot) -> None:
+        """The ``/ground`` aggregate (with the stability margin), logged at its moment."""
+        self._write(
+            GROUND_TOPIC,
+            "portal.Ground",
+            schemas.GROUND,
+            _ns(snapshot.t_s),
+            payloads.machine_ground(snapshot),
         )
 
     def write_truth(self, sample: payloads.JsonObject) -> None:

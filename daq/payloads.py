@@ -16,6 +16,7 @@ from dbc.decoding import DecodedFrame
 from estimator.leg import LegEstimate
 from estimator.machine import MachineSnapshot
 from estimator.metrics import SoilMetrics
+from estimator.stability import Stability
 
 JsonObject = dict[str, Any]
 
@@ -114,6 +115,20 @@ def machine_ground(snapshot: MachineSnapshot) -> JsonObject:
         "residual_N": weight.residual_N,
         "legs_in_contact": weight.legs_in_contact,
         "complete": weight.complete,
+        "stability": stability(snapshot.stability),
+    }
+
+
+def stability(margin: Stability | None) -> JsonObject | None:
+    """The ``stability`` member of ``<prefix>/ground``: null when undefined."""
+    if margin is None:
+        return None
+    return {
+        "cop_m": list(margin.cop_m),
+        "margin_m": margin.margin_m,
+        "legs": list(margin.legs),
+        "polygon_m": [list(corner) for corner in margin.polygon_m],
+        "feet_m": {leg: list(xy) for leg, xy in margin.feet_m.items()},
     }
 
 
@@ -136,13 +151,21 @@ def soil_metrics(t_s: float, metrics: Mapping[str, SoilMetrics]) -> JsonObject:
 
 
 def signals(frame: DecodedFrame) -> JsonObject:
-    """``<prefix>/signals/<MESSAGE>`` and ``/signals/<MESSAGE>``: one decoded frame."""
-    return {
+    """``<prefix>/signals/<MESSAGE>`` and ``/signals/<MESSAGE>``: one decoded frame.
+
+    Pressure signals are in Pa; ``source_address`` only for J1939 messages.
+    """
+    payload: JsonObject = {
         "t": frame.t_s,
         "crc_ok": frame.crc_ok,
         "counter_ok": frame.counter_ok,
+        "faults": list(frame.faults),
+        "frames_lost": frame.frames_lost,
         "signals": dict(frame.signals),
     }
+    if frame.source_address is not None:
+        payload["source_address"] = frame.source_address
+    return payload
 
 
 def raw_frame(result: FrameResult) -> JsonObject:

@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 from cantools.database.can import Database
 
 from daq.frames import RawFrame
+from daq.pose import PoseTracker
 from dbc.decoding import DecodedFrame, FrameDecoder
 from dbc.errors import ErrorFrameError, FrameError, RemoteFrameError
 from dbc.machine import MachineConfig
@@ -20,9 +21,8 @@ from estimator.leg import LegEstimate
 from estimator.machine import MachineEstimator, MachineSnapshot
 from estimator.metrics import SoilMetrics
 
-#: Fault kinds of frames that decode but fail their protection (see estimator.validity).
-CRC_FAULT = "crc"
-COUNTER_FAULT = "counter"
+#: Frames of a leg message from a J1939 source address no chamber is mapped to.
+UNMAPPED_SOURCE = "unmapped_source"
 
 
 @dataclass(frozen=True, slots=True)
@@ -50,23 +50,32 @@ class Pipeline:
     """
 
     def __init__(
-        self, decoder: FrameDecoder, sampler: LegSampler, estimator: MachineEstimator
+        self,
+        decoder: FrameDecoder,
+        sampler: LegSampler,
+        estimator: MachineEstimator,
+        pose: PoseTracker | None = None,
     ) -> None:
         self.decoder = decoder
         self.sampler = sampler
         self.estimator = estimator
+        #: The bridge's pose, for the stability margin; None when not configured.
+        self.pose = pose
         #: Frames processed.
         self.frames = 0
         #: Frames that could not be used, by :attr:`FrameError.kind`, plus decoded
-        #: frames whose CRC (``crc``) or rolling counter (``counter``) failed.
+        #: frames whose protection failed (``crc``, ``counter``, ``counter_repeat``) and
+        #: frames of a leg PGN from an unmapped source address (``unmapped_source``).
         self.bad: Counter[str] = Counter()
         #: Invalid leg estimates, by leg and reason (``status_sensor_fault``, ``range`` ...).
         self.leg_faults: defaultdict[str, Counter[str]] = defaultdict(Counter)
+        #: Frames lost on the way, as the rolling counters of the frames after them tell.
+        self.frames_lost = 0
 
     @classmethod
     def from_config(cls, machine: MachineConfig, database: Database) -> "Pipeline":
         return cls(
-            FrameDecoder(database, machine.protection),
+            FrameDecoder(database, machine.protection, machine.unit_factors),
             LegSampler(machine.legs),
             MachineEstimator(
                 {name: leg.geometry for name, leg in machine.legs.items()},
@@ -74,6 +83,7 @@ class Pipeline:
                 machine.weight_N,
                 {name: leg.cycle_time_s for name, leg in machine.legs.items()},
             ),
+            _pose_tracker(machine, database),
         )
 
     def process(self, frame: RawFrame) -> FrameResult:
@@ -95,12 +105,17 @@ class Pipeline:
         except FrameError as error:
             self.bad[error.kind] += 1
             return FrameResult(frame, None, error)
-        if not decoded.crc_ok:
-            self.bad[CRC_FAULT] += 1
-        elif not decoded.counter_ok:
-            self.bad[COUNTER_FAULT] += 1
+        for fault in decoded.faults:
+            self.bad[fault] += 1
+        self.frames_lost += decoded.frames_lost
+        if self.pose is not None:
+            self.pose.observe(decoded)
+        samples = self.sampler.samples(decoded)
+        if samples is None:
+            self.bad[UNMAPPED_SOURCE] += 1
+            return FrameResult(frame, decoded, None)
         update = self.estimator.update
-        estimates = tuple([update(leg, sample) for leg, sample in self.sampler.samples(decoded)])
+        estimates = tuple([update(leg, sample) for leg, sample in samples])
         for estimate in estimates:
             if estimate.reasons:
                 self.leg_faults[estimate.leg].update(estimate.reasons)
@@ -108,8 +123,10 @@ class Pipeline:
 
     def reset_counters(self) -> None:
         """After a gap in reception (bus down, reopened): forget the rolling counters so
-        that the first frames after it are not flagged ``counter``."""
+        that the first frames after it are not flagged ``counter``, and the chambers'
+        latest values, so that none from before the gap is paired with a new one."""
         self.decoder.reset_counters()
+        self.sampler.reset()
 
     @property
     def latest_t_s(self) -> float:
@@ -118,7 +135,23 @@ class Pipeline:
         return self.estimator.latest_t_s
 
     def snapshot(self, now_s: float) -> MachineSnapshot:
-        return self.estimator.snapshot(now_s)
+        """Every leg judged at ``now_s``, the weight check and the stability margin."""
+        feet_m = self.pose.feet_m(now_s) if self.pose is not None else None
+        return self.estimator.snapshot(now_s, feet_m)
 
     def metrics(self) -> Mapping[str, SoilMetrics]:
         return self.estimator.metrics()
+
+
+def _pose_tracker(machine: MachineConfig, database: Database) -> PoseTracker | None:
+    stability = machine.stability
+    if stability is None:
+        return None
+    max_age_s = {}
+    for ref in (stability.rotation, stability.fold):
+        cycle_ms = database.get_message_by_name(ref.message).cycle_time
+        # Without a cycle time in the DBC, a pose frame counts as fresh for a second.
+        max_age_s[ref.message] = (
+            machine.estimator.stale_after_cycles * cycle_ms / 1000.0 if cycle_ms else 1.0
+        )
+    return PoseTracker(stability, max_age_s)

@@ -11,7 +11,8 @@ run of the service) carry the same run id, drawn at :meth:`Recorder.start`, and 
 index in the run (:mod:`daq.recording_run`), so that replay chains them. Simulation truth samples
 (:class:`~daq.sim_truth.TruthRecord`, from a simulator bridge) are submitted the same
 way and written to ``/sim/truth``; one that is not a valid sample is counted
-(:attr:`Recorder.rejected`) and skipped.
+(:attr:`Recorder.rejected`) and skipped. The consumer's ``/ground`` snapshots (a
+:class:`~estimator.machine.MachineSnapshot`, with the stability margin) go to ``/ground``.
 
 A write error (disk full, directory gone) never stops the service and never
 shows a traceback: one log line says that recording stopped and why, the file is
@@ -49,6 +50,7 @@ from daq.recording_run import run_metadata
 from daq.recover import is_cut_short, recover_file
 from daq.service_config import RecordingSettings
 from daq.sim_truth import TruthRecord, truth_payload
+from estimator.machine import MachineSnapshot
 
 logger = logging.getLogger(__name__)
 
@@ -57,7 +59,7 @@ RETRY_AFTER_S = 5.0
 #: On close, queued items are still written for at most this long.
 DRAIN_S = 0.5
 
-Item = FrameResult | BusEvent | TruthRecord
+Item = FrameResult | BusEvent | TruthRecord | MachineSnapshot
 
 
 def file_name(machine_id: str, t_s: float) -> str:
@@ -240,6 +242,8 @@ class Recorder(Worker):
                     logger.warning("skipping a truth sample that is not valid (counting them)")
                 return
             self._guarded(lambda: mcap.write_truth(sample))
+        elif isinstance(item, MachineSnapshot):
+            self._guarded(lambda: mcap.write_ground(item))
         else:
             self._guarded(lambda: mcap.write_event(item))
 

@@ -9,19 +9,21 @@ from typing import Any
 
 from cantools.database.can import Message
 
+from dbc.units import pressure_factor_to_Pa
+
 Schema = dict[str, Any]
 
 _NUMBER = {"type": ["number", "null"]}
 _TIME = {"type": "number", "description": "frame time (kernel time stamp), Unix seconds"}
 
 
-def _object(title: str, properties: dict[str, Any]) -> Schema:
+def _object(title: str, properties: dict[str, Any], optional: tuple[str, ...] = ()) -> Schema:
     return {
         "$schema": "https://json-schema.org/draft/2020-12/schema",
         "title": title,
         "type": "object",
         "properties": properties,
-        "required": list(properties),
+        "required": [name for name in properties if name not in optional],
     }
 
 
@@ -92,6 +94,36 @@ RECORDING_GAP = _object(
     },
 )
 
+_XY = {"type": "array", "items": {"type": "number"}, "minItems": 2, "maxItems": 2}
+
+#: ``/ground``: the ``<prefix>/ground`` aggregate, at the publish rate.
+GROUND = _object(
+    "portal.Ground",
+    {
+        "t": {"type": "number", "description": "moment judged, frames' clock, Unix seconds"},
+        "legs": {"type": "object", "additionalProperties": LEG_GROUND},
+        "total_force_N": _NUMBER,
+        "weight_N": _NUMBER,
+        "residual_N": _NUMBER,
+        "legs_in_contact": {"type": "integer"},
+        "complete": {"type": "boolean"},
+        "stability": {
+            "type": ["object", "null"],
+            "description": "null with fewer than three feet in contact, an invalid leg "
+            "or an unknown bridge pose",
+            "properties": {
+                "cop_m": _XY | {"description": "centre of pressure, m"},
+                "margin_m": {
+                    "type": "number",
+                    "description": "to the nearest support polygon edge, m; negative outside",
+                },
+                "legs": {"type": "array", "items": {"type": "string"}},
+                "polygon_m": {"type": "array", "items": _XY},
+                "feet_m": {"type": "object", "additionalProperties": _XY},
+            },
+        },
+    },
+)
 
 _LEG_TRUTH = {
     "type": "object",
@@ -124,7 +156,9 @@ def signals_schema(message: Message) -> Schema:
     signal_types: dict[str, Any] = {}
     for signal in message.signals:
         types = ["number", "null"] + (["string"] if signal.choices else [])
-        description = f"{signal.unit}" if signal.unit else ""
+        description = signal.unit or ""
+        if pressure_factor_to_Pa(description) is not None:
+            description = "Pa"  # pressures are converted to SI when decoded
         signal_types[signal.name] = {"type": types, "description": description}
     return _object(
         f"portal.signals.{message.name}",
@@ -132,6 +166,10 @@ def signals_schema(message: Message) -> Schema:
             "t": _TIME,
             "crc_ok": {"type": "boolean"},
             "counter_ok": {"type": "boolean"},
+            "faults": {"type": "array", "items": {"type": "string"}},
+            "frames_lost": {"type": "integer"},
+            "source_address": {"type": "integer"},
             "signals": {"type": "object", "properties": signal_types},
         },
+        optional=("source_address",),
     )

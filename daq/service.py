@@ -229,6 +229,8 @@ class Service:
                 "rcvbuf_bytes": self.reader.rcvbuf_bytes,
             },
             "frames_per_s": self._frames_per_s,
+            # Lost before they reached the bus interface, as the rolling counters tell.
+            "frames_lost": self.pipeline.frames_lost,
             "frames": {
                 "received": received,
                 "processed": self.pipeline.frames,

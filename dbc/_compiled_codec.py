@@ -1,4 +1,4 @@
-"""Precompiled decoding of one DBC message, and a table-driven CRC-8: the hot path.
+"""Precompiled decoding of one DBC message: the hot path.
 
 :class:`CompiledMessage` is built once per message from its DBC layout: every
 signal becomes a shift and a mask of the frame read as one integer (little- or
@@ -9,12 +9,14 @@ value-table entries as their names). Messages it cannot express (multiplexed,
 container, float signals) are left to cantools: :meth:`CompiledMessage.compile`
 returns None for them.
 
-:class:`TableCrc8` computes the frame's CRC with a 256-entry table built from the CRC's
-parameters; :mod:`dbc.protection` (the ``crc`` package) stays the reference.
+Pressure signals are converted to Pa on the way (``to_si``: a factor per signal name,
+applied after the DBC's scale and offset, as the reference path does).
 
-Both are checked against the reference path (cantools, ``payload_crc``) on random
-frames in ``tests/dbc/test_compiled_codec.py``.
+Checked against the reference path (cantools) on random frames in
+``tests/dbc/test_compiled_codec.py``.
 """
+
+from collections.abc import Mapping
 
 from cantools.database.can import Message
 from cantools.database.conversion import (
@@ -29,8 +31,10 @@ from cantools.database.namedsignalvalue import NamedSignalValue
 #: A decoded signal value (as :data:`dbc.decoding.SignalValue`).
 Value = float | int | str
 #: name, big-endian, shift, mask, sign bit (0: unsigned), value table, scale, offset
-#: (scale None: the raw value as it is).
-_Field = tuple[str, bool, int, int, int, dict[int, str] | None, int | float | None, int | float]
+#: (scale None: the raw value as it is), factor to SI (None: none).
+_Field = tuple[
+    str, bool, int, int, int, dict[int, str] | None, int | float | None, int | float, float | None
+]
 
 
 class CompiledMessage:
@@ -42,8 +46,13 @@ class CompiledMessage:
         self._big_endian = any(field[1] for field in fields)
 
     @classmethod
-    def compile(cls, message: Message) -> "CompiledMessage | None":
-        """The compiled decoder of ``message``; None if only cantools can decode it."""
+    def compile(
+        cls, message: Message, to_si: Mapping[str, float] | None = None
+    ) -> "CompiledMessage | None":
+        """The compiled decoder of ``message``; None if only cantools can decode it.
+
+        ``to_si`` maps signal names to the factor that turns their DBC unit into SI.
+        """
         if message.is_container or message.is_multiplexed() or not message.length:
             return None
         bits = 8 * message.length
@@ -79,8 +88,19 @@ class CompiledMessage:
             if shift < 0 or shift + length > bits:
                 return None
             sign = 1 << (length - 1) if signal.is_signed else 0
+            factor = (to_si or {}).get(signal.name)
             fields.append(
-                (signal.name, big_endian, shift, (1 << length) - 1, sign, choices, scale, offset)
+                (
+                    signal.name,
+                    big_endian,
+                    shift,
+                    (1 << length) - 1,
+                    sign,
+                    choices,
+                    scale,
+                    offset,
+                    factor,
+                )
             )
         return cls(message.name, fields)
 
@@ -89,7 +109,7 @@ class CompiledMessage:
         little = int.from_bytes(data, "little")
         big = int.from_bytes(data, "big") if self._big_endian else 0
         values: dict[str, Value] = {}
-        for name, big_endian, shift, mask, sign, choices, scale, offset in self._fields:
+        for name, big_endian, shift, mask, sign, choices, scale, offset, factor in self._fields:
             raw = ((big if big_endian else little) >> shift) & mask
             if raw & sign:
                 raw -= sign << 1
@@ -98,35 +118,6 @@ class CompiledMessage:
                 if choice is not None:
                     values[name] = choice
                     continue
-            values[name] = raw if scale is None else raw * scale + offset
+            value = raw if scale is None else raw * scale + offset
+            values[name] = value if factor is None else value * factor
         return values
-
-
-class TableCrc8:
-    """Table-driven CRC-8 (MSB first, no reflection) over a payload minus its CRC byte.
-
-    >>> TableCrc8(0x1D, 0xFF, 0xFF).checksum(b"123456789")  # SAE J1850 check value
-    75
-    """
-
-    def __init__(self, polynomial: int, init: int, final_xor: int) -> None:
-        table = []
-        for byte in range(256):
-            register = byte
-            for _ in range(8):
-                register = (register << 1) ^ polynomial if register & 0x80 else register << 1
-            table.append(register & 0xFF)
-        self._table = tuple(table)
-        self._init = init
-        self._final_xor = final_xor
-
-    def checksum(self, data: bytes) -> int:
-        table = self._table
-        register = self._init
-        for byte in data:
-            register = table[register ^ byte]
-        return register ^ self._final_xor
-
-    def payload_crc(self, data: bytes, crc_byte: int) -> int:
-        """As :func:`dbc.protection.payload_crc`: the CRC with byte ``crc_byte`` left out."""
-        return self.checksum(data[:crc_byte] + data[crc_byte + 1 :])

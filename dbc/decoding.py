@@ -1,15 +1,19 @@
-"""Decoding raw CAN frames against the DBC and checking their CRC and counter.
+"""Decoding raw CAN frames against the DBC and checking their end-to-end protection.
 
 Pure computation: bytes and a time stamp in, a :class:`DecodedFrame` out, or a
-:class:`~daq.errors.FrameError` the caller counts. The only state is each
-protected message's last counter value.
+:class:`~dbc.errors.FrameError` the caller counts. The only state is the rolling
+counter of each protected message (per source address for J1939).
 
-Two paths give the same frames: the precompiled one (:mod:`dbc._compiled_codec`:
-shifts and masks compiled once per message from the DBC layout, a table-driven
-CRC), used by default, and the reference one (cantools' ``Message.decode`` and
-:func:`dbc.protection.payload_crc`), ``FrameDecoder(..., compiled=False)``, which
-also serves the messages the compiler leaves out (multiplexed, container, float
-signals). The tests decode random frames both ways and compare.
+Frames are found by ID; messages the DBC marks as J1939 (``VFrameFormat``
+``J1939PG``) by their PGN, whatever the priority and source address of the frame
+(the source address is kept on the decoded frame). Pressure signals come out in
+Pa (``to_si``, from :mod:`dbc.units`); everything else in the DBC's units.
+
+Two paths give the same frames: the precompiled one (:mod:`dbc._compiled_codec`
+and table-driven CRCs), used by default, and the reference one (cantools'
+``Message.decode`` and the ``crc`` package), ``FrameDecoder(..., compiled=False)``,
+which also serves the messages the compiler leaves out (multiplexed, container,
+float signals). The tests decode random frames both ways and compare.
 """
 
 from collections.abc import Mapping
@@ -17,19 +21,24 @@ from dataclasses import dataclass
 
 from cantools.database.can import Database, Message
 from cantools.database.namedsignalvalue import NamedSignalValue
-from crc import Crc8
+from cantools.j1939 import pgn_from_frame_id
 
-from dbc._compiled_codec import CompiledMessage, TableCrc8
+from dbc._compiled_codec import CompiledMessage
 from dbc.errors import FdFrameError, FrameLengthError, SignalDecodeError, UnknownFrameError
-from dbc.machine import Protection
-from dbc.protection import CounterCheck, payload_crc
+from dbc.protection import (
+    COUNTER_JUMP,
+    COUNTER_REPEAT,
+    CRC_FAULT,
+    CounterCheck,
+    CrcCheck,
+    Protection,
+)
 
-_J1850 = Crc8.SAEJ1850.value
-#: The CRC of dbc.protection (CRC-8 SAE J1850), table-driven.
-_TABLE_CRC8 = TableCrc8(_J1850.polynomial, _J1850.init_value, _J1850.final_xor_value)
-
-#: A decoded signal: its physical value in the DBC's unit, or its value-table name.
+#: A decoded signal: its physical value (Pa for pressures), or its value-table name.
 SignalValue = float | int | str
+
+#: Signal name -> factor from its DBC unit to SI, per message name.
+UnitFactors = Mapping[str, Mapping[str, float]]
 
 
 @dataclass(frozen=True, slots=True)
@@ -40,30 +49,59 @@ class DecodedFrame:
     #: Frame time (kernel time stamp), Unix seconds.
     t_s: float
     signals: Mapping[str, SignalValue]
-    #: The CRC matched; True for messages without CRC.
-    crc_ok: bool
-    #: The counter advanced by one; True for messages without counter, for the
-    #: first frame, and for frames whose CRC failed (their counter is not trusted).
-    counter_ok: bool
+    #: What the protection found wrong: ``crc``, ``counter`` (a jump larger than the
+    #: profile allows), ``counter_repeat``; empty when fine or unprotected.
+    faults: tuple[str, ...] = ()
+    #: Frames lost before this one, by its counter (0 without a counter).
+    frames_lost: int = 0
+    #: J1939 source address of the sender; None for other messages.
+    source_address: int | None = None
+
+    @property
+    def crc_ok(self) -> bool:
+        return CRC_FAULT not in self.faults
+
+    @property
+    def counter_ok(self) -> bool:
+        """False for a repeated or too far jumped counter (a CRC failure alone keeps it True)."""
+        return COUNTER_JUMP not in self.faults and COUNTER_REPEAT not in self.faults
+
+
+def is_j1939(message: Message) -> bool:
+    """The DBC marks ``message`` as a J1939 parameter group (matched by PGN)."""
+    return message.protocol == "j1939"
+
+
+def j1939_pgn(frame_id: int) -> int:
+    """The PGN of a 29-bit J1939 frame ID (PDU1: the destination address is not part of it)."""
+    return int(pgn_from_frame_id(frame_id))  # type: ignore[no-untyped-call]
 
 
 class _MessageCodec:
     """Decoding and protection of one DBC message (precompiled unless ``compiled`` is off)."""
 
-    def __init__(self, message: Message, protection: Protection | None, compiled: bool) -> None:
+    def __init__(
+        self,
+        message: Message,
+        protection: Protection | None,
+        to_si: Mapping[str, float],
+        compiled: bool,
+    ) -> None:
         self.message = message
-        self.compiled = CompiledMessage.compile(message) if compiled else None
-        self.payload_crc = _TABLE_CRC8.payload_crc if compiled else payload_crc
-        self.crc_byte: int | None = None
-        self.counter: CounterCheck | None = None
+        self.to_si = dict(to_si)
+        self.compiled = CompiledMessage.compile(message, to_si) if compiled else None
+        self.protection = protection
+        self.crc: CrcCheck | None = None
+        self.counter_signal: str | None = None
+        # One counter state per sender: J1939 transducers sharing a PGN count on their own.
+        self._counters: dict[int | None, CounterCheck] = {}
         if protection is not None:
-            signal = message.get_signal_by_name
-            self.crc_byte = signal(protection.crc).start // 8
-            self.crc_signal = protection.crc
+            self.crc = protection.crc_check(message, compiled=compiled)
             self.counter_signal = protection.counter
-            self.counter = CounterCheck(2 ** signal(protection.counter).length)
 
-    def decode(self, arbitration_id: int, data: bytes, t_s: float) -> DecodedFrame:
+    def decode(
+        self, arbitration_id: int, data: bytes, t_s: float, source_address: int | None
+    ) -> DecodedFrame:
         message = self.message
         if len(data) != message.length:
             raise FrameLengthError(
@@ -75,12 +113,37 @@ class _MessageCodec:
             if self.compiled is not None
             else self._decode_reference(arbitration_id, data)
         )
-        crc_ok = counter_ok = True
-        if self.crc_byte is not None and self.counter is not None:
-            crc_ok = self.payload_crc(data, self.crc_byte) == data[self.crc_byte]
-            if crc_ok:
-                counter_ok = self.counter.update(int(signals[self.counter_signal]))
-        return DecodedFrame(message.name, t_s, signals, crc_ok, counter_ok)
+        if self.protection is None:
+            return DecodedFrame(message.name, t_s, signals, source_address=source_address)
+        counter_value = (
+            int(signals[self.counter_signal]) if self.counter_signal is not None else None
+        )
+        counter = self._counter(source_address)
+        if self.crc is not None and not self.crc.matches(data, counter_value):
+            # The counter of a corrupted frame is not trusted: judge the next good frame
+            # as a first one, so one bad CRC costs exactly one sample.
+            if counter is not None:
+                counter.resync()
+            return DecodedFrame(message.name, t_s, signals, (CRC_FAULT,), 0, source_address)
+        if counter is None or counter_value is None:
+            return DecodedFrame(message.name, t_s, signals, source_address=source_address)
+        result = counter.update(counter_value)
+        faults = (result.fault,) if result.fault is not None else ()
+        return DecodedFrame(message.name, t_s, signals, faults, result.lost, source_address)
+
+    def _counter(self, source_address: int | None) -> CounterCheck | None:
+        if self.protection is None or self.protection.counter is None:
+            return None
+        counter = self._counters.get(source_address)
+        if counter is None:
+            counter = self.protection.counter_check(self.message)
+            assert counter is not None
+            self._counters[source_address] = counter
+        return counter
+
+    def reset_counters(self) -> None:
+        for counter in self._counters.values():
+            counter.reset()
 
     def _decode_reference(self, arbitration_id: int, data: bytes) -> dict[str, SignalValue]:
         message = self.message
@@ -92,17 +155,24 @@ class _MessageCodec:
             raise SignalDecodeError(
                 arbitration_id, f"{message.name}: container messages unsupported"
             )
-        return {
-            name: value.name if isinstance(value, NamedSignalValue) else value
-            for name, value in decoded.items()
-            if isinstance(value, (int, float, str, NamedSignalValue))
-        }
+        values: dict[str, SignalValue] = {}
+        for name, value in decoded.items():
+            if isinstance(value, NamedSignalValue):
+                values[name] = value.name
+            elif isinstance(value, (int, float)):
+                factor = self.to_si.get(name)
+                values[name] = value if factor is None else value * factor
+            elif isinstance(value, str):
+                values[name] = value
+        return values
 
 
 class FrameDecoder:
     """Decodes frames of the messages in ``database``; checks the protected ones.
 
-    ``compiled=False`` decodes every message with cantools (the reference path).
+    ``protection`` holds the profiles by message name; ``to_si`` the unit factors
+    of the signals to convert (by message, then signal). ``compiled=False``
+    decodes every message with cantools (the reference path).
 
     >>> decoder = FrameDecoder(database, config.protection)  # doctest: +SKIP
     >>> decoder.decode(0x100, frame_bytes, t_s=1.5).signals["SB1_F1_pPiston"]  # doctest: +SKIP
@@ -113,20 +183,43 @@ class FrameDecoder:
         self,
         database: Database,
         protection: Mapping[str, Protection],
+        to_si: UnitFactors | None = None,
         *,
         compiled: bool = True,
     ) -> None:
-        self._codecs = {
-            (message.frame_id, bool(message.is_extended_frame)): _MessageCodec(
-                message, protection.get(message.name), compiled
+        self._codecs: dict[tuple[int, bool], _MessageCodec] = {}
+        # PGN -> source address -> codec; None: any address (one message of the PGN).
+        self._by_pgn: dict[int, dict[int | None, _MessageCodec]] = {}
+        for message in database.messages:
+            codec = _MessageCodec(
+                message,
+                protection.get(message.name),
+                (to_si or {}).get(message.name, {}),
+                compiled,
             )
-            for message in database.messages
-        }
+            if is_j1939(message):
+                self._by_pgn.setdefault(j1939_pgn(message.frame_id), {})[
+                    message.frame_id & 0xFF
+                ] = codec
+            else:
+                self._codecs[(message.frame_id, bool(message.is_extended_frame))] = codec
+        for by_address in self._by_pgn.values():
+            # One message of a PGN takes it from any source address (transducers sharing a
+            # PGN); several (one per sender) each take their own, others go to the first.
+            by_address[None] = next(iter(by_address.values()))
+        # 29-bit IDs of J1939 frames seen, with their message: bounded by the known PGNs
+        # times priorities, source (and destination) addresses, so it cannot grow forever.
+        self._j1939_ids: dict[int, _MessageCodec] = {}
 
     @property
     def frame_ids(self) -> list[tuple[int, bool]]:
-        """(ID, extended) of every known message, e.g. for kernel receive filters."""
+        """(ID, extended) of every known non-J1939 message, e.g. for kernel receive filters."""
         return sorted(self._codecs)
+
+    @property
+    def j1939_pgns(self) -> list[int]:
+        """The PGNs of the DBC's J1939 messages."""
+        return sorted(self._by_pgn)
 
     def decode(
         self,
@@ -136,19 +229,28 @@ class FrameDecoder:
         is_extended_id: bool = False,
         is_fd: bool = False,
     ) -> DecodedFrame:
-        """Decode one frame; raises a :class:`~daq.errors.FrameError` subclass if unusable.
+        """Decode one frame; raises a :class:`~dbc.errors.FrameError` subclass if unusable.
 
         An FD frame decodes only for a message the DBC defines as FD (else ``fd_frame``).
         """
         codec = self._codecs.get((arbitration_id, is_extended_id))
+        source_address = None
+        if codec is None and is_extended_id and self._by_pgn:
+            codec = self._j1939_ids.get(arbitration_id)
+            if codec is None:
+                by_address = self._by_pgn.get(j1939_pgn(arbitration_id))
+                if by_address is not None:
+                    codec = by_address.get(arbitration_id & 0xFF, by_address[None])
+                    self._j1939_ids[arbitration_id] = codec
+            source_address = arbitration_id & 0xFF if codec is not None else None
         if is_fd and (codec is None or not codec.message.is_fd):
             raise FdFrameError(arbitration_id, "CAN FD frame of no FD message in the DBC")
         if codec is None:
             raise UnknownFrameError(arbitration_id, "ID not in the DBC")
-        return codec.decode(arbitration_id, bytes(data), t_s)
+        return codec.decode(arbitration_id, bytes(data), t_s, source_address)
 
     def reset_counters(self) -> None:
-        """Forget the last counters, e.g. after the bus was down: no false 'counter' faults."""
-        for codec in self._codecs.values():
-            if codec.counter is not None:
-                codec.counter.reset()
+        """Forget the last counters, e.g. after the bus was down: no false counter faults."""
+        j1939 = {id(c): c for by_address in self._by_pgn.values() for c in by_address.values()}
+        for codec in (*self._codecs.values(), *j1939.values()):
+            codec.reset_counters()

@@ -1,7 +1,9 @@
 """Building protected CAN frames from physical signal values (the decoder's mirror).
 
-Pure computation: fills each protected message's rolling counter and CRC-8.
-The simulator bridge sends what this builds; the tests use it to make frames.
+Pure computation: values come in SI (pressures in Pa) and are encoded in the DBC's
+units; each protected message gets its rolling counter and CRC; a J1939 message
+is sent from the source address given. The simulator bridge sends what this
+builds; the tests use it to make frames.
 """
 
 from collections.abc import Mapping
@@ -9,9 +11,9 @@ from dataclasses import dataclass
 
 from cantools.database.can import Database
 
-from dbc.decoding import SignalValue
-from dbc.machine import Protection
-from dbc.protection import payload_crc
+from dbc.decoding import SignalValue, UnitFactors, is_j1939
+from dbc.machine import MachineConfig
+from dbc.protection import Protection
 
 
 @dataclass(frozen=True, slots=True)
@@ -24,16 +26,30 @@ class EncodedFrame:
 class FrameEncoder:
     """Encodes messages of ``database`` by name, counting and CRC-ing protected ones.
 
+    ``to_si`` holds the unit factors of the pressure signals (as for the decoder):
+    their values are divided by it before encoding.
+
     >>> encoder = FrameEncoder(database, config.protection)  # doctest: +SKIP
     >>> encoder.encode("LEG_SB1_F1", {"SB1_F1_pPiston": 12e6, "SB1_F1_pRod": 1e6,
     ...                               "SB1_F1_Status": "ok"}).data.hex()  # doctest: +SKIP
     'c832d007000000b1'
     """
 
-    def __init__(self, database: Database, protection: Mapping[str, Protection]) -> None:
+    def __init__(
+        self,
+        database: Database,
+        protection: Mapping[str, Protection],
+        to_si: UnitFactors | None = None,
+    ) -> None:
         self._database = database
         self._protection = dict(protection)
-        self._counters: dict[str, int] = {}
+        self._to_si = dict(to_si or {})
+        self._counters: dict[tuple[str, int | None], int] = {}
+
+    @classmethod
+    def from_config(cls, config: MachineConfig, database: Database) -> "FrameEncoder":
+        """The encoder of ``config``'s protection profiles and pressure units."""
+        return cls(database, config.protection, config.unit_factors)
 
     def encode(
         self,
@@ -42,22 +58,33 @@ class FrameEncoder:
         *,
         counter: int | None = None,
         corrupt_crc: bool = False,
+        source_address: int | None = None,
     ) -> EncodedFrame:
         """Encode one frame; ``counter`` overrides the rolling counter (fault injection),
-        ``corrupt_crc`` sends a wrong CRC."""
+        ``corrupt_crc`` sends a wrong CRC, ``source_address`` sets a J1939 sender."""
         message = self._database.get_message_by_name(message_name)
-        values = dict(signals)
+        factors = self._to_si.get(message_name, {})
+        values = {
+            name: value / factors[name] if name in factors and not isinstance(value, str) else value
+            for name, value in signals.items()
+        }
         protection = self._protection.get(message_name)
-        if protection is not None:
+        if protection is not None and protection.counter is not None:
+            key = (message_name, source_address)
             if counter is None:
-                counter = self._counters.get(message_name, -1) + 1
-            modulo = 2 ** message.get_signal_by_name(protection.counter).length
-            counter %= modulo
-            self._counters[message_name] = counter
+                counter = self._counters.get(key, -1) + 1
+            counter %= 2 ** message.get_signal_by_name(protection.counter).length
+            self._counters[key] = counter
             values[protection.counter] = counter
+        if protection is not None and protection.crc is not None:
             values[protection.crc] = 0
         data = bytearray(message.encode(values, scaling=True, padding=False, strict=True))
-        if protection is not None:
-            crc_byte = message.get_signal_by_name(protection.crc).start // 8
-            data[crc_byte] = payload_crc(bytes(data), crc_byte) ^ (0xFF if corrupt_crc else 0)
-        return EncodedFrame(message.frame_id, bool(message.is_extended_frame), bytes(data))
+        crc = protection.crc_check(message) if protection is not None else None
+        if crc is not None:
+            crc.write(data, counter, corrupt=corrupt_crc)
+        frame_id = message.frame_id
+        if source_address is not None:
+            if not is_j1939(message):
+                raise ValueError(f"{message_name} is not a J1939 message: no source address")
+            frame_id = (frame_id & ~0xFF) | source_address
+        return EncodedFrame(frame_id, bool(message.is_extended_frame), bytes(data))

@@ -15,7 +15,7 @@ import math
 import re
 import tomllib
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -23,8 +23,12 @@ from cantools.database.can import Database, Message
 
 from dbc import DEFAULT_DBC_PATH
 from dbc.database import load_database
+from dbc.decoding import is_j1939, j1939_pgn
 from dbc.errors import ConfigError
+from dbc.protection import CRC_ALGORITHMS, DEFAULT_CRC_ALGORITHM, Protection
+from dbc.stability_config import StabilityConfig, parse_stability
 from dbc.toml_table import TomlTable
+from dbc.units import ACCEPTED_PRESSURE_UNITS, pressure_factor_to_Pa
 from estimator.geometry import LegGeometry
 from estimator.settings import EstimatorSettings
 
@@ -45,7 +49,10 @@ GEOMETRY_KEYS = (
     "F_gLeg_N",
     "A_foot_m2",
 )
-LEG_SIGNAL_KEYS = ("piston", "rod", "status")
+LEG_SIGNAL_KEYS = ("piston", "rod", "status", "status_ok", "trigger", "max_skew_s")
+#: Keys of a chamber written as a table: ``piston = { signal = "M.S", ... }``.
+CHAMBER_KEYS = ("signal", "source_address", "unit", "status", "status_ok")
+PROTECTION_KEYS = ("counter", "crc", "crc_algorithm", "data_id", "max_delta_counter")
 ESTIMATOR_KEYS = (
     "filter",
     "median_window",
@@ -57,9 +64,20 @@ ESTIMATOR_KEYS = (
     "pressure_limit_Pa",
     "near_constant_window_s",
 )
-SENSOR_KEYS = ("pressure_min_Pa", "pressure_max_Pa", "status_ok")
+SENSOR_RANGE_KEYS = ("pressure_min_Pa", "pressure_max_Pa")
+SENSOR_KEYS = (*SENSOR_RANGE_KEYS, "status_ok")
 #: Top-level tables of the machine configuration.
-MACHINE_TABLES = ("machine", "estimator", "sensors", "leg_defaults", "legs", "protection")
+MACHINE_TABLES = (
+    "machine",
+    "estimator",
+    "sensors",
+    "leg_defaults",
+    "legs",
+    "protection",
+    "stability",
+)
+#: What ``status_ok`` is when the config does not say.
+DEFAULT_STATUS_OK: tuple[str | int, ...] = ("ok",)
 #: Tables of the service configuration that may share the file; this loader leaves
 #: them to :mod:`daq.service_config`, which checks them.
 SERVICE_TABLES = ("bus", "zenoh", "publish", "recording")
@@ -76,32 +94,80 @@ class SignalRef:
         return f"{self.message}.{self.signal}"
 
 
+#: A status value meaning "fine": a value-table name or a raw number.
+StatusValue = str | int
+
+
+@dataclass(frozen=True, slots=True)
+class StatusCheck:
+    """A sensor status signal and the values of it that mean the sensor is fine."""
+
+    signal: str
+    #: Names and raw numbers meaning "fine", each name also by its number and back
+    #: (through the signal's value table), so either form of the decoded value matches.
+    ok: frozenset[StatusValue]
+    #: The first configured "fine" value: what the simulator sends.
+    nominal: StatusValue
+
+    def fault(self, value: object) -> str | None:
+        """``status_<value>`` when ``value`` is not fine, else None."""
+        if value in self.ok:
+            return None
+        if isinstance(value, float) and value.is_integer() and int(value) in self.ok:
+            return None
+        return f"status_{value}"
+
+
+@dataclass(frozen=True, slots=True)
+class ChamberSignal:
+    """Where one chamber pressure of a leg is on the bus: ``MESSAGE.SIGNAL`` [from an address]."""
+
+    message: str
+    signal: str
+    #: J1939 source address of the transducer; None: any sender of the message.
+    source_address: int | None
+    #: The unit the DBC value is in (from the DBC or the config's ``unit``).
+    unit: str
+    #: The chamber's own sensor status, judged with its own frame; None: never judged.
+    status: StatusCheck | None
+    #: GenMsgCycleTime of the message.
+    cycle_time_s: float
+
+    def __str__(self) -> str:
+        where = f"{self.message}.{self.signal}"
+        return where if self.source_address is None else f"{where}@0x{self.source_address:02X}"
+
+
+#: Which chamber's new value makes a leg sample.
+TRIGGERS = ("piston", "rod")
+
+
 @dataclass(frozen=True, slots=True)
 class LegConfig:
     """One leg: its geometry and where its chamber pressures are on the bus."""
 
     name: str
     geometry: LegGeometry
-    piston: SignalRef
-    rod: SignalRef
-    #: Sensor status signal with a value table; None when the DBC has none.
-    status: SignalRef | None
-    #: GenMsgCycleTime of the leg's message.
-    cycle_time_s: float
+    piston: ChamberSignal
+    rod: ChamberSignal
+    #: A sample is made when this chamber's value arrives (``piston`` or ``rod``).
+    trigger: str = "piston"
+    #: The other chamber's latest value is used if it is at most this much older.
+    max_skew_s: float = 0.0
 
     @property
     def message(self) -> str:
-        """The one message that carries both chamber pressures of this leg."""
-        return self.piston.message
+        """The message of the trigger chamber (the one that makes samples)."""
+        return self.trigger_chamber.message
 
+    @property
+    def trigger_chamber(self) -> ChamberSignal:
+        return self.piston if self.trigger == "piston" else self.rod
 
-@dataclass(frozen=True, slots=True)
-class Protection:
-    """The end-to-end protection signals of one message."""
-
-    message: str
-    counter: str
-    crc: str
+    @property
+    def cycle_time_s(self) -> float:
+        """The trigger chamber's cycle time: staleness is judged on it."""
+        return self.trigger_chamber.cycle_time_s
 
 
 @dataclass(frozen=True)
@@ -116,6 +182,13 @@ class MachineConfig:
     estimator: EstimatorSettings
     legs: Mapping[str, LegConfig]
     protection: Mapping[str, Protection]
+    #: Factor from the DBC unit to Pa of every pressure signal, by message and signal
+    #: (the legs' chambers, and any other signal whose DBC unit is a pressure unit).
+    unit_factors: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
+    #: ``[sensors] status_ok``: the status values meaning "fine" where a leg does not say.
+    status_ok: tuple[str | int, ...] = ("ok",)
+    #: Feet, bridge and pose signals for the stability margin; None: not configured.
+    stability: StabilityConfig | None = None
 
     @property
     def weight_N(self) -> float:
@@ -184,16 +257,18 @@ def parse_machine_config(
     sensors = root.table("sensors", required=False)
     sensors.reject_unknown(SENSOR_KEYS)
     defaults = EstimatorSettings()
-    owners = {key: estimator for key in ESTIMATOR_KEYS} | {key: sensors for key in SENSOR_KEYS}
+    owners = {key: estimator for key in ESTIMATOR_KEYS} | {
+        key: sensors for key in SENSOR_RANGE_KEYS
+    }
     settings_kwargs: dict[str, Any] = {
         "filter": estimator.string("filter", defaults.filter),
         "median_window": estimator.integer("median_window", defaults.median_window),
         "hampel_window": estimator.integer("hampel_window", defaults.hampel_window),
-        "status_ok": sensors.string("status_ok", defaults.status_ok),
     }
     for key, table in owners.items():
         if key not in settings_kwargs:
             settings_kwargs[key] = table.number(key, getattr(defaults, key))
+    status_ok = _status_values(sensors, "status_ok", DEFAULT_STATUS_OK)
     settings = root.build(EstimatorSettings, owners, **settings_kwargs)
 
     leg_defaults = root.table("leg_defaults", required=False)
@@ -202,12 +277,14 @@ def parse_machine_config(
     if not legs_table.data:
         raise legs_table.error("", "no legs configured; add a [legs.<LEG>] table per leg")
     legs = {
-        name: _leg(name, table, leg_defaults, database) for name, table in legs_table.subtables()
+        name: _leg(name, table, leg_defaults, database, status_ok)
+        for name, table in legs_table.subtables()
     }
     protection = {
         name: _protection(name, table, database)
         for name, table in root.table("protection", required=False).subtables()
     }
+    unit_factors = _unit_factors(legs_table, legs, database)
     return MachineConfig(
         source=source,
         machine_id=machine.string("id", pattern=NAME_PATTERN),
@@ -216,10 +293,26 @@ def parse_machine_config(
         estimator=settings,
         legs=legs,
         protection=protection,
+        unit_factors=unit_factors,
+        status_ok=status_ok,
+        stability=parse_stability(
+            root.table("stability", required=False),
+            legs,
+            lambda table, key: _signal(table, key, database),
+            lambda ref: (
+                database.get_message_by_name(ref.message).get_signal_by_name(ref.signal).unit
+            ),
+        ),
     )
 
 
-def _leg(name: str, table: TomlTable, defaults: TomlTable, database: Database) -> LegConfig:
+def _leg(
+    name: str,
+    table: TomlTable,
+    defaults: TomlTable,
+    database: Database,
+    status_ok: tuple[StatusValue, ...],
+) -> LegConfig:
     if re.fullmatch(NAME_PATTERN, name) is None:
         raise table.error("", f"leg name {name!r} must match {NAME_PATTERN}")
     table.reject_unknown((*GEOMETRY_KEYS, *LEG_SIGNAL_KEYS))
@@ -235,42 +328,209 @@ def _leg(name: str, table: TomlTable, defaults: TomlTable, database: Database) -
     owners["alpha_cyl_rad"] = owners.pop("alpha_cyl_deg")
     geometry = table.build(LegGeometry, owners, **values)
 
-    piston = _signal(table, "piston", database)
-    rod = _signal(table, "rod", database)
-    status = _signal(table, "status", database) if "status" in table else None
-    for key, ref in (("rod", rod), ("status", status)):
-        if ref is not None and ref.message != piston.message:
-            raise table.error(
-                key,
-                f"{ref} is not in {piston.message}, the message of the piston pressure: "
-                "piston, rod and status must share one frame so that each frame is one sample",
-            )
-    message = database.get_message_by_name(piston.message)
-    if not message.cycle_time:
-        raise table.error(
-            "piston",
-            f"message {message.name} has no GenMsgCycleTime in the DBC; "
-            "staleness cannot be judged without it",
-        )
+    leg_status_ok = _status_values(table, "status_ok", status_ok)
+    leg_status = _leg_status(table, database) if "status" in table else None
+    chambers = {key: _chamber(table, key, database, leg_status_ok) for key in TRIGGERS}
+    if leg_status is not None:
+        chambers = _attach_leg_status(table, chambers, leg_status, leg_status_ok)
+    piston, rod = chambers["piston"], chambers["rod"]
+    trigger = table.string("trigger", "piston")
+    if trigger not in TRIGGERS:
+        raise table.error("trigger", f"must be one of {list(TRIGGERS)}, got {trigger!r}")
+    other = rod if trigger == "piston" else piston
+    max_skew_s = table.number("max_skew_s", other.cycle_time_s)
+    if max_skew_s < 0:
+        raise table.error("max_skew_s", f"must be >= 0, got {max_skew_s}")
     return LegConfig(
-        name=name,
-        geometry=geometry,
-        piston=piston,
-        rod=rod,
-        status=status,
-        cycle_time_s=message.cycle_time / 1000.0,
+        name=name, geometry=geometry, piston=piston, rod=rod, trigger=trigger, max_skew_s=max_skew_s
     )
 
 
-def _signal(table: TomlTable, key: str, database: Database) -> SignalRef:
-    text = table.string(key)
+def _split_ref(table: TomlTable, key: str, text: str, database: Database) -> tuple[Message, str]:
     message_name, dot, signal_name = text.partition(".")
     if not dot or not message_name or not signal_name:
         raise table.error(key, f"{text!r} must be written MESSAGE.SIGNAL")
     message = _message(table, key, message_name, database)
     if signal_name not in {signal.name for signal in message.signals}:
         raise table.error(key, f"no signal {signal_name!r} in message {message_name} of the DBC")
-    return SignalRef(message_name, signal_name)
+    return message, signal_name
+
+
+def _signal(table: TomlTable, key: str, database: Database) -> SignalRef:
+    """``key`` of ``table``: a ``MESSAGE.SIGNAL`` of the DBC."""
+    message, signal = _split_ref(table, key, table.string(key), database)
+    return SignalRef(message.name, signal)
+
+
+def _chamber_table(table: TomlTable, key: str, allowed: tuple[str, ...]) -> tuple[TomlTable, str]:
+    """The chamber's keys as a table (``"M.S"`` is ``{ signal = "M.S" }``), and the key
+    that names its signal in messages (the chamber's own key for the short form)."""
+    if isinstance(table.data.get(key), dict):
+        chamber = table.table(key)
+        chamber.reject_unknown(allowed)
+        return chamber, "signal"
+    return TomlTable({"signal": table.string(key)}, table.source, table.key(key)), ""
+
+
+def _chamber(
+    table: TomlTable, key: str, database: Database, status_ok: tuple[StatusValue, ...]
+) -> ChamberSignal:
+    chamber, signal_key = _chamber_table(table, key, CHAMBER_KEYS)
+    message, signal_name = _split_ref(chamber, signal_key, chamber.string("signal"), database)
+    source_address = _source_address(chamber, message, database)
+    signal = message.get_signal_by_name(signal_name)
+    unit = chamber.string("unit") if "unit" in chamber else (signal.unit or "")
+    if pressure_factor_to_Pa(unit) is None:
+        where = "unit" if "unit" in chamber else signal_key
+        raise chamber.error(
+            where,
+            f"signal {message.name}.{signal_name} has unit {unit!r}, not a pressure unit; "
+            f"set unit = one of {ACCEPTED_PRESSURE_UNITS}",
+        )
+    status = None
+    if "status" in chamber:
+        status_message, status_signal = _status_ref(chamber, message, database)
+        if status_message.name != message.name:
+            raise chamber.error(
+                "status", f"must be a signal of {message.name}, the chamber's own message"
+            )
+        chamber_ok = _status_values(chamber, "status_ok", status_ok)
+        status = _status_check(chamber, "status_ok", message, status_signal, chamber_ok)
+    elif "status_ok" in chamber:
+        raise chamber.error("status_ok", "given without a status signal")
+    return ChamberSignal(
+        message=message.name,
+        signal=signal_name,
+        source_address=source_address,
+        unit=unit,
+        status=status,
+        cycle_time_s=_cycle_time_s(chamber, signal_key, message),
+    )
+
+
+def _source_address(table: TomlTable, message: Message, database: Database) -> int | None:
+    """The pinned J1939 sender: the configured one; for a message that shares its PGN with
+    others (one DBC message per sender) the address in its own ID; else None (any)."""
+    if "source_address" not in table:
+        if is_j1939(message) and _shares_pgn(message, database):
+            return int(message.frame_id & 0xFF)
+        return None
+    if not is_j1939(message):
+        raise table.error(
+            "source_address",
+            f"{message.name} is not a J1939 message (VFrameFormat J1939PG in the DBC)",
+        )
+    address = table.integer("source_address")
+    if not 0 <= address <= 253:
+        raise table.error("source_address", f"must be a J1939 address 0..253, got {address}")
+    return address
+
+
+def _shares_pgn(message: Message, database: Database) -> bool:
+    pgn = j1939_pgn(message.frame_id)
+    return any(
+        other is not message and is_j1939(other) and j1939_pgn(other.frame_id) == pgn
+        for other in database.messages
+    )
+
+
+def _cycle_time_s(table: TomlTable, key: str, message: Message) -> float:
+    if not message.cycle_time:
+        raise table.error(
+            key,
+            f"message {message.name} has no GenMsgCycleTime in the DBC; "
+            "staleness and skew cannot be judged without it",
+        )
+    return message.cycle_time / 1000.0
+
+
+def _status_ref(table: TomlTable, message: Message, database: Database) -> tuple[Message, str]:
+    """A chamber's ``status``: ``SIGNAL`` of its own message, or ``MESSAGE.SIGNAL``."""
+    text = table.string("status")
+    if "." not in text:
+        text = f"{message.name}.{text}"
+    return _split_ref(table, "status", text, database)
+
+
+def _status_values(
+    table: TomlTable, key: str, default: tuple[StatusValue, ...]
+) -> tuple[StatusValue, ...]:
+    """``status_ok``: one value or a list, each a value-table name or a number."""
+    if key not in table:
+        return default
+    value = table.data[key]
+    items = value if isinstance(value, list) else [value]
+    if not items or not all(
+        (isinstance(item, str) and item) or (isinstance(item, int) and not isinstance(item, bool))
+        for item in items
+    ):
+        raise table.error(
+            key, f"must be a value-table name or number, or a list of them, got {value!r}"
+        )
+    return tuple(items)
+
+
+def _status_check(
+    table: TomlTable,
+    key: str,
+    message: Message,
+    signal_name: str,
+    status_ok: tuple[StatusValue, ...],
+) -> StatusCheck:
+    choices: Mapping[int, object] = message.get_signal_by_name(signal_name).choices or {}
+    by_name = {str(name): int(raw) for raw, name in choices.items()}
+    ok: set[StatusValue] = set()
+    for value in status_ok:
+        if isinstance(value, str):
+            if value not in by_name:
+                known = (
+                    f"its value table has {sorted(by_name)}"
+                    if by_name
+                    else (
+                        "it has no value table here; give the number meaning fine (status_ok = 0)"
+                    )
+                )
+                raise table.error(
+                    key, f"{value!r} is not a value of {message.name}.{signal_name}: {known}"
+                )
+            ok |= {value, by_name[value]}
+        else:
+            ok.add(value)
+            if value in choices:
+                ok.add(str(choices[value]))
+    return StatusCheck(signal=signal_name, ok=frozenset(ok), nominal=status_ok[0])
+
+
+def _leg_status(table: TomlTable, database: Database) -> tuple[Message, str, int | None]:
+    """The leg-level ``status`` (``"M.S"`` or ``{ signal, source_address }``)."""
+    status, signal_key = _chamber_table(table, "status", ("signal", "source_address"))
+    message, signal = _split_ref(status, signal_key, status.string("signal"), database)
+    return message, signal, _source_address(status, message, database)
+
+
+def _attach_leg_status(
+    table: TomlTable,
+    chambers: dict[str, ChamberSignal],
+    leg_status: tuple[Message, str, int | None],
+    status_ok: tuple[StatusValue, ...],
+) -> dict[str, ChamberSignal]:
+    """A leg-level status follows the frames of the chamber(s) whose message carries it."""
+    message, signal, source_address = leg_status
+    check = _status_check(table, "status_ok", message, signal, status_ok)
+    attached = {
+        key: replace(chamber, status=check)
+        for key, chamber in chambers.items()
+        if chamber.message == message.name
+        and (source_address is None or chamber.source_address in (None, source_address))
+        and chamber.status is None
+    }
+    if not attached:
+        raise table.error(
+            "status",
+            f"{message.name}.{signal} is in neither chamber's message (or already judged by "
+            "the chamber's own status); give it as the chamber's status instead",
+        )
+    return chambers | attached
 
 
 def _message(table: TomlTable, key: str, name: str, database: Database) -> Message:
@@ -280,17 +540,99 @@ def _message(table: TomlTable, key: str, name: str, database: Database) -> Messa
         raise table.error(key, f"no message {name!r} in the DBC") from None
 
 
+def _unit_factors(
+    legs_table: TomlTable, legs: Mapping[str, LegConfig], database: Database
+) -> dict[str, dict[str, float]]:
+    """Pa per DBC unit of every pressure signal; one signal cannot be in two units."""
+    factors: dict[str, dict[str, float]] = {}
+    for message in database.messages:
+        for signal in message.signals:
+            factor = pressure_factor_to_Pa(signal.unit or "")
+            if factor is not None and factor != 1.0:
+                factors.setdefault(message.name, {})[signal.name] = factor
+    chosen: dict[tuple[str, str], str] = {}
+    for leg in legs.values():
+        for key in TRIGGERS:
+            chamber: ChamberSignal = getattr(leg, key)
+            where = (chamber.message, chamber.signal)
+            if chosen.setdefault(where, chamber.unit).lower() != chamber.unit.lower():
+                raise legs_table.table(leg.name).error(
+                    key,
+                    f"{chamber.message}.{chamber.signal} is given in {chosen[where]!r} by another "
+                    f"leg and in {chamber.unit!r} here; one signal has one unit",
+                )
+            factor = pressure_factor_to_Pa(chamber.unit)
+            assert factor is not None  # checked when the chamber was read
+            message_factors = factors.setdefault(chamber.message, {})
+            if factor == 1.0:
+                message_factors.pop(chamber.signal, None)
+            else:
+                message_factors[chamber.signal] = factor
+    return {message: table for message, table in factors.items() if table}
+
+
 def _protection(name: str, table: TomlTable, database: Database) -> Protection:
-    table.reject_unknown(("counter", "crc"))
+    table.reject_unknown(PROTECTION_KEYS)
     message = _message(table, "", name, database)
     signals = {signal.name: signal for signal in message.signals}
-    counter_name, crc_name = table.string("counter"), table.string("crc")
-    for key, signal_name in (("counter", counter_name), ("crc", crc_name)):
-        if signal_name not in signals:
-            raise table.error(key, f"no signal {signal_name!r} in message {name} of the DBC")
-    crc = signals[crc_name]
-    if crc.length != 8 or crc.start % 8 or crc.byte_order != "little_endian":
-        raise table.error("crc", f"{crc_name} must be an 8-bit signal on a byte boundary")
-    if crc.start // 8 >= message.length:
-        raise table.error("crc", f"{crc_name} lies outside the {message.length}-byte frame")
-    return Protection(message=name, counter=counter_name, crc=crc_name)
+    if "counter" not in table and "crc" not in table:
+        raise table.error("", "names neither a counter nor a crc signal")
+    for key in ("counter", "crc"):
+        if key in table and table.string(key) not in signals:
+            raise table.error(key, f"no signal {table.string(key)!r} in message {name} of the DBC")
+    counter = table.string("counter") if "counter" in table else None
+    crc = table.string("crc") if "crc" in table else None
+    algorithm_name = table.string("crc_algorithm", DEFAULT_CRC_ALGORITHM)
+    if algorithm_name not in CRC_ALGORITHMS:
+        raise table.error(
+            "crc_algorithm", f"unknown {algorithm_name!r}; one of {', '.join(CRC_ALGORITHMS)}"
+        )
+    algorithm = CRC_ALGORITHMS[algorithm_name]
+    if crc is not None:
+        signal = signals[crc]
+        bits = 8 * algorithm.width_bytes
+        aligned = signal.start % 8 == (7 if signal.byte_order == "big_endian" else 0)
+        if signal.length != bits or not aligned:
+            raise table.error(
+                "crc", f"{crc} must be a {bits}-bit signal on byte boundaries for {algorithm.name}"
+            )
+        if signal.start // 8 + algorithm.width_bytes > message.length:
+            raise table.error("crc", f"{crc} lies outside the {message.length}-byte frame")
+    data_id = _data_id(table, algorithm.data_id_layout)
+    max_delta = table.integer("max_delta_counter", 2)
+    if counter is not None:
+        modulo = 2 ** signals[counter].length
+        if not 1 <= max_delta < modulo:
+            raise table.error(
+                "max_delta_counter", f"must be 1..{modulo - 1} for {counter}, got {max_delta}"
+            )
+    return Protection(
+        message=name,
+        counter=counter,
+        crc=crc,
+        crc_algorithm=algorithm_name,
+        data_id=data_id,
+        max_delta_counter=max_delta,
+    )
+
+
+def _data_id(table: TomlTable, layout: str) -> int | tuple[int, ...]:
+    if layout == "none":
+        if "data_id" in table:
+            raise table.error("data_id", "this crc_algorithm has no data ID")
+        return 0
+    if "data_id" not in table:
+        raise table.error("data_id", "missing: the E2E profile's CRC covers a data ID")
+    value = table.data["data_id"]
+    limit = 0xFF if layout == "after8" else 0xFFFF
+    if layout == "after8" and isinstance(value, list):
+        if len(value) != 16 or not all(_is_id(item, limit) for item in value):
+            raise table.error("data_id", f"a DataIDList must be 16 numbers 0..{limit}")
+        return tuple(value)
+    if not _is_id(value, limit):
+        raise table.error("data_id", f"must be a number 0..{limit:#x}, got {value!r}")
+    return int(value)
+
+
+def _is_id(value: object, limit: int) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool) and 0 <= value <= limit

@@ -1,16 +1,116 @@
-"""End-to-end protection of a CAN frame: CRC-8 SAE J1850 and a 4-bit rolling counter.
+"""End-to-end protection of CAN frames: CRC algorithms and the rolling-counter check.
 
-Pure functions and small state machines; used by the decoder to check frames
-and by the simulator bridge to build them.
+Pure functions and small state machines; used by the decoder to check frames and
+by the simulator bridge to build them. Each protected message has a profile
+(``[protection.<MESSAGE>]`` in the config) with a counter, a CRC, or both.
 
-CRC-8 SAE J1850: polynomial 0x1D, initial value 0xFF, final XOR 0xFF, no
-reflection (check value 0x4B for ASCII "123456789"), computed over every byte
-of the payload except the CRC byte itself.
+CRC algorithms (all MSB first, no reflection), computed over the frame's payload
+with the CRC byte(s) left out, and a data ID where the profile has one:
+
+============== ====== ====== ======== ======== ===================================
+name           width  poly   init     xor out  data ID
+============== ====== ====== ======== ======== ===================================
+crc8_sae_j1850 8      0x1D   0xFF     0xFF     none (the project's own DBC)
+e2e_p1         8      0x1D   0xFF     0xFF     16 bit, low then high byte, before
+e2e_p2         8      0x2F   0xFF     0xFF     8 bit after; or a list of 16, by counter
+e2e_p5         16     0x1021 0xFFFF   0x0000   16 bit, low then high byte, after
+============== ====== ====== ======== ======== ===================================
+
+``e2e_p1`` is AUTOSAR E2E profile 1 (CRC-8 SAE J1850, data ID mode "both"),
+``e2e_p2`` profile 2 (CRC-8H2F, DataIDList), ``e2e_p5`` profile 5
+(CRC-16/CCITT-FALSE); a 16-bit CRC is stored low byte first for an Intel signal,
+high byte first for a Motorola one. The parameter sets come from the ``crc``
+package (the reference path); the hot path uses tables built from the same
+parameters (:class:`TableCrc`).
 """
 
-from crc import Calculator, Crc8
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Literal
 
-_CRC8_SAE_J1850 = Calculator(Crc8.SAEJ1850.value, optimized=True)
+from cantools.database.can import Message
+from crc import Calculator, Configuration, Crc8, Crc16
+
+#: Counter faults, as they appear in an estimate's ``reasons``.
+COUNTER_REPEAT = "counter_repeat"
+COUNTER_JUMP = "counter"
+CRC_FAULT = "crc"
+
+
+@dataclass(frozen=True, slots=True)
+class CrcAlgorithm:
+    """A CRC of the protection profiles: its parameters and where the data ID goes."""
+
+    name: str
+    configuration: Configuration
+    #: "none", "before" (16-bit ID, low byte first), "after8" (one byte, or a list of
+    #: 16 by counter) or "after16" (16-bit ID, low byte first).
+    data_id_layout: str
+
+    @property
+    def width_bytes(self) -> int:
+        return self.configuration.width // 8
+
+
+CRC_ALGORITHMS: dict[str, CrcAlgorithm] = {
+    algorithm.name: algorithm
+    for algorithm in (
+        CrcAlgorithm("crc8_sae_j1850", Crc8.SAEJ1850.value, "none"),
+        CrcAlgorithm("e2e_p1", Crc8.SAEJ1850.value, "before"),
+        CrcAlgorithm("e2e_p2", Crc8.AUTOSAR.value, "after8"),
+        CrcAlgorithm("e2e_p5", Crc16.IBM_3740.value, "after16"),
+    )
+}
+DEFAULT_CRC_ALGORITHM = "crc8_sae_j1850"
+
+#: CRC of a byte string, by one implementation or the other.
+Checksum = Callable[[bytes], int]
+
+
+class TableCrc:
+    """Table-driven CRC (MSB first, no reflection) of 8 or 16 bits: the hot path.
+
+    >>> TableCrc(Crc8.SAEJ1850.value).checksum(b"123456789")  # SAE J1850 check value
+    75
+    >>> hex(TableCrc(Crc16.IBM_3740.value).checksum(b"123456789"))  # CCITT-FALSE
+    '0x29b1'
+    """
+
+    def __init__(self, configuration: Configuration) -> None:
+        width = configuration.width
+        if width not in (8, 16) or configuration.reverse_input or configuration.reverse_output:
+            raise ValueError(f"TableCrc handles unreflected 8/16-bit CRCs, not {configuration}")
+        top, mask = 1 << (width - 1), (1 << width) - 1
+        table = []
+        for byte in range(256):
+            register = byte << (width - 8)
+            for _ in range(8):
+                register = (
+                    (register << 1) ^ configuration.polynomial if register & top else register << 1
+                )
+            table.append(register & mask)
+        self._table = tuple(table)
+        self._shift = width - 8
+        self._mask = mask
+        self._init = configuration.init_value
+        self._final_xor = configuration.final_xor_value
+
+    def checksum(self, data: bytes) -> int:
+        table, shift, mask = self._table, self._shift, self._mask
+        register = self._init
+        if shift == 0:
+            for byte in data:
+                register = table[register ^ byte]
+        else:
+            for byte in data:
+                register = ((register << 8) & mask) ^ table[(register >> shift) ^ byte]
+        return register ^ self._final_xor
+
+
+def reference_checksum(configuration: Configuration) -> Checksum:
+    """The ``crc`` package's implementation of ``configuration`` (the reference path)."""
+    calculator = Calculator(configuration)
+    return lambda data: int(calculator.checksum(data))
 
 
 def crc8_sae_j1850(data: bytes) -> int:
@@ -19,38 +119,170 @@ def crc8_sae_j1850(data: bytes) -> int:
     >>> hex(crc8_sae_j1850(b"123456789"))
     '0x4b'
     """
-    return int(_CRC8_SAE_J1850.checksum(data))
+    return _J1850_REFERENCE(data)
 
 
-def payload_crc(data: bytes, crc_byte: int) -> int:
-    """CRC of a frame's payload with the CRC byte at index ``crc_byte`` left out."""
-    return crc8_sae_j1850(data[:crc_byte] + data[crc_byte + 1 :])
+_J1850_REFERENCE = reference_checksum(Crc8.SAEJ1850.value)
+
+
+class CrcCheck:
+    """The CRC of one message: computes, checks and writes it at its place in the frame.
+
+    ``start_byte``/``big_endian`` locate the CRC signal; ``data_id`` is the profile's
+    data ID (a tuple of 16 for ``e2e_p2``'s DataIDList, picked by the counter value).
+    ``compiled=False`` uses the ``crc`` package instead of the tables.
+    """
+
+    def __init__(
+        self,
+        algorithm: CrcAlgorithm,
+        start_byte: int,
+        big_endian: bool = False,
+        data_id: int | tuple[int, ...] = 0,
+        *,
+        compiled: bool = True,
+    ) -> None:
+        self.algorithm = algorithm
+        self.start_byte = start_byte
+        self.end_byte = start_byte + algorithm.width_bytes
+        self.byteorder: Literal["big", "little"] = "big" if big_endian else "little"
+        self.data_id = data_id
+        self._checksum: Checksum = (
+            TableCrc(algorithm.configuration).checksum
+            if compiled
+            else reference_checksum(algorithm.configuration)
+        )
+
+    def _data_id_for(self, counter: int | None) -> int:
+        if isinstance(self.data_id, tuple):
+            return self.data_id[(counter or 0) % len(self.data_id)]
+        return self.data_id
+
+    def compute(self, data: bytes, counter: int | None = None) -> int:
+        """The CRC of ``data`` (a whole frame; its CRC bytes are left out)."""
+        payload = data[: self.start_byte] + data[self.end_byte :]
+        layout = self.algorithm.data_id_layout
+        if layout == "none":
+            return self._checksum(payload)
+        data_id = self._data_id_for(counter)
+        if layout == "before":
+            return self._checksum(bytes((data_id & 0xFF, (data_id >> 8) & 0xFF)) + payload)
+        if layout == "after8":
+            return self._checksum(payload + bytes((data_id & 0xFF,)))
+        return self._checksum(payload + bytes((data_id & 0xFF, (data_id >> 8) & 0xFF)))
+
+    def received(self, data: bytes) -> int:
+        """The CRC value the frame carries."""
+        return int.from_bytes(data[self.start_byte : self.end_byte], self.byteorder)
+
+    def matches(self, data: bytes, counter: int | None = None) -> bool:
+        return self.compute(data, counter) == self.received(data)
+
+    def write(self, frame: bytearray, counter: int | None = None, corrupt: bool = False) -> None:
+        """Put the CRC into ``frame`` (inverted when ``corrupt``: fault injection)."""
+        value = self.compute(bytes(frame), counter)
+        if corrupt:
+            value ^= (1 << (8 * self.algorithm.width_bytes)) - 1
+        frame[self.start_byte : self.end_byte] = value.to_bytes(
+            self.algorithm.width_bytes, self.byteorder
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class CounterResult:
+    """What one counter value says: a fault (or None) and how many frames were lost."""
+
+    fault: str | None
+    lost: int
+
+
+_OK = CounterResult(None, 0)
 
 
 class CounterCheck:
-    """Checks that a message's rolling counter advances by exactly one per frame.
+    """Checks a message's rolling counter as AUTOSAR E2E does.
 
-    The counter wraps at ``modulo`` (16 for the DBC's 4-bit counters).
+    The counter wraps at ``modulo`` (16 for a 4-bit counter). With ``delta`` the
+    step from the last value seen: 0 is a repeat (``counter_repeat``: a frozen
+    sender, the sample is invalid); 1..``max_delta`` is fine, ``delta - 1`` frames
+    were lost on the way (counted, the data of this frame is good); a larger jump
+    is ``counter`` (invalid; the sender restarted or many frames were lost). The
+    first frame, and the first after :meth:`reset` or :meth:`resync` (a frame
+    whose CRC failed: its counter is not trusted), is accepted as it comes; the
+    next frame is always judged against the value just seen.
 
-    The first frame (and the first after :meth:`reset`) is always accepted. A
-    repeated value (a frozen sender) and any jump (lost frames, or a sender
-    that restarted) fail the check; the next frame is judged against the value
-    just seen, so one lost frame costs one invalid sample, not many.
-
-    >>> check = CounterCheck()
-    >>> [check.update(c) for c in (3, 4, 5, 5, 7, 8, 15, 0)]
-    [True, True, True, False, False, True, False, True]
+    >>> check = CounterCheck(modulo=16, max_delta=2)
+    >>> [(r.fault, r.lost) for r in map(check.update, (3, 4, 6, 6, 10, 11))]
+    [(None, 0), (None, 0), (None, 1), ('counter_repeat', 0), ('counter', 3), (None, 0)]
     """
 
-    def __init__(self, modulo: int = 16) -> None:
+    def __init__(self, modulo: int = 16, max_delta: int = 2) -> None:
         if modulo < 2:
             raise ValueError(f"counter modulo must be >= 2, got {modulo}")
+        if not 1 <= max_delta < modulo:
+            raise ValueError(f"max_delta_counter must be 1..{modulo - 1}, got {max_delta}")
         self.modulo = modulo
+        self.max_delta = max_delta
         self._last: int | None = None
 
     def reset(self) -> None:
+        """Forget the last value (after a gap in reception)."""
         self._last = None
 
-    def update(self, counter: int) -> bool:
+    resync = reset
+
+    def update(self, counter: int) -> CounterResult:
         last, self._last = self._last, counter
-        return last is None or counter == (last + 1) % self.modulo
+        if last is None:
+            return _OK
+        delta = (counter - last) % self.modulo
+        if delta == 1:
+            return _OK
+        if delta == 0:
+            return CounterResult(COUNTER_REPEAT, 0)
+        if delta <= self.max_delta:
+            return CounterResult(None, delta - 1)
+        return CounterResult(COUNTER_JUMP, delta - 1)
+
+
+@dataclass(frozen=True, slots=True)
+class Protection:
+    """The end-to-end protection profile of one message (``[protection.<MESSAGE>]``).
+
+    Either part is optional: a counter alone, a CRC alone, or both.
+    """
+
+    message: str
+    #: The rolling counter signal; None: no counter check.
+    counter: str | None = None
+    #: The CRC signal (8 or 16 bits on byte boundaries); None: no CRC check.
+    crc: str | None = None
+    #: A name of :data:`CRC_ALGORITHMS`.
+    crc_algorithm: str = DEFAULT_CRC_ALGORITHM
+    #: The profile's data ID; a tuple of 16 is e2e_p2's DataIDList (by counter value).
+    data_id: int | tuple[int, ...] = 0
+    #: Largest counter step still accepted (1 + frames that may be lost in a row).
+    max_delta_counter: int = 2
+
+    def crc_check(self, message: Message, *, compiled: bool = True) -> CrcCheck | None:
+        """The CRC check of this profile on ``message``'s layout; None without a CRC."""
+        if self.crc is None:
+            return None
+        signal = message.get_signal_by_name(self.crc)
+        big_endian = signal.byte_order == "big_endian"
+        # A Motorola signal's start bit is its MSB, in the lowest byte it occupies.
+        start_byte = signal.start // 8
+        return CrcCheck(
+            CRC_ALGORITHMS[self.crc_algorithm],
+            start_byte,
+            big_endian,
+            self.data_id,
+            compiled=compiled,
+        )
+
+    def counter_check(self, message: Message) -> CounterCheck | None:
+        """A fresh counter check for ``message``; None without a counter."""
+        if self.counter is None:
+            return None
+        modulo = 2 ** message.get_signal_by_name(self.counter).length
+        return CounterCheck(modulo, self.max_delta_counter)

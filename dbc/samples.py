@@ -1,34 +1,146 @@
-"""From decoded frames to the estimator's leg samples, by the config's signal mapping."""
+"""From decoded frames to the estimator's leg samples, by the config's signal mapping.
+
+A leg's two chamber pressures may come in one frame (one sensor hub) or in two
+(one transducer per chamber, e.g. J1939 nodes with their own source addresses).
+The sampler holds the latest value of each chamber, with what its own frame's
+checks found (CRC, counter, the chamber's status). **Timing rule:** a leg sample is
+made when a new value of the leg's trigger chamber arrives (default: piston); it
+uses the other chamber's latest value if that is at most ``max_skew_s`` older
+(default: one cycle time of the other chamber's message), else the sample is
+invalid with ``rod_stale`` (or ``piston_stale``). The sample's time is the trigger
+frame's. Both chambers in one frame: skew 0, one sample per frame.
+"""
 
 from collections.abc import Mapping
+from dataclasses import dataclass
 
 from dbc.decoding import DecodedFrame
-from dbc.machine import LegConfig
+from dbc.machine import TRIGGERS, ChamberSignal, LegConfig, StatusCheck
 from estimator.leg import LegSample
 
 
+@dataclass(frozen=True, slots=True)
+class _Paired:
+    """A leg whose two chambers come in one frame: every such frame is one sample."""
+
+    leg: str
+    piston: str
+    rod: str
+    source_address: int | None
+    statuses: tuple[StatusCheck, ...]
+
+
+@dataclass(frozen=True, slots=True)
+class _Route:
+    """One chamber of one leg, as found in frames of its message."""
+
+    leg: LegConfig
+    chamber: str
+    signal: ChamberSignal
+    #: The leg's sample is made when this chamber's value arrives.
+    triggers: bool
+
+
+@dataclass(frozen=True, slots=True)
+class _Reading:
+    """The latest value of one chamber and what its frame's checks said."""
+
+    t_s: float
+    p_Pa: float
+    faults: tuple[str, ...]
+
+
 class LegSampler:
-    """Picks each leg's chamber pressures and status out of its message's frames."""
+    """Picks each leg's chamber pressures and status out of its messages' frames."""
 
     def __init__(self, legs: Mapping[str, LegConfig]) -> None:
-        self._legs_by_message: dict[str, list[LegConfig]] = {}
+        # The usual case, both chambers in one frame, needs no state (the hot path).
+        self._paired: dict[str, list[_Paired]] = {}
+        self._routes: dict[str, list[_Route]] = {}
         for leg in legs.values():
-            self._legs_by_message.setdefault(leg.message, []).append(leg)
+            piston, rod = leg.piston, leg.rod
+            if (piston.message, piston.source_address) == (rod.message, rod.source_address):
+                statuses = tuple(
+                    dict.fromkeys(s for s in (piston.status, rod.status) if s is not None)
+                )
+                self._paired.setdefault(piston.message, []).append(
+                    _Paired(leg.name, piston.signal, rod.signal, piston.source_address, statuses)
+                )
+                continue
+            for chamber in TRIGGERS:
+                signal: ChamberSignal = getattr(leg, chamber)
+                self._routes.setdefault(signal.message, []).append(
+                    _Route(leg, chamber, signal, chamber == leg.trigger)
+                )
+        self._latest: dict[tuple[str, str], _Reading] = {}
 
-    def samples(self, frame: DecodedFrame) -> list[tuple[str, LegSample]]:
-        """The (leg name, sample) pairs that ``frame`` carries; empty for other messages."""
+    def samples(self, frame: DecodedFrame) -> list[tuple[str, LegSample]] | None:
+        """The (leg name, sample) pairs that ``frame`` makes; empty for other messages.
+
+        None when the frame's message carries chambers but none from its source
+        address: a J1939 frame of a known PGN from an unmapped transducer.
+        """
+        paired = self._paired.get(frame.message)
+        routes = self._routes.get(frame.message)
+        if paired is None and routes is None:
+            return []
+        source_address = frame.source_address
         signals = frame.signals
-        return [
+        samples = [
             (
-                leg.name,
+                leg.leg,
                 LegSample(
-                    t_s=frame.t_s,
-                    p_piston_Pa=float(signals[leg.piston.signal]),
-                    p_rod_Pa=float(signals[leg.rod.signal]),
-                    status=str(signals[leg.status.signal]) if leg.status else "ok",
-                    crc_ok=frame.crc_ok,
-                    counter_ok=frame.counter_ok,
+                    frame.t_s,
+                    float(signals[leg.piston]),
+                    float(signals[leg.rod]),
+                    _with_status(frame.faults, leg.statuses, signals),
                 ),
             )
-            for leg in self._legs_by_message.get(frame.message, ())
+            for leg in paired or ()
+            if leg.source_address is None or leg.source_address == source_address
         ]
+        matched = [
+            route
+            for route in routes or ()
+            if route.signal.source_address is None or route.signal.source_address == source_address
+        ]
+        if not samples and not matched:
+            return None
+        for route in matched:
+            status = route.signal.status
+            faults = _with_status(frame.faults, (status,) if status else (), signals)
+            self._latest[(route.leg.name, route.chamber)] = _Reading(
+                frame.t_s, float(signals[route.signal.signal]), faults
+            )
+        return samples + [self._sample(route.leg) for route in matched if route.triggers]
+
+    def _sample(self, leg: LegConfig) -> tuple[str, LegSample]:
+        other_chamber = "rod" if leg.trigger == "piston" else "piston"
+        trigger = self._latest[(leg.name, leg.trigger)]
+        other = self._latest.get((leg.name, other_chamber))
+        faults = list(trigger.faults)
+        if other is None or trigger.t_s - other.t_s > leg.max_skew_s:
+            faults.append(f"{other_chamber}_stale")
+            other_p_Pa = other.p_Pa if other is not None else float("nan")
+        else:
+            faults += [fault for fault in other.faults if fault not in faults]
+            other_p_Pa = other.p_Pa
+        p_piston_Pa, p_rod_Pa = (
+            (trigger.p_Pa, other_p_Pa) if leg.trigger == "piston" else (other_p_Pa, trigger.p_Pa)
+        )
+        return leg.name, LegSample(trigger.t_s, p_piston_Pa, p_rod_Pa, tuple(faults))
+
+    def reset(self) -> None:
+        """Forget the latest chamber values (after a gap in reception)."""
+        self._latest.clear()
+
+
+def _with_status(
+    faults: tuple[str, ...], statuses: tuple[StatusCheck, ...], signals: Mapping[str, object]
+) -> tuple[str, ...]:
+    """The frame's faults and those of its status signals."""
+    for status in statuses:
+        fault = status.fault(signals[status.signal])
+        if fault is not None and fault not in faults:
+            faults = (*faults, fault)
+    return faults

@@ -15,7 +15,7 @@ NAN = float("nan")
 
 @dataclass(frozen=True, slots=True)
 class LegSample:
-    """One decoded leg-cylinder frame: both chamber pressures and the frame's checks."""
+    """One leg sample: both chamber pressures and what the CAN layer's checks found."""
 
     #: Frame time (kernel time stamp), Unix seconds.
     t_s: float
@@ -23,12 +23,9 @@ class LegSample:
     p_piston_Pa: float
     #: Rod (annulus) chamber pressure.
     p_rod_Pa: float
-    #: Name of the sensor status from the DBC value table.
-    status: str = "ok"
-    #: The frame's CRC matched (True when the message is not CRC-protected).
-    crc_ok: bool = True
-    #: The frame's rolling counter advanced as expected (True when unprotected).
-    counter_ok: bool = True
+    #: Why the frames behind this sample cannot be trusted (``crc``, ``counter``,
+    #: ``counter_repeat``, ``status_<value>``, ``rod_stale``, ...); empty when fine.
+    faults: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True, slots=True)
@@ -107,9 +104,7 @@ class LegEstimator:
         reasons = sample_faults(
             p_piston_Pa=sample.p_piston_Pa,
             p_rod_Pa=sample.p_rod_Pa,
-            status=sample.status,
-            crc_ok=sample.crc_ok,
-            counter_ok=sample.counter_ok,
+            faults=sample.faults,
             settings=self.settings,
         )
         force_raw_N = foot_force_N(sample.p_piston_Pa, sample.p_rod_Pa, self.leg)

@@ -14,9 +14,11 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 from estimator.geometry import LegGeometry
+from estimator.kinematics import Point
 from estimator.leg import LegEstimate, LegEstimator, LegSample
 from estimator.metrics import SoilMetrics
 from estimator.settings import EstimatorSettings
+from estimator.stability import Stability, stability
 from estimator.weight import WeightCheck, weight_check
 
 
@@ -28,6 +30,9 @@ class MachineSnapshot:
     t_s: float
     legs: Mapping[str, LegEstimate]
     weight: WeightCheck
+    #: Centre of pressure and margin of the feet in contact; None when undefined or
+    #: no foot positions were given.
+    stability: Stability | None = None
 
 
 class MachineEstimator:
@@ -69,8 +74,9 @@ class MachineEstimator:
         self._heard_at_s[leg] = self.bus_time_s
         return self.legs[leg].update(sample)
 
-    def snapshot(self, now_s: float) -> MachineSnapshot:
-        """All legs judged at ``now_s`` (stale legs marked), plus the weight check.
+    def snapshot(self, now_s: float, feet_m: Mapping[str, Point] | None = None) -> MachineSnapshot:
+        """All legs judged at ``now_s`` (stale legs marked), plus the weight check, and
+        with the feet's plan positions ``feet_m`` the stability margin.
 
         ``now_s`` is a time on the frames' clock; the legs are judged at the bus time
         of the latest frame plus how far ``now_s`` lies past that frame (nothing when
@@ -82,7 +88,10 @@ class MachineEstimator:
             name: leg.snapshot(judged_s - self._heard_at_s[name]) for name, leg in self.legs.items()
         }
         return MachineSnapshot(
-            t_s=now_s, legs=estimates, weight=weight_check(estimates.values(), self.weight_N)
+            t_s=now_s,
+            legs=estimates,
+            weight=weight_check(estimates.values(), self.weight_N),
+            stability=stability(estimates.values(), feet_m) if feet_m is not None else None,
         )
 
     def metrics(self) -> dict[str, SoilMetrics]:

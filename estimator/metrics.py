@@ -16,7 +16,8 @@ class SoilMetrics:
     #: Frame time of that peak.
     peak_t_s: float = NAN
     #: Highest mean contact pressure over a sliding window (the paper's "near
-    #: constant" pressure, 5 s by default); NaN until one window is covered.
+    #: constant" pressure, 5 s by default); NaN until a run of samples without a
+    #: gap or a clock step back covers one window.
     near_constant_pressure_Pa: float = NAN
     #: End time of the window that gave it.
     near_constant_t_s: float = NAN

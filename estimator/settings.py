@@ -31,8 +31,6 @@ class EstimatorSettings:
     pressure_min_Pa: float = -1.0e5
     #: Highest pressure the transducers measure; above it a sample is invalid ("range").
     pressure_max_Pa: float = 40.0e6
-    #: Name in the DBC's status value table that means the sensor is fine.
-    status_ok: str = "ok"
     #: Filtered foot force at or above which a foot in the air counts as down.
     contact_on_N: float = 8000.0
     #: Filtered foot force at or below which a foot on the ground counts as lifted.

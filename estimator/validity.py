@@ -2,11 +2,18 @@
 
 Reason names are part of the published contract (the ``reasons`` list):
 
-- ``crc``: the frame's CRC-8 did not match its payload;
-- ``counter``: the rolling counter repeated or jumped (frozen or lost sender);
-- ``status_<name>``: the sensor reported a status other than ok, e.g. ``status_over_range``;
+- ``crc``: a frame's CRC did not match its payload;
+- ``counter``: a rolling counter jumped further than its profile's ``max_delta_counter``;
+- ``counter_repeat``: a rolling counter repeated (a frozen sender);
+- ``status_<value>``: a sensor reported a status other than fine, e.g. ``status_over_range``
+  (a value-table name) or ``status_3`` (a number);
+- ``piston_stale`` / ``rod_stale``: the other chamber's latest value is older than
+  ``max_skew_s`` (or none came yet) when the leg's trigger chamber arrived;
 - ``range``: a chamber pressure lies outside the transducers' range (or is not a number);
 - ``stale``: no frame for more than ``stale_after_cycles`` cycle times.
+
+All but ``range`` and ``stale`` come from the CAN layer (:mod:`dbc.samples`) as the
+sample's ``faults``.
 """
 
 from typing import TypeVar
@@ -30,28 +37,15 @@ def sample_faults(
     *,
     p_piston_Pa: float,
     p_rod_Pa: float,
-    status: str,
-    crc_ok: bool,
-    counter_ok: bool,
+    faults: tuple[str, ...],
     settings: EstimatorSettings,
 ) -> tuple[str, ...]:
-    """The reasons a freshly received sample is invalid; empty when it is valid."""
+    """The reasons a freshly received sample is invalid: the CAN layer's ``faults`` and
+    ``range``; empty when it is valid."""
     low, high = settings.pressure_min_Pa, settings.pressure_max_Pa
-    if (
-        crc_ok
-        and counter_ok
-        and status == settings.status_ok
-        and low <= p_piston_Pa <= high
-        and low <= p_rod_Pa <= high
-    ):
-        return ()  # the usual case, first (per frame): the same checks as below
-    reasons: list[str] = []
-    if not crc_ok:
-        reasons.append("crc")
-    if not counter_ok:
-        reasons.append("counter")
-    if status != settings.status_ok:
-        reasons.append(f"status_{status}")
+    if low <= p_piston_Pa <= high and low <= p_rod_Pa <= high:
+        return faults  # the usual case, first (per frame): the same check as below
+    reasons = list(faults)
     if not (pressure_in_range(p_piston_Pa, settings) and pressure_in_range(p_rod_Pa, settings)):
         reasons.append("range")
     return tuple(reasons)

@@ -203,7 +203,7 @@ def main(options: BridgeOptions) -> int:
     injector = FaultInjector(options.faults, fault_targets(builder))
     if options.faults.any:
         logger.info("faults: %s; seed %d", describe_faults(options.faults), injector.seed)
-    playout = Playout(result, builder, FrameEncoder(database, config.protection), injector)
+    playout = Playout(result, builder, FrameEncoder.from_config(config, database), injector)
     end_ns = end_of_run_ns(playout.timeline.cycle_ns, options.cycles, options.duration_s)
     legs = list(config.legs)
     feet_m2 = {leg: config.legs[leg].geometry.A_foot_m2 for leg in legs}

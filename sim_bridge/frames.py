@@ -2,9 +2,11 @@
 
 Pure computation. Which signal carries what:
 
-- **Leg messages** follow the machine configuration: ``[legs.<LEG>]`` names the piston,
-  rod and status signals, so a different DBC works by editing the config. Each config leg
-  must be one of the simulation's legs (:data:`~sim_bridge.result.LEGS`).
+- **Leg chambers** follow the machine configuration: ``[legs.<LEG>]`` names the piston
+  and rod signals (in one message or two, J1939 ones from a source address each) and
+  their status signals, so a different DBC works by editing the config. Each config leg
+  must be one of the simulation's legs (:data:`~sim_bridge.result.LEGS`). Pressures are
+  in Pa here; the encoder converts them into the DBC signal's unit.
 - **Every other signal** is found by its name in the DBC: ``INCL_<BASE>_pPiston`` /
   ``_pRod`` / ``_Status``, ``<LEG>_Stroke``, ``<BASE>_InclinationAngle``,
   ``Bridge_FoldAngle``, ``Bridge_RotationAngle``, ``Carriage_Position``,
@@ -15,7 +17,8 @@ Pure computation. Which signal carries what:
   its range) and listed in :attr:`FrameBuilder.defaulted`; a periodic message none of whose
   signals is supplied is not sent at all (:attr:`FrameBuilder.skipped`).
 
-Status signals say the config's ``status_ok`` name unless a fault says otherwise. Every
+Status signals say the first ``status_ok`` value of their chamber unless a fault says
+otherwise. Every
 number is clipped into its DBC signal's ``[minimum, maximum]`` (cantools' strict encoder
 refuses anything else), fault values included; the pressure signals' DBC range
 (-1 .. 64.535 MPa) is wider than the transducers' (-0.1 .. 40 MPa), so an out-of-range
@@ -30,7 +33,8 @@ from cantools.database.can import Database, Message, Signal
 
 from dbc.decoding import SignalValue
 from dbc.errors import ConfigError
-from dbc.machine import MachineConfig
+from dbc.machine import ChamberSignal, MachineConfig
+from dbc.units import pressure_factor_to_Pa
 from sim_bridge.result import BASES, LEGS, PHASES, SimulationResult
 from sim_bridge.schedule import NS_PER_MS, NS_PER_S, MessageCycle
 
@@ -90,38 +94,57 @@ class Timeline:
 
 
 @dataclass(frozen=True, slots=True)
-class _LegSignals:
+class _ChamberSignals:
+    """One chamber pressure of a leg in a sender's frame, and its status signal."""
+
     leg: str
-    piston: Signal
-    rod: Signal
+    #: "piston" or "rod".
+    chamber: str
+    pressure: Signal
+    #: Factor from the pressure signal's DBC unit to Pa.
+    to_Pa: float
     status: Signal | None
+    #: What the status signal says when the sensor is fine.
+    status_nominal: SignalValue
 
 
 @dataclass(frozen=True, slots=True)
 class _MessagePlan:
     message: str
-    legs: tuple[_LegSignals, ...]
+    #: J1939 source address the frames are sent from; None: the DBC's frame ID.
+    source_address: int | None
+    chambers: tuple[_ChamberSignals, ...]
     #: Signals found by name, with their getters.
     named: tuple[tuple[Signal, Getter], ...]
     #: Signals sent as a constant (nobody supplies them).
     constants: tuple[tuple[Signal, SignalValue], ...]
 
 
-class FrameBuilder:
-    """Builds each periodic message's signal values from a simulation row.
+def sender_name(message: str, source_address: int | None) -> str:
+    """What the bridge calls one sender: the message, and ``@0x21`` for a J1939 transducer."""
+    return message if source_address is None else f"{message}@0x{source_address:02X}"
 
-    Constructed once from the machine configuration and the DBC; raises
-    :class:`~daq.errors.ConfigError` when a config leg is not a simulated leg.
+
+class FrameBuilder:
+    """Builds each periodic sender's signal values from a simulation row.
+
+    A *sender* is one message, or for a J1939 message mapped to several source
+    addresses (one transducer per chamber) one per address (``HYD_PRESS@0x21``);
+    each sends at its message's cycle time. Values are in SI; the encoder turns
+    them into the DBC's units. Constructed once from the machine configuration and
+    the DBC; raises :class:`~dbc.errors.ConfigError` when a config leg is not a
+    simulated leg.
     """
 
     def __init__(self, config: MachineConfig, database: Database) -> None:
-        self.status_ok = config.estimator.status_ok
+        status_ok = config.status_ok[0]
         protected = {
             (name, signal)
             for name, protection in config.protection.items()
             for signal in (protection.counter, protection.crc)
+            if signal is not None
         }
-        legs_by_message: dict[str, list[str]] = {}
+        chambers_by_sender: dict[tuple[str, int | None], list[_ChamberSignals]] = {}
         for leg in config.legs.values():
             if leg.name not in LEGS:
                 raise ConfigError(
@@ -129,57 +152,76 @@ class FrameBuilder:
                     f"legs.{leg.name}",
                     f"the simulation has no leg {leg.name!r}; its legs are {', '.join(LEGS)}",
                 )
-            legs_by_message.setdefault(leg.message, []).append(leg.name)
-        getters = _named_getters(self.status_ok)
+            for chamber in ("piston", "rod"):
+                mapped: ChamberSignal = getattr(leg, chamber)
+                message = database.get_message_by_name(mapped.message)
+                chambers_by_sender.setdefault((mapped.message, mapped.source_address), []).append(
+                    _chamber_signals(message, leg.name, chamber, mapped)
+                )
+        getters = _named_getters(status_ok)
         self._plans: dict[str, _MessagePlan] = {}
         #: Signals sent as a constant 0, as "MESSAGE.SIGNAL".
         self.defaulted: list[str] = []
         #: Periodic messages not sent because the simulation supplies none of their signals.
         self.skipped: list[str] = []
-        #: The messages built, with their DBC cycle times, in DBC order.
+        #: The senders built, with their DBC cycle times, in DBC order.
         self.cycles: list[MessageCycle] = []
         for message in database.messages:
             if not message.cycle_time:
                 continue
-            legs = tuple(
-                _leg_signals(message, config, leg) for leg in legs_by_message.get(message.name, ())
-            )
-            taken = {s.name for leg in legs for s in (leg.piston, leg.rod, leg.status) if s}
-            named: list[tuple[Signal, Getter]] = []
-            constants: list[tuple[Signal, SignalValue]] = []
-            for signal in message.signals:
-                if signal.name in taken or (message.name, signal.name) in protected:
+            addresses = sorted(
+                {address for name, address in chambers_by_sender if name == message.name},
+                key=lambda address: -1 if address is None else address,
+            ) or [None]
+            for address in addresses:
+                chambers = tuple(chambers_by_sender.get((message.name, address), ()))
+                taken = {s.name for c in chambers for s in (c.pressure, c.status) if s is not None}
+                named: list[tuple[Signal, Getter]] = []
+                constants: list[tuple[Signal, SignalValue]] = []
+                for signal in message.signals:
+                    if signal.name in taken or (message.name, signal.name) in protected:
+                        continue
+                    if signal.name == "Machine_Phase":
+                        named.append((signal, _phase_getter(signal)))
+                    elif signal.name in getters:
+                        named.append((signal, getters[signal.name]))
+                    else:
+                        constants.append((signal, clip(signal, 0.0)))
+                if not chambers and not named:
+                    self.skipped.append(message.name)
                     continue
-                if signal.name == "Machine_Phase":
-                    named.append((signal, _phase_getter(signal)))
-                elif signal.name in getters:
-                    named.append((signal, getters[signal.name]))
-                else:
-                    constants.append((signal, clip(signal, 0.0)))
-            if not legs and not named:
-                self.skipped.append(message.name)
-                continue
-            self.defaulted += [f"{message.name}.{signal.name}" for signal, _ in constants]
-            self._plans[message.name] = _MessagePlan(
-                message.name, legs, tuple(named), tuple(constants)
-            )
-            self.cycles.append(MessageCycle(message.name, int(message.cycle_time) * NS_PER_MS))
-        #: Leg name -> its message.
-        self.leg_messages = {leg.name: leg.message for leg in config.legs.values()}
+                self.defaulted += [f"{message.name}.{signal.name}" for signal, _ in constants]
+                sender = sender_name(message.name, address)
+                self._plans[sender] = _MessagePlan(
+                    message.name, address, chambers, tuple(named), tuple(constants)
+                )
+                self.cycles.append(MessageCycle(sender, int(message.cycle_time) * NS_PER_MS))
+        #: Leg name -> the sender of its trigger chamber (what faults on a leg act on).
+        self.leg_messages = {
+            leg.name: sender_name(leg.trigger_chamber.message, leg.trigger_chamber.source_address)
+            for leg in config.legs.values()
+        }
 
     def leg_status_names(self) -> dict[str, frozenset[str]]:
-        """Leg -> the names in its status signal's value table (empty without one)."""
-        names: dict[str, frozenset[str]] = {}
+        """Leg -> the names in its status signals' value tables (empty without one)."""
+        names: dict[str, set[str]] = {}
         for plan in self._plans.values():
-            for leg in plan.legs:
-                choices = leg.status.choices if leg.status is not None else None
-                names[leg.leg] = frozenset(str(choice) for choice in (choices or {}).values())
-        return names
+            for chamber in plan.chambers:
+                choices = chamber.status.choices if chamber.status is not None else None
+                names.setdefault(chamber.leg, set()).update(
+                    str(choice) for choice in (choices or {}).values()
+                )
+        return {leg: frozenset(values) for leg, values in names.items()}
 
     @property
     def messages(self) -> list[str]:
-        """The messages this builder can fill, in DBC order."""
+        """The senders this builder can fill, in DBC order."""
         return list(self._plans)
+
+    def target(self, sender: str) -> tuple[str, int | None]:
+        """The DBC message of ``sender`` and the J1939 source address it sends from."""
+        plan = self._plans[sender]
+        return plan.message, plan.source_address
 
     def signals(
         self,
@@ -189,23 +231,23 @@ class FrameBuilder:
         cycle: int,
         overrides: Mapping[str, LegOverride] | None = None,
     ) -> dict[str, SignalValue]:
-        """The signal values of ``message`` at ``row`` (counter and CRC left out)."""
+        """The signal values (SI) of sender ``message`` at ``row`` (counter, CRC left out)."""
         plan = self._plans[message]
         values: dict[str, SignalValue] = {}
-        for leg in plan.legs:
-            column = LEGS.index(leg.leg)
-            override = (overrides or {}).get(leg.leg)
+        for chamber in plan.chambers:
+            override = (overrides or {}).get(chamber.leg)
+            status: SignalValue
             if override is None:
-                p_piston = float(result.p_piston_Pa[row, column])
-                p_rod = float(result.p_rod_Pa[row, column])
-                status = self.status_ok
+                column = LEGS.index(chamber.leg)
+                field = result.p_piston_Pa if chamber.chamber == "piston" else result.p_rod_Pa
+                p_Pa = float(field[row, column])
+                status = chamber.status_nominal
             else:
-                p_piston, p_rod = override.p_piston_Pa, override.p_rod_Pa
-                status = override.status or self.status_ok
-            values[leg.piston.name] = clip(leg.piston, p_piston)
-            values[leg.rod.name] = clip(leg.rod, p_rod)
-            if leg.status is not None:
-                values[leg.status.name] = status
+                p_Pa = override.p_piston_Pa if chamber.chamber == "piston" else override.p_rod_Pa
+                status = override.status or chamber.status_nominal
+            values[chamber.pressure.name] = clip(chamber.pressure, p_Pa, chamber.to_Pa)
+            if chamber.status is not None:
+                values[chamber.status.name] = status
         for signal, getter in plan.named:
             values[signal.name] = clip(signal, getter(result, row, cycle))
         for signal, constant in plan.constants:
@@ -220,36 +262,42 @@ class FrameBuilder:
         cycle: int,
         overrides: Mapping[str, LegOverride] | None = None,
     ) -> list[tuple[str, dict[str, SignalValue]]]:
-        """(message, signals) for each of ``messages`` at ``row``."""
+        """(sender, signals) for each of ``messages`` (senders) at ``row``."""
         return [
             (message, self.signals(message, result, row, cycle, overrides)) for message in messages
         ]
 
 
-def clip(signal: Signal, value: SignalValue) -> SignalValue:
-    """``value`` clipped into the signal's DBC range; names pass unchanged, NaN becomes 0."""
+def clip(signal: Signal, value: SignalValue, to_si: float = 1.0) -> SignalValue:
+    """``value`` (SI) clipped into the signal's DBC range (in its unit, ``to_si`` per unit);
+    names pass unchanged, NaN becomes 0."""
     if isinstance(value, str):
         return value
     number = float(value)
     if math.isnan(number):
         number = 0.0
     if signal.minimum is not None:
-        number = max(number, float(signal.minimum))
+        number = max(number, float(signal.minimum) * to_si)
     if signal.maximum is not None:
-        number = min(number, float(signal.maximum))
-    if not signal.is_float and signal.scale == 1 and signal.offset == 0:
+        number = min(number, float(signal.maximum) * to_si)
+    if not signal.is_float and signal.scale == 1 and signal.offset == 0 and to_si == 1.0:
         return round(number)
     return number
 
 
-def _leg_signals(message: Message, config: MachineConfig, leg_name: str) -> _LegSignals:
-    leg = config.legs[leg_name]
-    signal = message.get_signal_by_name
-    return _LegSignals(
-        leg=leg_name,
-        piston=signal(leg.piston.signal),
-        rod=signal(leg.rod.signal),
-        status=signal(leg.status.signal) if leg.status is not None else None,
+def _chamber_signals(
+    message: Message, leg: str, chamber: str, mapped: ChamberSignal
+) -> _ChamberSignals:
+    factor = pressure_factor_to_Pa(mapped.unit)
+    assert factor is not None  # the config loader checked the unit
+    status = mapped.status
+    return _ChamberSignals(
+        leg=leg,
+        chamber=chamber,
+        pressure=message.get_signal_by_name(mapped.signal),
+        to_Pa=factor,
+        status=message.get_signal_by_name(status.signal) if status is not None else None,
+        status_nominal=status.nominal if status is not None else 0,
     )
 
 
@@ -274,7 +322,7 @@ def _phase_getter(signal: Signal) -> Getter:
     return phase
 
 
-def _named_getters(status_ok: str) -> dict[str, Getter]:
+def _named_getters(status_ok: SignalValue) -> dict[str, Getter]:
     """Getters of the signals found by name in the DBC (Machine_Phase aside)."""
     getters: dict[str, Getter] = {
         "Bridge_FoldAngle": _series("fold_deg"),

@@ -92,6 +92,18 @@ def _pose(t_s: float, fold_rad: float, p: ModelParams) -> _Pose:
     return _Pose(feet, clearance, clearance_rate, masses, positions, fold_cog, u, axis)
 
 
+def plan_view(
+    t_s: float, fold_rad: float, params: ModelParams | None = None
+) -> tuple[FloatArray, FloatArray]:
+    """(the six feet (6, 2), the centre of gravity (2,)) in the plan at cycle time ``t_s``
+    and fold angle ``fold_rad``, in SB1's frame (m): the reference for the estimator's
+    foot layout and stability margin."""
+    p = params or ModelParams()
+    pose = _pose(t_s, fold_rad, p)
+    cog = pose.masses_kg @ pose.masses_xy / pose.masses_kg.sum()
+    return pose.feet_xy, np.asarray(cog, dtype=np.float64)
+
+
 def _lever_rows(xy: FloatArray) -> FloatArray:
     """Rows [1, y, -x]: how heave, roll and pitch move a point vertically."""
     xy = np.atleast_2d(xy)

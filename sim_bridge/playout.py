@@ -94,8 +94,13 @@ class Playout:
             signals = self._builder.signals(
                 message, self.result, position.row, position.cycle, overrides
             )
+            dbc_message, source_address = self._builder.target(message)
             frame = self._encoder.encode(
-                message, signals, counter=counter, corrupt_crc=fate.corrupt_crc
+                dbc_message,
+                signals,
+                counter=counter,
+                corrupt_crc=fate.corrupt_crc,
+                source_address=source_address,
             )
             counts.built[message] += 1
             if not fate.send:

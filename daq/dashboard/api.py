@@ -3,13 +3,14 @@
 ``/api/latest``: the latest values, each with its age on the dashboard's clock
 and whether it is stale::
 
-    {"machine_id", "prefix", "legs": [...], "pressure_limit_Pa",
+    {"machine_id", "prefix", "legs": [...], "pressure_limit_Pa", "warning_margin_m",
      "waiting_for": "<prefix>/status" | "<prefix>/ground" | null,
      "status": null | {"age_s", "stale", "bus": {"state", "interface", "channel",
                 "reason", "reopens"}, "frames_per_s", "frames_received",
                 "frames_bad", "dropped", "healthy", "uptime_s", "t"},
      "ground": null | {"age_s", "stale", "t", "total_force_N", "weight_N",
                 "residual_N", "legs_in_contact", "complete",
+                "stability": null | {"margin_m", "cop_m", "legs", "polygon_m", "feet_m"},
                 "legs": {LEG: {"t", "force_N", "pressure_Pa", "contact", "valid",
                                "reasons"}}},
      "metrics": null | {"age_s", "t", "legs": {LEG: {"peak_pressure_Pa",
@@ -56,6 +57,7 @@ def latest_document(
         "prefix": viewer.prefix,
         "legs": list(viewer.legs),
         "pressure_limit_Pa": viewer.pressure_limit_Pa,
+        "warning_margin_m": viewer.warning_margin_m,
         "waiting_for": waiting_for,
         "status": None if status is None else _status(status, now_s, viewer.status_stale_s),
         "ground": None if ground is None else _ground(ground, now_s, viewer.ground_stale_s),
@@ -115,6 +117,7 @@ def _ground(received: Received[GroundReading], now_s: float, stale_after_s: floa
         "residual_N": ground.residual_N,
         "legs_in_contact": ground.legs_in_contact,
         "complete": ground.complete,
+        "stability": None if ground.stability is None else asdict(ground.stability),
         "legs": {
             name: {
                 "t": leg.t_s,

@@ -48,8 +48,22 @@ class LegReading:
 
 
 @dataclass(frozen=True, slots=True)
+class StabilityReading:
+    """The ``stability`` member of ``<prefix>/ground`` (plan positions in metres)."""
+
+    #: Signed distance of the centre of pressure to the nearest support edge; < 0 outside.
+    margin_m: float
+    #: Centre of pressure; None when not given.
+    cop_m: tuple[float, float] | None
+    #: The feet in contact that span the support polygon.
+    legs: tuple[str, ...]
+    polygon_m: tuple[tuple[float, float], ...]
+    feet_m: Mapping[str, tuple[float, float]]
+
+
+@dataclass(frozen=True, slots=True)
 class GroundReading:
-    """``<prefix>/ground``: every leg and the weight check."""
+    """``<prefix>/ground``: every leg, the weight check and the stability margin."""
 
     #: Snapshot time, Unix seconds (service clock).
     t_s: float | None
@@ -59,9 +73,14 @@ class GroundReading:
     residual_N: float | None
     legs_in_contact: int | None
     complete: bool
-    #: ``stability.margin_m`` when the service publishes it: signed distance (m) from the
-    #: centre of pressure to the nearest support-polygon edge; None when absent or null.
-    stability_margin_m: float | None = None
+    #: None when the service found it undefined (or is older than the margin).
+    stability: StabilityReading | None = None
+
+    @property
+    def stability_margin_m(self) -> float | None:
+        """``stability.margin_m`` when the service publishes it: signed distance (m) from
+        the centre of pressure to the nearest support-polygon edge; None when absent or null."""
+        return None if self.stability is None else self.stability.margin_m
 
 
 @dataclass(frozen=True, slots=True)
@@ -189,8 +208,36 @@ def parse_ground(data: Mapping[str, Any]) -> GroundReading:
         residual_N=_number(data, "residual_N"),
         legs_in_contact=None if count is None else int(count),
         complete=data.get("complete") is True,
-        stability_margin_m=_number(_table(data, "stability"), "margin_m"),
+        stability=parse_stability(data.get("stability")),
     )
+
+
+def parse_stability(data: Any) -> StabilityReading | None:
+    """The ``stability`` member; None when null or without a margin."""
+    if not isinstance(data, dict):
+        return None
+    margin_m = _number(data, "margin_m")
+    cop = _point(data.get("cop_m"))
+    if margin_m is None:
+        return None
+    polygon = data.get("polygon_m")
+    corners = [_point(corner) for corner in polygon] if isinstance(polygon, list) else []
+    legs = data.get("legs")
+    feet = _table(data, "feet_m")
+    return StabilityReading(
+        margin_m=margin_m,
+        cop_m=cop,
+        legs=tuple(str(leg) for leg in legs) if isinstance(legs, list) else (),
+        polygon_m=tuple(corner for corner in corners if corner is not None),
+        feet_m={str(leg): xy for leg, xy in ((leg, _point(v)) for leg, v in feet.items()) if xy},
+    )
+
+
+def _point(value: Any) -> tuple[float, float] | None:
+    if not isinstance(value, list) or len(value) != 2:
+        return None
+    x, y = finite_number(value[0]), finite_number(value[1])
+    return None if x is None or y is None else (x, y)
 
 
 def parse_status(data: Mapping[str, Any]) -> StatusReading:

@@ -1,4 +1,4 @@
-"""What a viewer takes from the service's configuration file: prefix, legs, limit, staleness.
+"""What a viewer takes from the service's configuration file: prefix, legs, limits, staleness.
 
 A viewer reads the same TOML file as the service (``--config``), so that the
 key prefix, the leg names and the pressure limit cannot disagree with it.
@@ -38,6 +38,9 @@ class ViewerConfig:
     status_stale_s: float
     #: No ``<prefix>/ground`` for this long: shown as stale.
     ground_stale_s: float
+    #: ``[stability] warning_margin_m``: a smaller margin is a warning; None when the
+    #: machine config has no ``[stability]`` table.
+    warning_margin_m: float | None = None
 
     def key(self, suffix: str) -> str:
         return f"{self.prefix}/{suffix}"
@@ -45,6 +48,7 @@ class ViewerConfig:
 
 def viewer_config(config: ServiceConfig) -> ViewerConfig:
     publish = config.publish
+    stability = config.machine.stability
     return ViewerConfig(
         source=config.source,
         machine_id=config.machine.machine_id,
@@ -53,4 +57,5 @@ def viewer_config(config: ServiceConfig) -> ViewerConfig:
         pressure_limit_Pa=config.machine.estimator.pressure_limit_Pa,
         status_stale_s=STATUS_STALE_PERIODS * publish.status_period_s,
         ground_stale_s=max(GROUND_STALE_MIN_S, GROUND_STALE_PERIODS / publish.ground_rate_hz),
+        warning_margin_m=stability.warning_margin_m if stability is not None else None,
     )

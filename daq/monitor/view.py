@@ -3,7 +3,8 @@
 One row per leg: filtered force (kN), contact pressure (kPa), a bar against the
 pressure limit, contact, the soil metrics (peak, time above the limit) and
 validity with the estimator's reasons. Above them the service's status line
-and the weight check; "waiting for ..." until something arrived, "STALE ..."
+and the weight check, below them the stability margin (``STABILITY WARNING`` under
+``[stability] warning_margin_m``); "waiting for ..." until something arrived, "STALE ..."
 once it stops arriving. :func:`render` is the curses screen, :func:`plain_line`
 one line for logs (``--plain``).
 
@@ -62,8 +63,10 @@ def render(viewer: ViewerConfig, state: LiveState, now_s: float) -> list[Line]:
         reading = ground.value.legs.get(leg) if ground is not None else None
         text, tone = leg_row(leg, reading, metrics.get(leg), limit_Pa)
         lines.append(Line(text, DIM if stale or ground is None else tone))
+    stability = stability_line(viewer, state)
     lines += [
         Line(""),
+        Line(stability.text, DIM if stale else stability.tone),
         Line(
             f"bar: 0 .. {_kPa(BAR_FULL_SCALE * limit_Pa)} kPa, '|' the limit "
             f"{_kPa(limit_Pa)} kPa, '!' above it",
@@ -118,6 +121,28 @@ def ground_line(viewer: ViewerConfig, state: LiveState, now_s: float) -> Line:
     if age_s > viewer.ground_stale_s:
         return Line(f"STALE: no ground for {age_s:.1f} s; last values shown. {text}", ALARM)
     return Line(text, OK if ground.complete else WARN)
+
+
+def stability_line(viewer: ViewerConfig, state: LiveState) -> Line:
+    """The stability margin against ``[stability] warning_margin_m``."""
+    warning_m = viewer.warning_margin_m
+    if warning_m is None:
+        return Line("stability: not configured ([stability] in the machine config)", DIM)
+    ground = state.ground
+    margin = ground.value.stability if ground is not None else None
+    if margin is None:
+        return Line(
+            "stability: - (fewer than three feet down, an invalid leg or no bridge pose)", DIM
+        )
+    cop = margin.cop_m
+    text = (
+        f"stability margin {margin.margin_m:.2f} m (warning below {warning_m:.2f} m), "
+        + (f"centre of pressure ({cop[0]:.2f}, {cop[1]:.2f}) m, " if cop else "")
+        + f"feet {' '.join(margin.legs)}"
+    )
+    if margin.margin_m < warning_m:
+        return Line("STABILITY WARNING: " + text, ALARM)
+    return Line(text, OK)
 
 
 def leg_row(
@@ -197,6 +222,13 @@ def plain_line(viewer: ViewerConfig, state: LiveState, now_s: float, wall_s: flo
             f" | {leg} {_kN(reading.force_N)} kN {_kPa(reading.pressure_Pa)} kPa "
             f"{'ground' if reading.contact else 'air'} {_validity(reading).replace(' ', ':')}"
         )
+    margin = ground.value.stability
+    if viewer.warning_margin_m is not None:
+        if margin is None:
+            line += " | margin -"
+        else:
+            low = "MARGIN WARNING " if margin.margin_m < viewer.warning_margin_m else ""
+            line += f" | {low}margin {margin.margin_m:.2f} m"
     return line
 
 

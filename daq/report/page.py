@@ -93,6 +93,7 @@ def header_rows(content: ReportContent) -> list[tuple[str, str]]:
         ),
         ("decoded frames per message", _counts(counts.messages)),
         ("bad frames by kind", _counts(counts.bad)),
+        ("frames lost on the bus (by rolling counters)", str(counts.frames_lost)),
         ("leg estimates", f"{counts.estimates} ({source})"),
         ("invalid estimates by reason", _counts(counts.invalid)),
         ("bus state changes", str(counts.bus_events)),

@@ -17,8 +17,8 @@ import numpy as np
 import numpy.typing as npt
 
 from daq.mcap_file import BUS_TOPIC, RAW_TOPIC, RECORDING_TOPIC, TRUTH_TOPIC
-from daq.pipeline import COUNTER_FAULT, CRC_FAULT
 from dbc.machine import MachineConfig
+from dbc.protection import COUNTER_JUMP, CRC_FAULT
 
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
@@ -181,6 +181,8 @@ class RecordingCounts:
     #: ``decode_error``, ``error_frame``, ``remote_frame``, and ``crc`` / ``counter`` for
     #: decoded frames whose protection failed.
     bad: Mapping[str, int] = field(default_factory=dict)
+    #: Frames lost before they reached the bus interface, as the rolling counters tell.
+    frames_lost: int = 0
     #: Leg estimates, and the invalid ones by reason.
     estimates: int = 0
     invalid: Mapping[str, int] = field(default_factory=dict)
@@ -231,6 +233,7 @@ class RecordingCollector:
         self._state: list[StateRow] = []
         self._truth: list[TruthRow] = []
         self._frames = 0
+        self._frames_lost = 0
         self._messages: Counter[str] = Counter()
         self._bad: Counter[str] = Counter()
         self._invalid: Counter[str] = Counter()
@@ -263,10 +266,13 @@ class RecordingCollector:
         elif topic.startswith(SIGNALS_PREFIX):
             signals = json.loads(data)
             self._messages[topic.removeprefix(SIGNALS_PREFIX)] += 1
-            if not signals.get("crc_ok", True):
+            if "faults" in signals:
+                self._bad.update(str(fault) for fault in signals["faults"])
+                self._frames_lost += int(signals.get("frames_lost", 0))
+            elif not signals.get("crc_ok", True):  # recordings before the faults list
                 self._bad[CRC_FAULT] += 1
             elif not signals.get("counter_ok", True):
-                self._bad[COUNTER_FAULT] += 1
+                self._bad[COUNTER_JUMP] += 1
             state = StateTrack.row(signals) if topic == STATE_TOPIC else None
             if state is not None:
                 self._state.append(state)
@@ -320,6 +326,7 @@ class RecordingCollector:
                 frames=self._frames,
                 messages=dict(sorted(self._messages.items())),
                 bad=dict(self._bad.most_common()),
+                frames_lost=self._frames_lost,
                 estimates=sum(len(rows) for rows in self._legs.values()),
                 invalid=dict(self._invalid.most_common()),
                 bus_events=self._bus_events,

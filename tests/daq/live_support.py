@@ -11,6 +11,7 @@ limit; the others wave gently; SB2_F3 is lifted (air) for 10 s of each minute.
 
 from __future__ import annotations
 
+import functools
 import math
 import threading
 import time
@@ -20,9 +21,13 @@ from typing import Any
 
 import zenoh
 
+from daq import payloads
 from daq.publisher import ZenohPublisher
+from dbc.machine import load_machine_config
+from estimator.leg import LegEstimate
+from estimator.stability import stability
 from tests.daq.service_support import peer_config
-from tests.helpers import LEGS
+from tests.helpers import EXAMPLE_CONFIG, LEGS
 
 A_FOOT_M2 = 0.33
 WEIGHT_N = 18800.0 * 9.80665
@@ -63,8 +68,38 @@ def leg_payload(leg: str, t_s: float, pressure_Pa: float | None, **extra: Any) -
     return payload | extra
 
 
+@functools.cache
+def _feet_m() -> dict[str, tuple[float, float]]:
+    """The example machine's feet, bridge unfolded along SB1's x axis."""
+    stability = load_machine_config(EXAMPLE_CONFIG)[0].stability
+    assert stability is not None
+    return stability.layout.feet_m(0.0, 0.0)
+
+
+def _stability(legs: dict[str, dict[str, Any]]) -> dict[str, Any] | None:
+    """The ``stability`` member the service computes from these leg payloads."""
+    nan = float("nan")
+    estimates = [
+        LegEstimate(
+            leg=name,
+            t_s=leg["t"],
+            force_N=nan if leg["force_N"] is None else leg["force_N"],
+            force_raw_N=nan,
+            pressure_Pa=nan,
+            p_piston_Pa=nan,
+            p_rod_Pa=nan,
+            contact=leg["contact"],
+            valid=leg["valid"],
+            reasons=tuple(leg["reasons"]),
+        )
+        for name, leg in legs.items()
+    ]
+    return payloads.stability(stability(estimates, _feet_m()))
+
+
 def ground_payload(t_s: float, legs: dict[str, dict[str, Any]]) -> dict[str, Any]:
-    """``<prefix>/ground`` over the given leg payloads, with the weight check."""
+    """``<prefix>/ground`` over the given leg payloads, with the weight check and the
+    stability margin."""
     down = [leg for leg in legs.values() if leg["valid"] and leg["contact"]]
     total_N = sum(leg["force_N"] for leg in down)
     return {
@@ -75,6 +110,7 @@ def ground_payload(t_s: float, legs: dict[str, dict[str, Any]]) -> dict[str, Any
         "residual_N": total_N - WEIGHT_N,
         "legs_in_contact": len(down),
         "complete": all(leg["valid"] for leg in legs.values()),
+        "stability": _stability(legs),
     }
 
 

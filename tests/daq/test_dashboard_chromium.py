@@ -35,6 +35,7 @@ pytestmark = pytest.mark.skipif(
 )
 PREFIX = "portal/pam-proto-1"
 LIMIT_COLOUR = "#d62728"
+COP_OK, FOOT = "#1a7f37", "#1e293b"
 FLAGS = [
     "--headless",
     "--no-sandbox",
@@ -167,6 +168,14 @@ def test_dashboard_plots_the_pressures_and_shows_status(tmp_path: Path) -> None:
     late = ramp[(ramp[:, 1] > 0.6 * width) & (ramp[:, 1] < 0.85 * width)][:, 0].mean()
     assert late < early - 50
     assert late < limit_row < early  # and it crosses the limit
+    # The plan view: the stability margin as text, the feet and the centre of pressure.
+    assert re.search(
+        r'id="stability-text" class="ok">margin \d\.\d\d m \(warning below 0\.30 m\)', dom
+    )
+    plan = crop(image, body_data(dom, "plan-rect"))
+    assert f'data-cop-color="{COP_OK}"' in dom
+    assert len(pixels_of(plan, COP_OK)) >= 60, "no centre of pressure drawn"
+    assert len(pixels_of(plan, FOOT)) >= 6 * 30, "not every foot drawn"
     # The status bar holds text (light on dark), not nothing.
     status = crop(image, body_data(dom, "status-rect"), inset=0)
     assert (status[:, :, :3].mean(axis=2) > 0.8).sum() > 200

@@ -209,7 +209,9 @@ def test_fleet_page_shows_three_machines_and_one_gone(
             # Six feet down share the 18.8 t: the most loaded one at 100..200 kPa.
             assert summary["max_pressure_leg"] in machines[machine_id].config.machine.legs
             assert 80e3 < summary["max_pressure_Pa"] < 250e3
-            assert summary["stability_margin_m"] is None  # not published (yet)
+            # Six feet down: the centre of pressure on the bridge's axis, 1.386 m from the
+            # support polygon's long edges (issue 13's stability margin).
+            assert summary["stability_margin_m"] == pytest.approx(1.3856, abs=0.01)
             assert summary["gone_for_s"] is None
         dom = chromium(tmp_path, url, "--dump-dom")
         assert rows(dom) == dict.fromkeys(MACHINES, "live")

@@ -305,6 +305,12 @@ def test_the_collector_counts_like_the_service_and_sorts_by_time() -> None:
             "/signals/MACHINE_STATE",
             message({"t": t, "crc_ok": crc_ok, "counter_ok": counter_ok, "signals": state_signals}),
         )
+    leg_frame = {"t": 5.3, "crc_ok": True, "counter_ok": False, "signals": {}}
+    collector.add(
+        "/signals/LEG_SB1_F1",
+        message(leg_frame | {"faults": ["counter_repeat"], "frames_lost": 0}),
+    )
+    collector.add("/signals/LEG_SB1_F1", message(leg_frame | {"faults": [], "frames_lost": 2}))
     collector.add("/leg/SB1_F1/ground", leg_payload(5.3, 3300.0))
     collector.add("/leg/SB1_F1/ground", leg_payload(5.1, None, False, ("crc",)))
     collector.add("/leg/SB1_F1/ground", leg_payload(5.2, 33.0, False, ("counter", "range")))
@@ -324,8 +330,15 @@ def test_the_collector_counts_like_the_service_and_sorts_by_time() -> None:
     recording = collector.recording("x.mcap", None, machine_id="m")
 
     counts = recording.counts
-    assert counts.frames == 4 and counts.messages == {"MACHINE_STATE": 3}
-    assert counts.bad == {"unknown_id": 2, "wrong_dlc": 1, "crc": 1, "counter": 1}
+    assert counts.frames == 4 and counts.messages == {"LEG_SB1_F1": 2, "MACHINE_STATE": 3}
+    assert counts.bad == {
+        "unknown_id": 2,
+        "wrong_dlc": 1,
+        "crc": 1,
+        "counter": 1,
+        "counter_repeat": 1,
+    }
+    assert counts.frames_lost == 2
     assert counts.estimates == 3 and counts.invalid == {"crc": 1, "counter": 1, "range": 1}
     assert (counts.bus_events, counts.truth_samples) == (1, 2)
     assert (counts.kernel_dropped, counts.rx_dropped) == (42, 3)

@@ -160,6 +160,8 @@ def test_bad_frames_are_counted_and_recorded_raw(config: ServiceConfig) -> None:
     t0 = time.time()
     good = encoder.encode("LEG_SB1_F1", leg_signals("SB1_F1", 9e6, 1e6))
     bad_crc = encoder.encode("LEG_SB1_F1", leg_signals("SB1_F1", 9e6, 1e6), corrupt_crc=True)
+    # After a bad CRC the counter check resynchronises on the next good frame.
+    resync = encoder.encode("LEG_SB1_F1", leg_signals("SB1_F1", 9e6, 1e6))
     jump = encoder.encode("LEG_SB1_F1", leg_signals("SB1_F1", 9e6, 1e6), counter=9)
     messages = [
         can_message(good, t0),
@@ -169,7 +171,8 @@ def test_bad_frames_are_counted_and_recorded_raw(config: ServiceConfig) -> None:
         can.Message(timestamp=t0, arbitration_id=0x100, is_remote_frame=True, dlc=8),
         can.Message(timestamp=t0, arbitration_id=0x80, is_error_frame=True, dlc=8, data=bytes(8)),
         can_message(bad_crc, t0 + 0.01),
-        can_message(jump, t0 + 0.02),
+        can_message(resync, t0 + 0.02),
+        can_message(jump, t0 + 0.03),
     ]
     with live_service(config) as service, subscriber_session(zenoh_port(config)) as session:
         collector = connected_collector(session, prefix)
@@ -195,7 +198,7 @@ def test_bad_frames_are_counted_and_recorded_raw(config: ServiceConfig) -> None:
         assert all(p.startswith("no frame for") for p in status["problems"]), status
         assert status["leg_faults"] == {"SB1_F1": {"crc": 1, "counter": 1}}
         leg = collector.of(f"{prefix}/leg/SB1_F1/ground")
-        assert [m["reasons"] for m in leg] == [[], ["crc"], ["counter"]]
+        assert [m["reasons"] for m in leg] == [[], ["crc"], [], ["counter"]]
         path = service.recorder.paths[0]  # type: ignore[union-attr]
     raw = [payload for topic, payload in recorded(path) if topic == "/can/raw"]
     assert [(r["id"], r["error"]) for r in raw] == [
@@ -205,6 +208,7 @@ def test_bad_frames_are_counted_and_recorded_raw(config: ServiceConfig) -> None:
         (0x1ABCDE, "unknown_id"),
         (0x100, "remote_frame"),
         (0x80, "error_frame"),
+        (0x100, None),
         (0x100, None),
         (0x100, None),
     ]
@@ -306,18 +310,20 @@ def test_replay_of_a_run_rotated_every_second_equals_the_live_estimates(tmp_path
     )
     config = load_service_config(path)
     # 3.5 s of frame time, every leg on the ground (contact) with a median to carry over.
-    paths = send_and_wait(config, leg_messages(encoder_for(config), 350, time.time()))
-    assert len(paths) == 4
+    # Stamped 30 s after the service's start, so that the file its bus event (wall time)
+    # opens holds nothing else: a file spans max_duration_s from its first message.
+    paths = send_and_wait(config, leg_messages(encoder_for(config), 350, time.time() + 30.0))
+    assert len(paths) == 5 and live_estimates(paths[:1]) == []
     live = live_estimates(paths)
     assert len(live) == 6 * 350
-    second_file = live_estimates(paths[1:2])
+    second_file = live_estimates(paths[2:3])
     assert second_file and all(e["contact"] for e in second_file)
 
     assert_replay_is_live([tmp_path / "rec"], live)  # the directory
     assert_replay_is_live(paths[::-1], live)  # the files, in any order
     report_input = load_recording(tmp_path / "rec")  # the report reads the whole run too
     assert report_input.counts.frames == len(live)
-    assert report_input.name.endswith("(4 files)")
+    assert report_input.name.endswith("(5 files)")
 
 
 def test_mcap_channels_and_schemas_are_readable(config: ServiceConfig) -> None:

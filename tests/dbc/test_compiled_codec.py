@@ -1,13 +1,13 @@
-"""The precompiled decoder and the table CRC agree with the reference path (cantools, crc)."""
+"""The precompiled decoder and the table CRCs agree with the reference path (cantools, crc)."""
 
 import cantools
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from dbc._compiled_codec import CompiledMessage, TableCrc8
+from dbc._compiled_codec import CompiledMessage
 from dbc.decoding import FrameDecoder
-from dbc.protection import crc8_sae_j1850, payload_crc
+from dbc.protection import CRC_ALGORITHMS, TableCrc, reference_checksum
 from tests.helpers import example_machine
 
 CONFIG, DATABASE = example_machine()
@@ -65,14 +65,16 @@ def test_random_frames_of_the_dbc_decode_alike_both_ways(message, frames) -> Non
     for t_s, (payload, fix_crc) in enumerate(frames):
         data = bytearray(payload)
         if fix_crc:  # mostly good frames, so that the counters are judged too
-            data[7] = payload_crc(bytes(data), 7)
+            crc = CONFIG.protection[message.name].crc_check(message)
+            assert crc is not None
+            crc.write(data)
         a = compiled.decode(message.frame_id, bytes(data), float(t_s))
         b = reference.decode(message.frame_id, bytes(data), float(t_s))
-        assert (a.message, a.t_s, a.crc_ok, a.counter_ok) == (
+        assert (a.message, a.t_s, a.faults, a.frames_lost) == (
             b.message,
             b.t_s,
-            b.crc_ok,
-            b.counter_ok,
+            b.faults,
+            b.frames_lost,
         )
         assert typed(dict(a.signals)) == typed(dict(b.signals))
 
@@ -117,9 +119,22 @@ def test_multiplexed_and_float_messages_are_left_to_cantools() -> None:
     assert dict(frame.signals) == {"mux": 1, "x": 0x1234}
 
 
-@given(st.binary(max_size=16), st.integers(min_value=0, max_value=15))
-def test_table_crc_matches_the_reference(data: bytes, crc_byte: int) -> None:
-    crc = TableCrc8(0x1D, 0xFF, 0xFF)
-    assert crc.checksum(data) == crc8_sae_j1850(data)
-    if crc_byte < len(data):
-        assert crc.payload_crc(data, crc_byte) == payload_crc(data, crc_byte)
+@pytest.mark.parametrize("algorithm", sorted(CRC_ALGORITHMS))
+@given(data=st.binary(max_size=64))
+def test_table_crcs_match_the_crc_package(algorithm: str, data: bytes) -> None:
+    configuration = CRC_ALGORITHMS[algorithm].configuration
+    assert TableCrc(configuration).checksum(data) == reference_checksum(configuration)(data)
+
+
+def test_pressures_in_bar_decode_to_pa_alike_both_ways() -> None:
+    """Unit factors apply after the DBC's scale and offset on both paths."""
+    message = OTHER.get_message_by_name("MOTOROLA")
+    to_si = {"MOTOROLA": {"be_unsigned": 1e5, "le_odd": 6894.757293168361}}
+    data = bytes(range(8))
+    a = FrameDecoder(OTHER, {}, to_si).decode(1, data, 0.0).signals
+    b = FrameDecoder(OTHER, {}, to_si, compiled=False).decode(1, data, 0.0).signals
+    plain = message.decode(data, decode_choices=False)
+    assert typed(dict(a)) == typed(dict(b))
+    assert a["be_unsigned"] == plain["be_unsigned"] * 1e5
+    assert a["le_odd"] == plain["le_odd"] * 6894.757293168361
+    assert a["be_signed"] == plain["be_signed"]  # not a pressure: untouched

@@ -7,7 +7,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from dbc.decoding import FrameDecoder
-from dbc.encoding import FrameEncoder
+from dbc.encoding import EncodedFrame, FrameEncoder
 from dbc.errors import (
     FdFrameError,
     FrameError,
@@ -15,7 +15,7 @@ from dbc.errors import (
     SignalDecodeError,
     UnknownFrameError,
 )
-from dbc.protection import CounterCheck, crc8_sae_j1850, payload_crc
+from dbc.protection import CounterCheck, crc8_sae_j1850
 from dbc.samples import LegSampler
 from estimator import foot_force_N
 from tests.helpers import LEGS, example_machine
@@ -30,7 +30,6 @@ def leg_signals(leg: str, p_piston_Pa: float, p_rod_Pa: float, status: str = "ok
 def test_crc8_sae_j1850_check_value() -> None:
     assert crc8_sae_j1850(b"123456789") == 0x4B
     assert crc8_sae_j1850(b"") == 0x00  # init 0xFF, xorout 0xFF
-    assert payload_crc(b"\x01\x02\xaa\x03", 2) == crc8_sae_j1850(b"\x01\x02\x03")
 
 
 def test_cantools_frame_decodes_to_the_pressures_put_in() -> None:
@@ -47,7 +46,9 @@ def test_cantools_frame_decodes_to_the_pressures_put_in() -> None:
         assert frame.signals[f"{leg}_pRod"] == p_rod
         assert frame.signals[f"{leg}_Status"] == "ok"
         assert frame.crc_ok and frame.counter_ok
-        ((name, sample),) = LegSampler(CONFIG.legs).samples(frame)
+        samples = LegSampler(CONFIG.legs).samples(frame)
+        assert samples is not None
+        ((name, sample),) = samples
         assert (name, sample.p_piston_Pa, sample.p_rod_Pa, sample.t_s) == (
             leg,
             p_piston,
@@ -96,10 +97,14 @@ def test_bad_crc_is_flagged_and_counter_not_trusted() -> None:
     bad = encoder.encode("LEG_SB1_F2", signals, corrupt_crc=True)
     assert decoder.decode(first.arbitration_id, first.data, 0.0).crc_ok
     frame = decoder.decode(bad.arbitration_id, bad.data, 0.01)
-    assert (frame.crc_ok, frame.counter_ok) == (False, True)
-    # The next good frame's counter jumped over the corrupted one: one counter fault.
-    nxt = encoder.encode("LEG_SB1_F2", signals)
-    assert decoder.decode(nxt.arbitration_id, nxt.data, 0.02).counter_ok is False
+    assert (frame.crc_ok, frame.counter_ok, frame.faults) == (False, True, ("crc",))
+    # The next good frame resynchronises the counter check: not flagged, nothing lost.
+    nxt = decoder.decode(*_id_data(encoder.encode("LEG_SB1_F2", signals)), 0.02)
+    assert (nxt.faults, nxt.frames_lost) == ((), 0)
+
+
+def _id_data(frame: EncodedFrame) -> tuple[int, bytes]:
+    return frame.arbitration_id, frame.data
 
 
 def test_flipped_payload_bit_fails_the_crc() -> None:
@@ -119,16 +124,16 @@ def test_frozen_counter_is_flagged() -> None:
     results = []
     for counter in (3, 4, 4, 4, 5):
         frame = encoder.encode("LEG_SB1_F1", signals, counter=counter)
-        results.append(decoder.decode(frame.arbitration_id, frame.data, 0.0).counter_ok)
-    assert results == [True, True, False, False, True]
+        results.append(decoder.decode(frame.arbitration_id, frame.data, 0.0).faults)
+    assert results == [(), (), ("counter_repeat",), ("counter_repeat",), ()]
 
 
 def test_counter_wraps_and_reset_forgets() -> None:
-    check = CounterCheck(16)
-    assert [check.update(c) for c in (14, 15, 0, 1)] == [True, True, True, True]
-    assert check.update(9) is False
+    check = CounterCheck(16, max_delta=2)
+    assert [check.update(c).fault for c in (14, 15, 0, 1)] == [None] * 4
+    assert (check.update(9).fault, check.update(10).fault) == ("counter", None)
     check.reset()
-    assert check.update(2) is True
+    assert check.update(2).fault is None
 
 
 def test_unknown_id_and_wrong_dlc_raise_frame_errors_with_kinds() -> None:
@@ -172,10 +177,14 @@ def test_status_outside_value_table_reaches_the_estimator_as_a_number() -> None:
         .data
     )
     data[4] = (9 << 4) | (data[4] & 0x0F)
-    data[7] = payload_crc(bytes(data), 7)
+    crc = CONFIG.protection["LEG_SB1_F1"].crc_check(DATABASE.get_message_by_name("LEG_SB1_F1"))
+    assert crc is not None
+    crc.write(data)
     frame = decoder.decode(0x100, bytes(data), 0.0)
-    ((_, sample),) = LegSampler(CONFIG.legs).samples(frame)
-    assert sample.status == "9"
+    samples = LegSampler(CONFIG.legs).samples(frame)
+    assert samples is not None
+    ((_, sample),) = samples
+    assert sample.faults == ("status_9",)
 
 
 def test_non_leg_messages_decode_without_leg_samples() -> None:

@@ -69,12 +69,6 @@ def test_leg_table_overrides_leg_defaults(tmp_path: Path) -> None:
             "no message 'LEG_SB2_F9'",
         ),
         (
-            'rod = "LEG_SB2_F1.SB2_F1_pRod"',
-            'rod = "LEG_SB2_F2.SB2_F2_pRod"',
-            "legs.SB2_F1.rod",
-            "must share one frame",
-        ),
-        (
             'status = "LEG_SB1_F1.SB1_F1_Status"',
             'status = "SB1_F1_Status"',
             "legs.SB1_F1.status",

@@ -47,14 +47,17 @@ def test_valid_sample_gives_eq4_eq5_and_contact() -> None:
 @pytest.mark.parametrize(
     ("sample_kw", "reasons"),
     [
-        ({"crc_ok": False}, ("crc",)),
-        ({"counter_ok": False}, ("counter",)),
-        ({"status": "sensor_fault"}, ("status_sensor_fault",)),
-        ({"status": "over_range"}, ("status_over_range",)),
+        ({"faults": ("crc",)}, ("crc",)),
+        ({"faults": ("counter",)}, ("counter",)),
+        ({"faults": ("rod_stale",)}, ("rod_stale",)),
+        ({"faults": ("status_sensor_fault",)}, ("status_sensor_fault",)),
         ({"p_piston_Pa": 41e6}, ("range",)),
         ({"p_rod_Pa": -2e5}, ("range",)),
         ({"p_rod_Pa": math.nan}, ("range",)),
-        ({"crc_ok": False, "status": "under_range"}, ("crc", "status_under_range")),
+        (
+            {"faults": ("crc", "status_under_range"), "p_rod_Pa": 50e6},
+            ("crc", "status_under_range", "range"),
+        ),
     ],
 )
 def test_each_fault_makes_the_sample_invalid_with_its_reason(
@@ -75,7 +78,7 @@ def test_invalid_samples_do_not_enter_the_median() -> None:
     # Two huge but invalid samples would carry a window of 3 if they entered it (a
     # third would come past the stale time, an outage that restarts the median).
     for i in range(3, 5):
-        e = est.update(LegSample(t_s=i * CYCLE_S, p_piston_Pa=30e6, p_rod_Pa=1e6, crc_ok=False))
+        e = est.update(LegSample(t_s=i * CYCLE_S, p_piston_Pa=30e6, p_rod_Pa=1e6, faults=("crc",)))
         assert e.force_N == pytest.approx(50_000.0)
         assert e.force_raw_N > 150_000.0
     assert est.metrics.samples == 3
@@ -154,7 +157,7 @@ def test_after_an_outage_the_median_and_contact_restart() -> None:
         est.update(LegSample(t_s=100.0 + i * CYCLE_S, p_piston_Pa=down, p_rod_Pa=1e6))
     peak_Pa = est.metrics.peak_pressure_Pa
     # 30 s without a frame; meanwhile the foot was lifted. A CRC error comes first.
-    bad = est.update(LegSample(t_s=131.0, p_piston_Pa=down, p_rod_Pa=1e6, crc_ok=False))
+    bad = est.update(LegSample(t_s=131.0, p_piston_Pa=down, p_rod_Pa=1e6, faults=("crc",)))
     assert math.isnan(bad.force_N) and bad.contact is False
     after = [
         est.update(LegSample(t_s=131.0 + i * CYCLE_S, p_piston_Pa=lifted, p_rod_Pa=1e6))
@@ -200,7 +203,7 @@ def test_batch_path_is_bit_identical_to_streaming(
     est = LegEstimator("SB1_F1", LEG, cfg, CYCLE_S)
     t = np.cumsum(steps_s[: len(rows)]).tolist()
     streamed = [
-        est.update(LegSample(t_s=ti, p_piston_Pa=pp, p_rod_Pa=pr, crc_ok=ok))
+        est.update(LegSample(t_s=ti, p_piston_Pa=pp, p_rod_Pa=pr, faults=() if ok else ("crc",)))
         for ti, (pp, pr, ok) in zip(t, rows, strict=True)
     ]
     series = estimate_leg_series(

@@ -62,7 +62,7 @@ def make_playout(
 ) -> Playout:
     builder = FrameBuilder(config, database)
     injector = FaultInjector(faults or FaultConfig(seed=1), fault_targets(builder))
-    return Playout(result, builder, FrameEncoder(database, config.protection), injector)
+    return Playout(result, builder, FrameEncoder.from_config(config, database), injector)
 
 
 @dataclass(frozen=True)

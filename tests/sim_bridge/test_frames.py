@@ -111,6 +111,7 @@ def test_the_leg_messages_follow_the_config_mapping(result: SimulationResult) ->
 def test_a_config_leg_the_simulation_lacks_is_refused() -> None:
     data = tomllib.loads(EXAMPLE_CONFIG.read_text())
     data["legs"]["FRONT"] = data["legs"].pop("SB1_F1")
+    del data["stability"]  # it names the feet of the example's legs
     config = parse_machine_config(data, "renamed.toml", DATABASE)
     with pytest.raises(ConfigError, match=r"renamed.toml: legs.FRONT: the simulation has no leg"):
         FrameBuilder(config, DATABASE)
@@ -119,6 +120,7 @@ def test_a_config_leg_the_simulation_lacks_is_refused() -> None:
 def test_a_config_without_a_leg_does_not_send_its_message(result: SimulationResult) -> None:
     data = tomllib.loads(EXAMPLE_CONFIG.read_text())
     del data["legs"]["SB2_F3"]
+    del data["stability"]  # it names the feet of the example's legs
     builder = FrameBuilder(parse_machine_config(data, "five.toml", DATABASE), DATABASE)
     assert "LEG_SB2_F3" not in builder.messages
     assert builder.skipped == ["LEG_SB2_F3"]

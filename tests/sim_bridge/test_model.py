@@ -143,6 +143,16 @@ def test_impulsive_noise_is_seeded_and_removed_by_the_median() -> None:
     raw = foot_force_N(noisy.p_piston_Pa[:, 0], noisy.p_rod_Pa[:, 0], leg)
     raw_clean = foot_force_N(clean.p_piston_Pa[:, 0], clean.p_rod_Pa[:, 0], leg)
     assert np.abs(raw - raw_clean).max() > 5_000.0
-    # Isolated one-sample spikes do not survive an 11-sample median.
-    filtered_gap = np.abs(running_median(raw, 11) - running_median(raw_clean, 11))
-    assert np.percentile(filtered_gap, 99) < 200.0
+    # Isolated one-sample spikes do not survive an 11-sample median: with fewer than six
+    # spikes in a window, its median lies within the clean values of that window (a bound
+    # that holds exactly, whatever the signal does; the raw spikes break it).
+    window = 11
+    padded = np.concatenate([np.full(window - 1, np.nan), raw_clean])
+    windows = np.lib.stride_tricks.sliding_window_view(padded, window)
+    low, high = np.nanmin(windows, axis=1), np.nanmax(windows, axis=1)
+    spiky = np.convolve(np.abs(raw - raw_clean) > 0, np.ones(window), mode="full")[: len(raw)]
+    judged = spiky < (window + 1) // 2
+    assert judged.mean() > 0.99
+    filtered = running_median(raw, window)
+    assert np.all((filtered >= low - 1e-6) & (filtered <= high + 1e-6) | ~judged)
+    assert not np.all((raw >= low - 1e-6) & (raw <= high + 1e-6))

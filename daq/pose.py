@@ -1,0 +1,51 @@
+"""The bridge's pose from the bus, for the stability margin: rotation and fold angles.
+
+Pure: fed the decoded frames by :class:`daq.pipeline.Pipeline`. Keeps the latest
+rotation and fold angle of frames whose CRC and counter were fine; the pose is unknown
+before both arrived and once either is older than ``stale_after_cycles`` cycle times of
+its message (judged on frame time), so the margin is never computed from an old pose.
+"""
+
+import math
+from collections.abc import Mapping
+
+from dbc.decoding import DecodedFrame
+from dbc.machine import SignalRef
+from dbc.stability_config import StabilityConfig
+from estimator.kinematics import Point
+
+
+class PoseTracker:
+    """Latest bridge angles -> every foot's plan position."""
+
+    def __init__(self, config: StabilityConfig, max_age_s: Mapping[str, float]) -> None:
+        """``max_age_s``: per message name, how old its latest frame may be."""
+        self.config = config
+        self._refs = {"rotation": config.rotation, "fold": config.fold}
+        self._max_age_s = dict(max_age_s)
+        #: name -> (frame time, angle in degrees)
+        self._latest: dict[str, tuple[float, float]] = {}
+
+    def observe(self, frame: DecodedFrame) -> None:
+        """Take the angles a decoded frame carries, if it is trusted."""
+        if not (frame.crc_ok and frame.counter_ok):
+            return
+        for name, ref in self._refs.items():
+            if ref.message == frame.message:
+                value = frame.signals.get(ref.signal)
+                if isinstance(value, int | float) and math.isfinite(value):
+                    self._latest[name] = (frame.t_s, float(value))
+
+    def _angle_rad(self, name: str, ref: SignalRef, now_s: float) -> float | None:
+        latest = self._latest.get(name)
+        if latest is None or now_s - latest[0] > self._max_age_s[ref.message]:
+            return None
+        return math.radians(latest[1])
+
+    def feet_m(self, now_s: float) -> dict[str, Point] | None:
+        """Every foot's position at ``now_s``; None while the pose is unknown or old."""
+        rotation = self._angle_rad("rotation", self.config.rotation, now_s)
+        fold = self._angle_rad("fold", self.config.fold, now_s)
+        if rotation is None or fold is None:
+            return None
+        return self.config.layout.feet_m(rotation, fold)

@@ -1,0 +1,117 @@
+"""The ``[stability]`` table of the machine configuration: feet, bridge, pose signals.
+
+Read by :func:`dbc.machine.parse_machine_config`; optional (no table: no stability
+margin). Example (``deploy/machine.example.toml``)::
+
+    [stability]
+    rotation = "BRIDGE_MOTION.Bridge_RotationAngle"   # deg; 0 = bridge along SB1's x axis
+    fold = "BRIDGE_POSE.Bridge_FoldAngle"             # deg; 0 = unfolded
+    bridge_length_m = 6.0
+    hinge_m = 3.0
+    warning_margin_m = 0.3
+    [stability.bases.SB1]                             # the first base is the standing one
+    axis_m = [0.07, 0.0]
+    feet_m = { SB1_F1 = [1.6, 0.0], SB1_F2 = [-0.8, 1.3856], SB1_F3 = [-0.8, -1.3856] }
+    [stability.bases.SB2]
+    ...
+"""
+
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+from dbc.toml_table import TomlTable
+from estimator.kinematics import BaseLayout, MachineLayout, Point
+
+if TYPE_CHECKING:
+    from dbc.machine import SignalRef
+
+STABILITY_KEYS = (
+    "rotation",
+    "fold",
+    "bridge_length_m",
+    "hinge_m",
+    "warning_margin_m",
+    "bases",
+)
+BASE_KEYS = ("axis_m", "feet_m")
+#: Default of ``warning_margin_m``.
+WARNING_MARGIN_M = 0.3
+
+
+@dataclass(frozen=True)
+class StabilityConfig:
+    """What the stability margin needs: the layout and where the pose is on the bus."""
+
+    layout: MachineLayout
+    #: Bridge rotation angle signal (deg in the DBC).
+    rotation: "SignalRef"
+    #: Bridge fold angle signal (deg in the DBC).
+    fold: "SignalRef"
+    #: Monitor and dashboard warn when the margin falls below this, m.
+    warning_margin_m: float
+
+
+def parse_stability(
+    table: TomlTable,
+    legs: Iterable[str],
+    signal: Callable[[TomlTable, str], "SignalRef"],
+    unit: Callable[["SignalRef"], str | None],
+) -> StabilityConfig | None:
+    """The ``[stability]`` table (None when it is absent or empty).
+
+    ``signal`` resolves a ``MESSAGE.SIGNAL`` key against the DBC, ``unit`` gives a
+    signal's unit; every configured leg must have exactly one foot.
+    """
+    if not table.data:
+        return None
+    table.reject_unknown(STABILITY_KEYS)
+    refs = {}
+    for key in ("rotation", "fold"):
+        refs[key] = signal(table, key)
+        if unit(refs[key]) != "deg":
+            raise table.error(
+                key, f"{refs[key]} must be in deg in the DBC, got {unit(refs[key])!r}"
+            )
+    warning_m = table.number("warning_margin_m", WARNING_MARGIN_M)
+    if warning_m < 0:
+        raise table.error("warning_margin_m", f"must be >= 0, got {warning_m}")
+    bases_table = table.table("bases")
+    bases = [_base(name, base) for name, base in bases_table.subtables()]
+    if len(bases) != 2:
+        raise bases_table.error("", f"needs two bases (standing, far), got {len(bases)}")
+    placed = [leg for base in bases for leg in base.feet_m]
+    missing = sorted(set(legs) - set(placed))
+    unknown = sorted(set(placed) - set(legs))
+    if missing or unknown:
+        raise bases_table.error(
+            "", f"every leg needs one foot: missing {missing}, not legs {unknown}"
+        )
+    layout = table.build(
+        MachineLayout,
+        standing=bases[0],
+        far=bases[1],
+        bridge_length_m=table.number("bridge_length_m"),
+        hinge_m=table.number("hinge_m"),
+    )
+    return StabilityConfig(layout, refs["rotation"], refs["fold"], warning_m)
+
+
+def _base(name: str, table: TomlTable) -> BaseLayout:
+    table.reject_unknown(BASE_KEYS)
+    feet = table.table("feet_m")
+    return BaseLayout(
+        name=name,
+        axis_m=_point(table, "axis_m", table.data.get("axis_m")),
+        feet_m={leg: _point(feet, leg, value) for leg, value in feet.data.items()},
+    )
+
+
+def _point(table: TomlTable, key: str, value: Any) -> Point:
+    if (
+        not isinstance(value, list)
+        or len(value) != 2
+        or not all(isinstance(v, int | float) and not isinstance(v, bool) for v in value)
+    ):
+        raise table.error(key, f"must be [x, y] in metres, got {value!r}")
+    return (float(value[0]), float(value[1]))

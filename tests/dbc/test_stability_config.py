@@ -1,0 +1,89 @@
+"""The ``[stability]`` table: the example loads, non-default values apply, bad ones refused."""
+
+from pathlib import Path
+
+import pytest
+
+from dbc.errors import ConfigError
+from dbc.machine import load_machine_config
+from tests.helpers import EXAMPLE_CONFIG
+
+EXAMPLE = EXAMPLE_CONFIG.read_text()
+
+
+def load(tmp_path: Path, text: str):  # type: ignore[no-untyped-def]
+    path = tmp_path / "machine.toml"
+    path.write_text(text)
+    return load_machine_config(path)[0]
+
+
+def test_example_layout_and_non_default_values(tmp_path: Path) -> None:
+    stability = load_machine_config(EXAMPLE_CONFIG)[0].stability
+    assert stability is not None
+    assert (stability.layout.standing.name, stability.layout.far.name) == ("SB1", "SB2")
+    assert str(stability.rotation) == "BRIDGE_MOTION.Bridge_RotationAngle"
+    assert stability.warning_margin_m == 0.3
+    text = EXAMPLE.replace("warning_margin_m = 0.3", "warning_margin_m = 0.5").replace(
+        "hinge_m = 3.0", "hinge_m = 2.0"
+    )
+    changed = load(tmp_path, text).stability
+    assert changed.warning_margin_m == 0.5 and changed.layout.hinge_m == 2.0
+    # Folded by 90 deg the far base's axis sits at the hinge: 0.07 + 2.0 along x.
+    assert changed.layout.feet_m(0.0, 1.5707963267948966)["SB2_F1"] == pytest.approx((3.67, 0))
+
+
+def test_without_the_table_there_is_no_margin(tmp_path: Path) -> None:
+    start = EXAMPLE.index("[stability]")
+    end = EXAMPLE.index("# End-to-end protection")
+    assert load(tmp_path, EXAMPLE[:start] + EXAMPLE[end:]).stability is None
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "key", "reason"),
+    [
+        ("warning_margin_m = 0.3", "warning_margin_m = -0.1", "stability.warning_margin_m", ">= 0"),
+        ("hinge_m = 3.0", "hinge_m = 7.0", "stability.hinge_m", "on the bridge"),
+        ("bridge_length_m = 6.0", "bridge_length_m = 0", "stability.bridge_length_m", "> 0"),
+        (
+            'rotation = "BRIDGE_MOTION.Bridge_RotationAngle"',
+            'rotation = "BRIDGE_MOTION.Carriage_Position"',
+            "stability.rotation",
+            "deg",
+        ),
+        (
+            'fold = "BRIDGE_POSE.Bridge_FoldAngle"',
+            'fold = "BRIDGE_POSE.Fold"',
+            "stability.fold",
+            "no signal",
+        ),
+        ("axis_m = [0.07, 0.0]", "axis_m = [0.07]", "stability.bases.SB1.axis_m", "[x, y]"),
+        (
+            "SB1_F1 = [1.6, 0.0]",
+            "SB1_F1 = [1.6, true]",
+            "stability.bases.SB1.feet_m.SB1_F1",
+            "[x, y]",
+        ),
+        ("SB1_F1 = [1.6, 0.0], ", "", "stability.bases", "missing ['SB1_F1']"),
+        ("SB1_F1 = [1.6, 0.0]", "SB1_F9 = [1.6, 0.0]", "stability.bases", "not legs ['SB1_F9']"),
+        (
+            "warning_margin_m = 0.3",
+            "warning_margin = 0.3",
+            "stability.warning_margin",
+            "unknown key",
+        ),
+        (
+            "[stability.bases.SB2]",
+            "[stability.bases.SB3]\naxis_m = [0.0, 0.0]\nfeet_m = {}\n[stability.bases.SB2]",
+            "stability.bases",
+            "two bases",
+        ),
+    ],
+)
+def test_bad_stability_config_is_refused(
+    tmp_path: Path, old: str, new: str, key: str, reason: str
+) -> None:
+    assert old in EXAMPLE
+    with pytest.raises(ConfigError) as info:
+        load(tmp_path, EXAMPLE.replace(old, new, 1))
+    assert info.value.key == key
+    assert reason in str(info.value)
