@@ -161,9 +161,14 @@ def by_id(document: dict[str, Any]) -> dict[str, dict[str, Any]]:
 
 
 def all_live(document: dict[str, Any]) -> bool:
+    """Every machine live and past its first snapshots (all feet seen, a stability margin):
+    a viewer that joins early gets those first ones from the publisher's cache."""
     machines = by_id(document)
     return set(machines) == set(MACHINES) and all(
-        m["state"] == "live" and m["legs_in_contact"] is not None for m in machines.values()
+        m["state"] == "live"
+        and m["legs_in_contact"] == m["legs"]
+        and m["stability_margin_m"] is not None
+        for m in machines.values()
     )
 
 
