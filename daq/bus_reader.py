@@ -249,10 +249,11 @@ class BusReader(Worker):
         if state == self.state and reason == self.reason:
             return
         changed = state != self.state
+        if changed:
+            self._note_loss()  # frames lost so far went missing before this change
         self.state, self.reason = state, reason
         if changed:
             logger.log(log, "CAN bus %s: %s (%s)", self.channel, state, reason)
-            self._note_loss()  # frames lost so far went missing before this change
             self._pending.append(BusEvent(self._now(), state, reason, reset))
             self._deliver_pending()
 
@@ -288,7 +289,8 @@ class BusReader(Worker):
     def _offer(self, frame: RawFrame) -> None:
         """Enqueue without blocking, behind the waiting events; a full queue drops it."""
         try:
-            if not self._deliver_pending():
+            waiting = self._pending or self._unreported_kernel or self._unreported_rx
+            if waiting and not self._deliver_pending():
                 raise queue.Full
             self._inbox.put_nowait(frame)
         except queue.Full:

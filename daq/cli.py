@@ -18,6 +18,7 @@ from daq.subcommand import PROG, Subcommand
 
 #: One line per subcommand module; each defines ``SUBCOMMAND``. Keep them sorted.
 SUBCOMMAND_MODULES = (
+    "daq.calibrate.command",
     "daq.dashboard.cli",
     "daq.monitor.cli",
     "daq.recover_command",

@@ -13,7 +13,8 @@ is a new run, and a clock step cannot reorder files. A file without that record 
 recording of an earlier release) is a run of its own.
 
 :func:`run_files` takes files and directories (a directory stands for its ``*.mcap``
-files), checks that they are one run, and orders them. A file missing from the
+files), checks that they are one run, and orders them; :func:`runs` groups the files
+of many runs (a campaign) the same way. A file missing from the
 middle or the start of a run is logged: the estimates right after it differ from
 the live ones until the median has refilled.
 """
@@ -91,20 +92,32 @@ def run_files(paths: Sequence[Path]) -> list[Path]:
 
     Raises :class:`~daq.errors.RecordingError` when they belong to more than one run.
     """
-    files = [read_run_file(path) for path in expand(paths)]
-    runs: dict[tuple[str, str] | Path, list[RunFile]] = {}
-    for file in files:
-        runs.setdefault(file.run or file.path, []).append(file)
-    if len(runs) > 1:
-        listing = "; ".join(
-            f"{_run_name(key)}: {', '.join(f.path.name for f in members)}"
-            for key, members in runs.items()
-        )
+    found = runs(paths)
+    if len(found) > 1:
+        listing = "; ".join(f"{name}: {', '.join(f.name for f in files)}" for name, files in found)
         raise RecordingError(
-            files[0].path.parent,
-            f"these files are {len(runs)} runs of the service ({listing}); "
+            found[0][1][0].parent,
+            f"these files are {len(found)} runs of the service ({listing}); "
             "give the files of one run",
         )
+    return found[0][1]
+
+
+def runs(paths: Sequence[Path]) -> list[tuple[str, list[Path]]]:
+    """The runs among the MCAP files of ``paths`` (a campaign), each as its name and its
+    files in order; runs in the order their first file was given (or found).
+
+    Raises :class:`~daq.errors.RecordingError` for an unreadable file or two files
+    claiming one index of a run.
+    """
+    grouped: dict[tuple[str, str] | Path, list[RunFile]] = {}
+    for file in (read_run_file(path) for path in expand(paths)):
+        grouped.setdefault(file.run or file.path, []).append(file)
+    return [(_run_name(key), _ordered(members)) for key, members in grouped.items()]
+
+
+def _ordered(files: list[RunFile]) -> list[Path]:
+    """The files of one run by index; a missing file is logged."""
     ordered = sorted(files, key=lambda file: file.index)
     indexes = [file.index for file in ordered]
     if len(set(indexes)) != len(indexes):

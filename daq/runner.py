@@ -43,7 +43,7 @@ def bus_factory(settings: BusSettings, frame_ids: list[tuple[int, bool]]) -> Bus
 
     SocketCAN is read through the service's own socket (:mod:`daq.socketcan`: FD
     frames, forced receive buffer, kernel drop counter); any other interface
-    through python-can. A receive buffer smaller than ``receive_buffer_bytes``
+    through python-can. A receive buffer clamped below ``receive_buffer_bytes``
     is warned about once.
     """
     ids = frame_ids if settings.kernel_filters else None
@@ -59,13 +59,15 @@ def bus_factory(settings: BusSettings, frame_ids: list[tuple[int, bool]]) -> Bus
         )
         source.open()
         granted = source.rcvbuf_bytes or 0
-        if granted < settings.receive_buffer_bytes and not warned:
+        # Linux grants twice what is asked (the other half is for its bookkeeping):
+        # less means the request was clamped to net.core.rmem_max.
+        if granted < 2 * settings.receive_buffer_bytes and not warned:
             warned = True
             logger.warning(
-                "the CAN socket's receive buffer is %d bytes, less than the %d asked for "
-                "([bus] receive_buffer_bytes): a stall may drop frames (counted on /status "
-                "as dropped.kernel); give the service CAP_NET_ADMIN or raise "
-                "net.core.rmem_max (deploy/sysctl/)",
+                "the CAN socket's receive buffer was clamped to %d bytes (%d asked for in "
+                "[bus] receive_buffer_bytes, which Linux grants as twice that): a stall may "
+                "drop frames (counted on /status as dropped.kernel); give the service "
+                "CAP_NET_ADMIN or raise net.core.rmem_max (deploy/sysctl/)",
                 granted,
                 settings.receive_buffer_bytes,
             )

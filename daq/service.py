@@ -214,7 +214,9 @@ class Service:
         self._rate_mark = (now, received)
         if received != mark_received:
             self._last_frame_monotonic = now
-        self._kernel_losses()  # logs a rise (with the buffer size); health: see problems()
+        # Read once: the status must show the very count its health was judged on.
+        kernel_dropped = self.reader.kernel_dropped
+        self._kernel_losses(kernel_dropped)  # logs a rise; health: see problems()
         bad = dict(self.pipeline.bad)
         recorder = self.recorder
         status: JsonObject = {
@@ -236,7 +238,7 @@ class Service:
                 "processed": self.pipeline.frames,
                 "unknown": bad.get("unknown_id", 0),
                 "bad": sum(bad.values()),
-                "dropped": self.reader.dropped + self.reader.kernel_dropped,
+                "dropped": self.reader.dropped + kernel_dropped,
             },
             "bad": bad,
             "queues": {
@@ -245,7 +247,7 @@ class Service:
                 "record": recorder.depth if recorder is not None else 0,
             },
             "dropped": {
-                "kernel": self.reader.kernel_dropped,
+                "kernel": kernel_dropped,
                 "rx": self.reader.dropped,
                 "publish": self.publisher.dropped,
                 "record": recorder.dropped if recorder is not None else 0,
@@ -286,9 +288,8 @@ class Service:
         status["problems"] = found
         return status
 
-    def _kernel_losses(self) -> None:
-        """Frames the kernel dropped since the previous status; logs them (one line)."""
-        total = self.reader.kernel_dropped
+    def _kernel_losses(self, total: int) -> None:
+        """Logs the frames the kernel dropped since the previous status (``total`` now)."""
         lost, self._kernel_dropped_mark = total - self._kernel_dropped_mark, total
         if lost:
             logger.warning(

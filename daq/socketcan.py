@@ -120,7 +120,10 @@ class SocketCanSource:
             return None
         extra = parse_ancillary(ancillary)
         self.kernel_dropped = extra.dropped
-        return parse_frame(buffer, extra.t_s if extra.t_s is not None else time.time())
+        try:
+            return parse_frame(buffer, extra.t_s if extra.t_s is not None else time.time())
+        except ValueError as exc:  # never from CAN_RAW; if ever, a bus fault, not a crash
+            raise OSError(errno.EPROTO, f"unexpected data from the CAN socket: {exc}") from exc
 
     def shutdown(self) -> None:
         """Close the socket. Idempotent."""

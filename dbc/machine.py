@@ -48,7 +48,11 @@ GEOMETRY_KEYS = (
     "alpha_cyl_deg",
     "F_gLeg_N",
     "A_foot_m2",
+    "force_gain",
+    "force_offset_N",
 )
+#: Geometry keys that may be left out, and their defaults (``portal-daq calibrate``'s output).
+OPTIONAL_GEOMETRY = {"force_gain": 1.0, "force_offset_N": 0.0}
 LEG_SIGNAL_KEYS = ("piston", "rod", "status", "status_ok", "trigger", "max_skew_s")
 #: Keys of a chamber written as a table: ``piston = { signal = "M.S", ... }``.
 CHAMBER_KEYS = ("signal", "source_address", "unit", "status", "status_ok")
@@ -320,9 +324,9 @@ def _leg(
     owners: dict[str, TomlTable] = {}
     for key in GEOMETRY_KEYS:
         owner = table if key in table else defaults
-        if key not in owner:
+        if key not in owner and key not in OPTIONAL_GEOMETRY:
             raise table.error(key, "missing (and not given in [leg_defaults])")
-        values[key] = owner.number(key)
+        values[key] = owner.number(key, OPTIONAL_GEOMETRY.get(key))
         owners[key] = owner
     values["alpha_cyl_rad"] = math.radians(values.pop("alpha_cyl_deg"))
     owners["alpha_cyl_rad"] = owners.pop("alpha_cyl_deg")

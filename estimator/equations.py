@@ -23,9 +23,14 @@ def cylinder_force_N(p_piston_Pa: Value, p_rod_Pa: Value, leg: LegGeometry) -> V
 def foot_force_N(p_piston_Pa: Value, p_rod_Pa: Value, leg: LegGeometry) -> Value:
     """Eq. (4): the vertical ground force of the foot from the chamber pressures.
 
-    F_zFoot = F_cyl (l_r sin a - l_z cos a) / l_b + (l_gb / l_b) F_gLeg
+    F_zFoot = k F_cyl (l_r sin a - l_z cos a) / l_b + (l_gb / l_b) F_gLeg + b
+
+    with the leg's calibrated gain ``k`` (``force_gain``, 1 by default) and offset ``b``
+    (``force_offset_N``, 0 by default).
     """
-    return cylinder_force_N(p_piston_Pa, p_rod_Pa, leg) * leg.force_ratio + leg.weight_term_N
+    return (
+        cylinder_force_N(p_piston_Pa, p_rod_Pa, leg) * leg.calibrated_ratio + leg.calibrated_term_N
+    )
 
 
 def contact_pressure_Pa(force_N: Value, A_foot_m2: float) -> Value:

@@ -40,10 +40,18 @@ class LegGeometry:
     F_gLeg_N: float
     #: Contact area of the foot (0.33 m2 in the paper).
     A_foot_m2: float
+    #: Calibrated gain on the lever term (``portal-daq calibrate``); 1: the design geometry.
+    force_gain: float = 1.0
+    #: Calibrated offset added to the foot force (transducer zero offsets, leg weight).
+    force_offset_N: float = 0.0
     #: (l_r sin a - l_z cos a) / l_b: foot force per newton of cylinder force.
     force_ratio: float = field(init=False)
     #: (l_gb / l_b) F_gLeg: the leg's own weight as seen at the foot.
     weight_term_N: float = field(init=False)
+    #: force_gain x force_ratio: what eq. (4) multiplies the cylinder force by.
+    calibrated_ratio: float = field(init=False)
+    #: weight_term_N + force_offset_N: what eq. (4) adds.
+    calibrated_term_N: float = field(init=False)
 
     def __post_init__(self) -> None:
         for name in ("A_piston_m2", "A_rod_m2", "l_b_m", "A_foot_m2"):
@@ -51,6 +59,8 @@ class LegGeometry:
         for name in ("l_r_m", "l_z_m", "l_gb_m", "alpha_cyl_rad"):
             require_finite(name, getattr(self, name))
         require_non_negative("F_gLeg_N", self.F_gLeg_N)
+        require_positive("force_gain", self.force_gain)
+        require_finite("force_offset_N", self.force_offset_N)
         if self.A_rod_m2 >= self.A_piston_m2:
             raise ValueError(
                 f"A_rod_m2 ({self.A_rod_m2}) must be smaller than A_piston_m2 "
@@ -69,3 +79,5 @@ class LegGeometry:
         # identical for scalars and numpy arrays.
         object.__setattr__(self, "force_ratio", lever_arm_m / self.l_b_m)
         object.__setattr__(self, "weight_term_N", self.l_gb_m / self.l_b_m * self.F_gLeg_N)
+        object.__setattr__(self, "calibrated_ratio", self.force_gain * self.force_ratio)
+        object.__setattr__(self, "calibrated_term_N", self.weight_term_N + self.force_offset_N)

@@ -99,7 +99,7 @@ class StatusReading:
     frames_received: int
     #: Frames with a fault (unknown ID, DLC, CRC, counter ...), all kinds.
     frames_bad: int
-    #: Messages dropped anywhere (receive, publish and record queues).
+    #: Messages dropped anywhere (kernel, receive, publish and record queues).
     dropped: int
     healthy: bool | None
 

@@ -1,5 +1,10 @@
 """``portal-daq report FILE.mcap... | DIR [--out DIR] [--config FILE]``: arguments, exit codes.
 
+``portal-daq report --campaign FILES... | DIRS... [--cluster ADDRESS] [--workers N]``:
+the campaign report over many recordings (each run of the service one recording;
+:mod:`daq.report.campaign`), computed on local processes or a Dask cluster
+(:mod:`daq.report.campaign_run`), written by :mod:`daq.report.campaign_output`.
+
 Exit status: 0 when the report was written; 2 for a bad configuration or DBC; 1 when
 the recording cannot be read or the report cannot be written. The reason is one
 line on stderr, like the other ``portal-daq`` commands. matplotlib is imported only
@@ -27,13 +32,20 @@ class ReportOptions:
     out_dir: Path | None = None
     #: Machine configuration; None: the one embedded in the recording.
     config_path: Path | None = None
+    #: A campaign report over every run found in ``recording`` (files, directories).
+    campaign: bool = False
+    #: Campaign: a Dask scheduler address; None: local processes.
+    cluster: str | None = None
+    #: Campaign: local processes (None: one per CPU; 1: this process).
+    workers: int | None = None
 
     @property
     def directory(self) -> Path:
         if self.out_dir is not None:
             return self.out_dir
         first = self.recording if isinstance(self.recording, Path) else self.recording[0]
-        return first.with_name(f"{first.stem}_report")
+        suffix = "campaign" if self.campaign else "report"
+        return first.with_name(f"{first.stem}_{suffix}")
 
 
 def parse_report_args(args: Sequence[str]) -> ReportOptions:
@@ -55,8 +67,35 @@ def parse_report_args(args: Sequence[str]) -> ReportOptions:
     parser.add_argument(
         "--config", type=Path, help="machine config (default: the one embedded in the file)"
     )
+    campaign = parser.add_argument_group(
+        "campaign", "one table and summary page over many recordings (runs of the service)"
+    )
+    campaign.add_argument(
+        "--campaign",
+        action="store_true",
+        help="every run among the files and directories given: campaign.csv + campaign.html "
+        "(default --out: <first stem>_campaign)",
+    )
+    campaign.add_argument(
+        "--cluster",
+        metavar="ADDRESS",
+        help="compute on a Dask distributed cluster, e.g. tcp://10.0.0.5:8786 "
+        "(pip install 'portal-daq[cluster]'; paths as the workers see them)",
+    )
+    campaign.add_argument(
+        "--workers", type=int, metavar="N", help="local processes (default: one per CPU)"
+    )
     options = parser.parse_args(args)
-    return ReportOptions(tuple(options.recording), options.out, options.config)
+    if not options.campaign and (options.cluster or options.workers):
+        parser.error("--cluster and --workers go with --campaign")
+    return ReportOptions(
+        tuple(options.recording),
+        options.out,
+        options.config,
+        campaign=options.campaign,
+        cluster=options.cluster,
+        workers=options.workers,
+    )
 
 
 def report(options: ReportOptions) -> list[Path]:
@@ -69,12 +108,25 @@ def report(options: ReportOptions) -> list[Path]:
     return write_report(analyse(recording), options.directory)
 
 
+def campaign_report(options: ReportOptions) -> list[Path]:
+    """Find the runs, compute their rows (locally or on the cluster), write the table and
+    the page; the files written (the page last)."""
+    from daq.recording_run import runs
+    from daq.report.campaign_output import write_campaign
+    from daq.report.campaign_run import campaign
+
+    given = [options.recording] if isinstance(options.recording, Path) else options.recording
+    found = runs(given)
+    rows = campaign(found, options.config_path, cluster=options.cluster, workers=options.workers)
+    return write_campaign(rows, options.directory, len(found))
+
+
 def report_main(args: Sequence[str]) -> int:
     """The ``report`` subcommand of ``portal-daq``; returns the exit status."""
     options = parse_report_args(args)
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     try:
-        written = report(options)
+        written = campaign_report(options) if options.campaign else report(options)
     except (ConfigError, DbcError) as exc:
         return _fail(str(exc), 2)
     except PortalDaqError as exc:

@@ -20,12 +20,28 @@ import zenoh
 import zenoh.ext
 
 from daq.live.feed import HISTORY, RECOVERY
+from daq.service import Service
 from dbc.encoding import FrameEncoder
 from dbc.machine import MachineConfig
 from estimator.equations import foot_force_N
 from tests.helpers import EXAMPLE_CONFIG, LEGS
 
 WAIT_S = 20.0  # generous: inside User-Mode Linux everything is slow
+
+
+@contextmanager
+def running(service: Service) -> Iterator[Service]:
+    """``service`` run by :meth:`Service.run` in a thread, as in the main thread of the
+    process, once its bus is open; stopped and joined at the end."""
+    stop = threading.Event()
+    runner = threading.Thread(target=service.run, args=(stop,))
+    runner.start()
+    try:
+        assert service.reader.opened.wait(WAIT_S)
+        yield service
+    finally:
+        stop.set()
+        runner.join()
 
 
 def free_port() -> int:

@@ -49,8 +49,11 @@ def record(
     machine_state: bool = True,
     embed_config: bool = True,
     faults: FaultConfig | None = None,
+    run: dict[str, str] | None = None,
+    after_s: float = 0.0,
 ) -> Path:
-    """A service recording of ``seconds`` of the synthetic cycle, looping."""
+    """A service recording of ``seconds`` of the synthetic cycle, looping; with ``run``
+    metadata, and only the frames from ``after_s`` on (a later file of a run)."""
     config, database = example_machine()
     result = make_result(duration_s=CYCLE_S)
     playout = make_playout(result, faults)
@@ -61,7 +64,7 @@ def record(
         DBC_ATTACHMENT: config.dbc_path.read_bytes(),
     }
     with open(path, "wb") as stream, McapFile(stream, database) as mcap:
-        mcap.start(attachments if embed_config else {}, T0_S)
+        mcap.start(attachments if embed_config else {}, T0_S, run)
         last_row = None
         for instant in instants(schedule(playout.cycles, end_sim_ns=round(seconds * 1e9))):
             t_s = T0_S + instant.sim_t_ns / 1e9
@@ -70,7 +73,9 @@ def record(
                 if item.message == "MACHINE_STATE" and not machine_state:
                     continue
                 frame = RawFrame(t_s, item.frame.arbitration_id, False, item.frame.data)
-                mcap.write_result(pipeline.process(frame))
+                processed = pipeline.process(frame)  # before after_s: as in an earlier file
+                if t_s >= T0_S + after_s:
+                    mcap.write_result(processed)
             if truth and (position.cycle, position.row) != last_row:
                 last_row = (position.cycle, position.row)
                 mcap.write_truth(truth_sample(result, position, t_s, feet_m2).as_json())

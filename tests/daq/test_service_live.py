@@ -5,7 +5,6 @@ from __future__ import annotations
 import io
 import json
 import queue
-import threading
 import time
 import uuid
 from collections.abc import Iterator
@@ -37,6 +36,7 @@ from tests.daq.service_support import (
     leg_messages,
     leg_signals,
     pressure_series,
+    running,
     subscriber_session,
     write_service_config,
 )
@@ -71,15 +71,8 @@ def live_service(config: ServiceConfig) -> Iterator[Service]:
             session=session,
             recorder=recorder,
         )
-        stop = threading.Event()
-        runner = threading.Thread(target=service.run, args=(stop,))
-        runner.start()
-        try:
-            assert service.reader.opened.wait(WAIT_S)
+        with running(service):
             yield service
-        finally:
-            stop.set()
-            runner.join()
 
 
 @contextmanager

@@ -25,7 +25,7 @@ from daq.sd_notify import SdNotifier
 from daq.service import HEARTBEAT_MAX_AGE_S, Service
 from daq.service_config import ServiceConfig, load_service_config
 from daq.zenoh_session import zenoh_config
-from tests.daq.service_support import WAIT_S, free_port, write_service_config
+from tests.daq.service_support import WAIT_S, free_port, running, write_service_config
 
 
 class KernelSource:
@@ -68,16 +68,11 @@ def service_on(
     """The service reading ``source``, run by :meth:`Service.run` in a thread."""
     with zenoh.open(zenoh_config(config.zenoh)) as session:
         service = Service(config, open_bus=lambda: source, session=session, notifier=notifier)
-        stop = threading.Event()
-        runner = threading.Thread(target=service.run, args=(stop,))
-        runner.start()
-        try:
-            assert service.reader.opened.wait(WAIT_S)
-            yield service
-        finally:
-            source.release.set()
-            stop.set()
-            runner.join()
+        with running(service):
+            try:
+                yield service
+            finally:
+                source.release.set()  # a hung reader must return for the service to close
 
 
 def wait_until(condition: object, timeout_s: float = WAIT_S) -> None:

@@ -42,3 +42,32 @@ def test_bad_filter_keys_are_refused(
         load_machine_config(path)
     assert info.value.key == key
     assert reason in str(info.value)
+
+
+def test_calibration_keys_load_per_leg(tmp_path: Path) -> None:
+    path = tmp_path / "machine.toml"
+    text = EXAMPLE.replace(
+        "[legs.SB1_F2]\n", "[legs.SB1_F2]\nforce_gain = 1.04\nforce_offset_N = -812.5\n"
+    )
+    path.write_text(text)
+    legs = load_machine_config(path)[0].legs
+    geometry = legs["SB1_F2"].geometry
+    assert (geometry.force_gain, geometry.force_offset_N) == (1.04, -812.5)
+    assert geometry.calibrated_ratio == pytest.approx(1.04 * geometry.force_ratio)
+    assert (legs["SB1_F1"].geometry.force_gain, legs["SB1_F1"].geometry.force_offset_N) == (1, 0)
+
+
+@pytest.mark.parametrize(
+    ("line", "key", "reason"),
+    [
+        ("force_gain = 0", "legs.SB1_F2.force_gain", "> 0"),
+        ('force_offset_N = "x"', "legs.SB1_F2.force_offset_N", "number"),
+    ],
+)
+def test_bad_calibration_keys_are_refused(tmp_path: Path, line: str, key: str, reason: str) -> None:
+    path = tmp_path / "machine.toml"
+    path.write_text(EXAMPLE.replace("[legs.SB1_F2]\n", f"[legs.SB1_F2]\n{line}\n"))
+    with pytest.raises(ConfigError) as info:
+        load_machine_config(path)
+    assert info.value.key == key
+    assert reason in str(info.value)

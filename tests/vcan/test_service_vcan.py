@@ -114,19 +114,25 @@ def port_of(config: ServiceConfig) -> int:
     return int(config.zenoh.listen[0].rsplit(":", 1)[1])
 
 
-def connected(collector: Collector, prefix: str) -> None:
-    collector.wait_for(f"{prefix}/status", timeout=WAIT_S)
+@contextmanager
+def watched_service(
+    config: ServiceConfig, tmp_path: Path
+) -> Iterator[tuple[subprocess.Popen[str], Collector]]:
+    """The service on vcan0, and a collector on its keys that has heard its status."""
+    prefix = config.zenoh.key_prefix
+    with (
+        service_process(Path(config.source), tmp_path) as process,
+        subscriber_session(port_of(config)) as session,
+    ):
+        collector = Collector(session, f"{prefix}/**")
+        collector.wait_for(f"{prefix}/status", timeout=WAIT_S)
+        yield process, collector
 
 
 def test_service_on_vcan0_publishes_estimates_matching_eq_4(tmp_path: Path) -> None:
     config = make_config(tmp_path)
     prefix = config.zenoh.key_prefix
-    with (
-        service_process(Path(config.source), tmp_path),
-        subscriber_session(port_of(config)) as session,
-    ):
-        collector = Collector(session, f"{prefix}/**")
-        connected(collector, prefix)
+    with watched_service(config, tmp_path) as (_, collector):
         with vcan() as bus:
             for message in leg_messages(encoder_for(config), FRAMES_PER_LEG, 0.0):
                 bus.send(message, timeout=5.0)
@@ -155,12 +161,7 @@ def test_link_down_and_up_service_survives_and_misses_nothing(tmp_path: Path) ->
             arbitration_id=encoded.arbitration_id, data=encoded.data, is_extended_id=False
         )
 
-    with (
-        service_process(Path(config.source), tmp_path),
-        subscriber_session(port_of(config)) as session,
-    ):
-        collector = Collector(session, f"{prefix}/**")
-        connected(collector, prefix)
+    with watched_service(config, tmp_path) as (_, collector):
         try:
             with vcan() as bus:
                 for i in range(5):
@@ -193,12 +194,7 @@ def test_interface_away_and_back_is_reopened(tmp_path: Path) -> None:
     prefix = config.zenoh.key_prefix
     key = f"{prefix}/leg/SB1_F1/ground"
     encoder = encoder_for(config)
-    with (
-        service_process(Path(config.source), tmp_path),
-        subscriber_session(port_of(config)) as session,
-    ):
-        collector = Collector(session, f"{prefix}/**")
-        connected(collector, prefix)
+    with watched_service(config, tmp_path) as (_, collector):
         try:
             subprocess.run(["ip", "link", "del", CHANNEL], check=True)
             away = collector.wait_for(
@@ -247,12 +243,7 @@ def test_fd_frame_on_a_leg_id_is_counted_and_recorded_raw(tmp_path: Path) -> Non
     fd_capable_vcan0()
     config = make_config(tmp_path, recording=tmp_path / "rec")
     prefix = config.zenoh.key_prefix
-    with (
-        service_process(Path(config.source), tmp_path),
-        subscriber_session(port_of(config)) as session,
-    ):
-        collector = Collector(session, f"{prefix}/**")
-        connected(collector, prefix)
+    with watched_service(config, tmp_path) as (_, collector):
         # LEG_SB1_F1 (0x100) is a classic 8-byte message: 12 bytes of FD are not it.
         subprocess.run(["cansend", CHANNEL, "100##1" + "11" * 12], check=True)
         status = collector.wait_for(
@@ -280,12 +271,7 @@ def test_a_stalled_service_loses_no_frame_or_counts_each_lost_one(
         tmp_path, recording=tmp_path / "rec", receive_buffer_bytes=receive_buffer_bytes
     )
     status_key = f"{config.zenoh.key_prefix}/status"
-    with (
-        service_process(Path(config.source), tmp_path) as process,
-        subscriber_session(port_of(config)) as session,
-    ):
-        collector = Collector(session, f"{config.zenoh.key_prefix}/**")
-        connected(collector, config.zenoh.key_prefix)
+    with watched_service(config, tmp_path) as (process, collector):
         generator = subprocess.Popen(
             ["cangen", CHANNEL, "-g", str(STALL_GAP_MS), "-n", str(STALL_FRAMES)]
             + ["-I", "7AA", "-L", "8", "-D", "i", "-p", "1000"]

@@ -7,6 +7,7 @@ asserted; every wait is a receive with a timeout.
 from __future__ import annotations
 
 import subprocess
+import sys
 import time
 from collections.abc import Iterator
 
@@ -15,6 +16,7 @@ import pytest
 
 from daq.frames import RawFrame
 from daq.socketcan import SocketCanSource
+from tests.helpers import ROOT
 
 pytestmark = pytest.mark.vcan
 
@@ -32,11 +34,8 @@ def fd_capable_vcan0() -> None:
 
 @pytest.fixture
 def sender() -> Iterator[can.BusABC]:
-    bus = can.Bus(interface="socketcan", channel=CHANNEL)
-    try:
+    with can.Bus(interface="socketcan", channel=CHANNEL) as bus:
         yield bus
-    finally:
-        bus.shutdown()
 
 
 def source(receive_buffer_bytes: int = 4 * 1024 * 1024) -> SocketCanSource:
@@ -67,13 +66,41 @@ def test_classic_and_fd_frames_from_cansend_with_kernel_time_stamps() -> None:
     assert classic is not None and before - 1.0 < classic.t_s < time.time() + 1.0
 
 
-def test_the_receive_buffer_is_forced_past_rmem_max_as_root() -> None:
+def rmem_max() -> int:
     with open("/proc/sys/net/core/rmem_max") as file:
-        rmem_max = int(file.read())
-    asked = 4 * rmem_max  # SO_RCVBUF alone would be clamped to rmem_max
+        return int(file.read())
+
+
+def test_the_receive_buffer_is_forced_past_rmem_max_as_root() -> None:
+    asked = 4 * rmem_max()  # SO_RCVBUF alone would be clamped to rmem_max
     with source(asked) as socket_source:
         # Linux doubles what it grants for its bookkeeping.
         assert socket_source.rcvbuf_bytes == 2 * asked
+
+
+UNPRIVILEGED_OPEN = """
+import logging, sys
+logging.basicConfig(level=logging.WARNING, stream=sys.stdout, format="%(levelname)s %(message)s")
+from daq.runner import bus_factory
+from daq.service_config import BusSettings
+open_bus = bus_factory(BusSettings(channel="vcan0", receive_buffer_bytes=int(sys.argv[1])), [])
+for _ in range(2):  # a reopen
+    source = open_bus()
+    print("GRANTED", source.rcvbuf_bytes)
+    source.shutdown()
+"""
+
+
+def test_without_cap_net_admin_the_buffer_is_clamped_and_warned_about_once() -> None:
+    limit = rmem_max()
+    result = subprocess.run(
+        ["setpriv", "--reuid=65534", "--regid=65534", "--clear-groups", "--inh-caps=-all",
+         "--bounding-set=-all", sys.executable, "-c", UNPRIVILEGED_OPEN, str(4 * limit)],
+        cwd=ROOT, capture_output=True, text=True, check=True, timeout=120,
+    )  # fmt: skip
+    assert result.stdout.count(f"GRANTED {2 * limit}") == 2, result.stdout + result.stderr
+    (warning,) = [line for line in result.stdout.splitlines() if line.startswith("WARNING")]
+    assert f"clamped to {2 * limit} bytes ({4 * limit} asked for" in warning
 
 
 def test_the_kernel_drop_counter_accounts_for_every_frame_sent(sender: can.BusABC) -> None:

@@ -1,0 +1,1 @@
+"""``portal-daq calibrate``: per-leg gain and offset from recordings (see estimator.calibration)."""

@@ -1,0 +1,113 @@
+"""Reading recordings for the calibration: the file-touching edge.
+
+Each recording (a service MCAP file) is replayed from ``/can/raw`` through the
+pipeline of the machine configuration (``--config``, else the one embedded in the
+file), exactly as live; the leg estimates are sampled every :data:`PERIOD_S` like the
+``<prefix>/ground`` snapshots. The movement phase comes from the recorded
+``/signals/MACHINE_STATE``. Several recordings are read one after the other, each
+with a fresh pipeline, and their instants pooled.
+"""
+
+import json
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import numpy.typing as npt
+
+from daq.errors import RecordingError
+from daq.mcap_reading import RecordedAttachment, RecordedMessage, RecordingStream
+from daq.replay import Machine, embedded_machine, run_estimates
+from daq.report.tracks import STATE_TOPIC, StateTrack
+from dbc.machine import load_machine_config
+from estimator.calibration import Snapshots, quasi_static, snapshots
+
+#: Spacing of the snapshots, s (the service's default ``ground_rate_hz`` of 10).
+PERIOD_S = 0.1
+#: Snapshots either side that must be steady (0.5 s).
+WINDOW = 5
+#: A leg's filtered force may change by at most this over the window.
+MAX_CHANGE_N = 5000.0
+#: Movement phases in which no leg stroke or fold moves; others are left out (cylinder
+#: friction and inertia break the balance there). A recording without machine state
+#: is judged on the forces alone.
+STILL_PHASES = ("idle", "move_carriage", "rotate")
+
+
+@dataclass(frozen=True)
+class Instants:
+    """The quasi-static instants of all recordings, pooled."""
+
+    legs: tuple[str, ...]
+    t_s: npt.NDArray[np.float64]
+    #: Filtered forces as recorded (the configured calibration applied).
+    force_N: npt.NDArray[np.float64]
+    contact: npt.NDArray[np.bool_]
+    #: Snapshots read in all, and how many of them were quasi-static.
+    total: int
+
+
+def machine_for(paths: Sequence[Path], config_path: Path | None) -> Machine:
+    """``config_path``'s machine, else the one embedded in the first recording."""
+    if config_path is not None:
+        return load_machine_config(config_path)
+    first = paths[0]
+    try:
+        with open(first, "rb") as stream:
+            attachments = {
+                record.name: record.data
+                for record in RecordingStream(stream, str(first))
+                if isinstance(record, RecordedAttachment)
+            }
+    except OSError as exc:
+        raise RecordingError(first, f"cannot read it: {exc.strerror or exc}") from exc
+    return embedded_machine(attachments, first)
+
+
+def read_instants(paths: Sequence[Path], machine: Machine) -> Instants:
+    """The quasi-static instants of every recording in ``paths``."""
+    legs = tuple(machine[0].legs)
+    parts: list[Snapshots] = []
+    total = 0
+    for path in paths:
+        rows = list(run_estimates([path], machine))
+        if not rows:
+            raise RecordingError(path, "no leg estimates: no /can/raw leg frames to replay")
+        stale_s = 3.0 * PERIOD_S
+        snaps = snapshots(rows, legs, PERIOD_S, stale_s)
+        still = _still(path, snaps.t_s)
+        keep = quasi_static(snaps, WINDOW, MAX_CHANGE_N) & still
+        total += len(snaps.t_s)
+        parts.append(
+            Snapshots(
+                legs, snaps.t_s[keep], snaps.force_N[keep], snaps.valid[keep], snaps.contact[keep]
+            )
+        )
+    return Instants(
+        legs=legs,
+        t_s=np.concatenate([p.t_s for p in parts]),
+        force_N=np.vstack([p.force_N for p in parts]),
+        contact=np.vstack([p.contact for p in parts]),
+        total=total,
+    )
+
+
+def _still(path: Path, t_s: npt.NDArray[np.float64]) -> npt.NDArray[np.bool_]:
+    """True at the times whose movement phase (the latest MACHINE_STATE before) is still."""
+    rows = []
+    try:
+        with open(path, "rb") as stream:
+            for record in RecordingStream(stream, str(path)):
+                if isinstance(record, RecordedMessage) and record.topic == STATE_TOPIC:
+                    row = StateTrack.row(json.loads(record.data))
+                    if row is not None:
+                        rows.append(row)
+    except OSError as exc:
+        raise RecordingError(path, f"cannot read it: {exc.strerror or exc}") from exc
+    if not rows:
+        return np.ones(t_s.shape, dtype=bool)
+    state = StateTrack.of(rows)
+    latest = np.searchsorted(state.t_s, t_s, side="right") - 1
+    phases = np.array(state.phase)
+    return (latest >= 0) & np.isin(phases[np.maximum(latest, 0)], STILL_PHASES)

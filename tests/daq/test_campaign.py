@@ -1,0 +1,189 @@
+"""Campaign reports: many recordings, one table, computed locally or on a Dask cluster.
+
+The recordings are generated here (:func:`tests.daq.test_report_recordings.record`:
+the simulator's playout of a short synthetic cycle through the service's pipeline into
+MCAP), different in length, faults and machine state, one of them a run rotated into
+two files. The rows are checked against the single report's metrics and a brute-force
+weight residual; the same rows come from one process, local processes and a Dask
+``LocalCluster`` of two worker processes.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import subprocess
+import sys
+from dataclasses import astuple, replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from daq.recording_run import run_metadata, runs
+from daq.report.campaign import COLUMNS, CampaignRow, campaign_rows, weight_residuals_N
+from daq.report.campaign_run import campaign
+from daq.report.content import analyse
+from daq.report.loading import load_recording
+from sim_bridge.faults import FaultConfig
+from tests.daq.test_report_recordings import CYCLE_S, FAULTS, record
+from tests.helpers import LEGS, ROOT
+
+ROTATE_S = 2.505  # between two 10 ms instants
+
+
+@pytest.fixture(scope="module")
+def recordings(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A campaign directory: four runs, one of them rotated into two files."""
+    folder = tmp_path_factory.mktemp("campaign")
+    record(folder / "a_plain.mcap", seconds=5.0)
+    record(folder / "b_faults.mcap", seconds=4.5, faults=FAULTS)
+    record(folder / "c_no_state.mcap", seconds=3.0, machine_state=False)
+    noisy = FaultConfig(bad_crc_probability=0.05, seed=3)
+    record(folder / "d_run_1.mcap", seconds=ROTATE_S, faults=noisy, run=run_metadata("m", "r", 0))
+    record(
+        folder / "d_run_2.mcap",
+        seconds=5.0,
+        faults=noisy,
+        run=run_metadata("m", "r", 1),
+        after_s=ROTATE_S,
+    )
+    record(folder / "whole_run.tmp", seconds=5.0, faults=noisy)  # d_run as one file
+    return folder
+
+
+def same(a: list[CampaignRow], b: list[CampaignRow]) -> bool:
+    """Equal, NaN equal to NaN (rows of independent runs are compared bit for bit)."""
+    return [_key(row) for row in a] == [_key(row) for row in b]
+
+
+def _key(row: CampaignRow) -> tuple[object, ...]:
+    return tuple("nan" if isinstance(v, float) and math.isnan(v) else v for v in astuple(row))
+
+
+def test_the_runs_of_a_campaign_directory(recordings: Path) -> None:
+    found = runs([recordings])
+    assert [[p.name for p in files] for _, files in found] == [
+        ["a_plain.mcap"],
+        ["b_faults.mcap"],
+        ["c_no_state.mcap"],
+        ["d_run_1.mcap", "d_run_2.mcap"],
+    ]
+
+
+def test_rows_per_recording_cycle_and_foot(recordings: Path) -> None:
+    rows = campaign(runs([recordings]), workers=1)
+    by_recording: dict[str, list[CampaignRow]] = {}
+    for row in rows:
+        by_recording.setdefault(row.recording, []).append(row)
+    assert list(by_recording) == [
+        "a_plain.mcap",
+        "b_faults.mcap",
+        "c_no_state.mcap",
+        "d_run_1.mcap .. d_run_2.mcap (2 files)",
+    ]
+    # 5 s of a 2 s cycle: cycles 0, 1, 2 (the last one partial); every foot in each.
+    plain = by_recording["a_plain.mcap"]
+    assert [(r.cycle, r.leg) for r in plain] == [(c, leg) for c in (0, 1, 2) for leg in LEGS]
+    assert {r.machine_id for r in rows} == {"pam-proto-1"}
+    assert [r.cycle for r in by_recording["c_no_state.mcap"]] == [-1] * len(LEGS)
+    assert all(r.invalid_fraction == 0.0 for r in plain)
+    # 2 % bad CRC (and the counter fault each leaves behind): some invalid in every foot.
+    faulty = by_recording["b_faults.mcap"]
+    assert all(0.0 < r.invalid_fraction < 0.25 for r in faulty)
+    assert all(r.pressure_limit_Pa == 200e3 for r in rows)
+
+    # The single report's metrics, the same cycles and figures.
+    content = analyse(load_recording(recordings / "a_plain.mcap"))
+    assert [(m.cycle.start_s, m.leg) for m in content.metrics] == [
+        (r.cycle_start_s, r.leg) for r in plain
+    ]
+    for row, entry in zip(plain, content.metrics, strict=True):
+        assert row.peak_pressure_Pa == entry.metrics.peak_pressure_Pa
+        assert row.time_above_limit_s == entry.metrics.time_above_limit_s
+        assert math.isclose(row.cycle_duration_s, CYCLE_S, abs_tol=0.02) or row.cycle == 2
+
+    # The weight residual, brute force: every 10 ms of cycle 1, each leg's estimate then.
+    recording = load_recording(recordings / "a_plain.mcap")
+    assert recording.machine is not None
+    cycle = content.cycles[1]
+    first = recording.legs[LEGS[0]]
+    instants = first.t_s[cycle.contains(first.t_s)]
+    expected = []
+    for t_s in instants.tolist():
+        total_N = 0.0
+        for track in recording.legs.values():
+            i = int(np.flatnonzero(track.t_s <= t_s)[-1])
+            total_N += track.force_N[i] if track.contact[i] else 0.0
+        expected.append(total_N - recording.machine.weight_N)
+    residuals = weight_residuals_N(recording.legs, cycle, {}, recording.machine.weight_N)
+    np.testing.assert_allclose(residuals, expected, rtol=0, atol=1e-6)
+    row = next(r for r in plain if r.cycle == 1)
+    assert row.weight_residual_median_N == float(np.median(expected))
+    assert row.weight_residual_max_abs_N == float(np.max(np.abs(expected)))
+
+    # The rotated run is one recording, equal to the same run recorded as one file.
+    whole = campaign_rows(load_recording(recordings / "whole_run.tmp"))
+    rotated = by_recording["d_run_1.mcap .. d_run_2.mcap (2 files)"]
+    assert same(rotated, [replace(r, recording=rotated[0].recording) for r in whole])
+
+
+def test_local_processes_and_a_dask_cluster_give_the_same_rows(recordings: Path) -> None:
+    distributed = pytest.importorskip("distributed")
+    found = runs([recordings])
+    one = campaign(found, workers=1)
+    local = campaign(found, workers=2)
+    assert same(local, one)
+    with distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+    ) as cluster:
+        remote = campaign(found, cluster=cluster.scheduler_address)
+        workers = len(cluster.scheduler_info["workers"])
+    assert workers == 2
+    assert same(remote, one) and len(one) > 4 * len(LEGS)
+
+
+def run_cli(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "daq", "report", *args],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        cwd=ROOT,
+    )
+
+
+def test_the_campaign_command_line(recordings: Path, tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    result = run_cli("--campaign", str(recordings), "--out", str(out), "--workers", "2")
+    assert result.returncode == 0, result.stderr
+    assert result.stdout == f"{out / 'campaign.html'}\n"
+    with open(out / "campaign.csv", newline="") as table:
+        lines = list(csv.reader(table))
+    assert tuple(lines[0]) == COLUMNS
+    expected = campaign(runs([recordings]), workers=1)
+    assert len(lines) - 1 == len(expected)
+    assert [float(v) for v in lines[1][6:8]] == [  # full precision
+        expected[0].peak_pressure_Pa,
+        expected[0].peak_t_s,
+    ]
+    page = (out / "campaign.html").read_text()
+    assert "Campaign report: 4 recordings, 1 machines, 10 cycles" in page
+    assert "d_run_1.mcap .. d_run_2.mcap (2 files)" in page
+    assert 'src="data:image/png;base64,' in page
+    assert (out / "campaign_peaks.png").read_bytes().startswith(b"\x89PNG")
+
+
+@pytest.mark.parametrize(
+    ("args", "status", "message"),
+    [
+        (["--cluster", "tcp://127.0.0.1:1"], 2, "--cluster and --workers go with --campaign"),
+        (["--campaign", "--workers", "0"], 2, "--workers: must be >= 1, got 0"),
+    ],
+)
+def test_campaign_usage_errors(
+    recordings: Path, args: list[str], status: int, message: str
+) -> None:
+    result = run_cli(str(recordings), *args)
+    assert result.returncode == status
+    assert message in result.stderr and "Traceback" not in result.stderr

@@ -1,0 +1,113 @@
+"""The calibration fit on synthetic instants from a known model, and its identifiability."""
+
+import numpy as np
+import pytest
+
+from estimator.calibration import Snapshots, fit_calibration, quasi_static
+
+LEGS = ("SB1_F1", "SB1_F2", "SB1_F3", "SB2_F1", "SB2_F2", "SB2_F3")
+WEIGHT_N = 184_365.0
+W_TERM_N = np.full(6, 2248.0)
+#: The config's lever ratios are off: the true gain is 1 / (1 + error).
+TRUE_GAIN = 1.0 / (1.0 + np.array([-0.06, 0.04, 0.03, -0.05, 0.05, -0.02]))
+#: Transducer zero offsets as forces in the estimate; the correction is minus them.
+ZERO_OFFSET_N = np.array([1053.0, -790.0, 527.0, -527.0, 790.0, 263.0])
+
+
+def instants(seed: int = 1, lifts: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(design lever term, contact, true force) of 300 instants: six feet down with the
+    centre of gravity wandering, and (``lifts``) each base in the air in turn."""
+    rng = np.random.default_rng(seed)
+    rows, downs = [], []
+    for k in range(300):
+        down = np.ones(6, dtype=bool)
+        if lifts and k % 3 == 1:
+            down[3:] = False
+        elif lifts and k % 3 == 2:
+            down[:3] = False
+        share = rng.uniform(0.3, 1.0, 6) * down
+        rows.append(WEIGHT_N * share / share.sum())
+        downs.append(down)
+    true_N = np.array(rows)
+    contact = np.array(downs)
+    # What the estimator (gain 1, offset 0, wrong ratios) shows: F = L + w, where the
+    # true force is k L + w + b with b = -k x zero offset (the correction).
+    lever_N = (true_N - W_TERM_N) / TRUE_GAIN + ZERO_OFFSET_N
+    lever_N += rng.normal(0.0, 100.0, lever_N.shape)  # friction and noise
+    return lever_N, contact, true_N
+
+
+def test_gains_offsets_and_residual_are_recovered() -> None:
+    lever_N, contact, true_N = instants()
+    fit = fit_calibration(lever_N, contact, W_TERM_N, WEIGHT_N, LEGS)
+    assert fit.gain_identified.all() and fit.offset_identified.all() and fit.refusals == ()
+    assert fit.rank == 12
+    assert np.abs(fit.gain / TRUE_GAIN - 1).max() < 0.01
+    assert np.abs(fit.offset_N - (-TRUE_GAIN * ZERO_OFFSET_N)).max() < 150.0
+    before = np.sqrt(np.mean(fit.residual_before_N**2))
+    after = np.sqrt(np.mean(fit.residual_after_N**2))
+    assert after < before / 5
+    # ... and the forces come closer to the truth.
+    deviation_before = np.nanmean(np.abs(fit.force_before_N - np.where(contact, true_N, np.nan)))
+    deviation_after = np.nanmean(np.abs(fit.force_after_N - np.where(contact, true_N, np.nan)))
+    assert deviation_after < deviation_before / 5
+
+
+def test_without_lifted_feet_the_gains_scale_is_refused() -> None:
+    """All feet always down: a common scale of the gains trades against the offsets."""
+    lever_N, contact, _ = instants(lifts=False)
+    fit = fit_calibration(lever_N, contact, W_TERM_N, WEIGHT_N, LEGS)
+    assert not fit.offset_identified.any()
+    assert fit.rank < 12
+    assert any("force_offset_N of SB1_F1" in line for line in fit.refusals)
+    # What is refused keeps the prior.
+    assert (fit.offset_N[~fit.offset_identified] == 0.0).all()
+
+
+def test_an_unchanging_load_distribution_is_refused_in_one_line() -> None:
+    lever_N, contact, _ = instants(lifts=False)
+    lever_N[:] = lever_N[0]
+    fit = fit_calibration(lever_N, contact, W_TERM_N, WEIGHT_N, LEGS)
+    assert not fit.gain_identified.any()
+    assert fit.refusals[0].startswith(
+        "gains are not identifiable: the load distribution never changed enough"
+    )
+    assert (fit.gain == 1.0).all()
+
+
+def test_quasi_static_needs_steady_forces_valid_legs_and_no_touchdown() -> None:
+    t = np.arange(20) * 0.1
+    force = np.full((20, 2), 50e3)
+    force[10, 0] += 3e3  # a bump at 1.0 s
+    valid = np.ones((20, 2), dtype=bool)
+    valid[3, 1] = False
+    contact = np.ones((20, 2), dtype=bool)
+    contact[16:, 1] = False  # lifts at 1.6 s
+    snaps = Snapshots(("A", "B"), t, force, valid, contact)
+    still = quasi_static(snaps, window=2, max_change_N=1e3)
+    assert np.flatnonzero(still).tolist() == [6, 7, 13]
+
+
+@pytest.mark.parametrize("bad_gain", [0.0])
+def test_lever_of_an_idle_leg_is_reported(bad_gain: float) -> None:
+    lever_N, contact, _ = instants()
+    contact[:, 5] = False
+    lever_N[:, 5] = bad_gain
+    fit = fit_calibration(lever_N, contact, W_TERM_N, WEIGHT_N, LEGS)
+    assert fit.refusals[0] == "SB2_F3: never carried load: gain not identifiable"
+    assert not fit.gain_identified[5]
+
+
+def test_eq4_applies_the_leg_s_gain_and_offset() -> None:
+    import dataclasses
+
+    from estimator import foot_force_N
+    from sim_bridge.params import default_leg
+
+    leg = default_leg()
+    calibrated = dataclasses.replace(leg, force_gain=1.1, force_offset_N=500.0)
+    lever_N = (9e6 * leg.A_piston_m2 - 1e6 * leg.A_rod_m2) * leg.force_ratio
+    assert foot_force_N(9e6, 1e6, leg) == pytest.approx(lever_N + leg.weight_term_N)
+    assert foot_force_N(9e6, 1e6, calibrated) == pytest.approx(
+        1.1 * lever_N + leg.weight_term_N + 500.0
+    )
