@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import time
 import uuid
 from pathlib import Path
 
@@ -22,6 +21,7 @@ from tests.daq.service_support import (
     subscriber_session,
     write_service_config,
 )
+from tests.daq.test_report_truth_recording import wait_for_subscriber
 from tests.daq.test_service_live import live_service, zenoh_port
 
 HOSTILE = [
@@ -31,6 +31,8 @@ HOSTILE = [
     b'{"t_unix_s": 1750000000.0, "legs": {"SB1_F1": {"force_true_N": 1' + b"0" * 400 + b"}}}",
     b"\xff\xfe",
 ]
+#: A 100 kB payload must not be dropped on the way by the default congestion control.
+BLOCK = zenoh.CongestionControl.BLOCK
 GOOD = b'{"t_unix_s": 1750000000.5, "legs": {"SB1_F1": {"force_true_N": 5.0}}}'
 
 
@@ -48,7 +50,7 @@ def test_recorder_counts_hostile_truth_and_keeps_recording(tmp_path: Path) -> No
         collector = Collector(session, f"{prefix}/status")
         collector.wait_for(f"{prefix}/status")
         for payload in [*HOSTILE, GOOD, *HOSTILE, GOOD]:
-            session.put(f"{prefix}/sim/truth", payload)
+            session.put(f"{prefix}/sim/truth", payload, congestion_control=BLOCK)
         status = collector.wait_for(
             f"{prefix}/status", lambda s: s["recording"]["rejected"] == 2 * len(HOSTILE)
         )
@@ -85,12 +87,9 @@ def test_live_view_counts_hostile_payloads_and_keeps_going(suffix: str) -> None:
         LiveFeed(viewer, prefix) as feed,
     ):
         state = LiveState(prefix)
-        deadline = time.monotonic() + WAIT_S
-        while not viewer.info.peers_zid():
-            assert time.monotonic() < deadline
-            time.sleep(0.05)
+        wait_for_subscriber(publisher, f"{prefix}/{suffix}")
         for payload in [*hostile, b'{"t": 1750000000.0}']:
-            publisher.put(f"{prefix}/{suffix}", payload)
+            publisher.put(f"{prefix}/{suffix}", payload, congestion_control=BLOCK)
         received = 0
         while received < len(hostile) + 1:
             item = feed.wait(WAIT_S)

@@ -59,7 +59,9 @@ def test_sigkilled_recording_is_recovered_by_the_cli_and_at_restart(tmp_path: Pa
                 assert time.monotonic() < deadline and process.poll() is None
                 time.sleep(0.05)
             (cut,) = rec.glob("*.mcap")
-            publisher = session.declare_publisher("portal/pam-proto-1/sim/truth")
+            publisher = session.declare_publisher(
+                "portal/pam-proto-1/sim/truth", congestion_control=zenoh.CongestionControl.BLOCK
+            )
             for i in range(SAMPLES):
                 publisher.put(truth(i))
             # Wait until all of them are on disk (the chunk is written every 0.2 s).

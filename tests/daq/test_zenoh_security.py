@@ -68,7 +68,7 @@ def test_foreign_puts_are_refused_and_the_local_socket_may_put_truth(tmp_path: P
             foreign.put(f"{prefix}/sim/truth", FAKE)
             foreign.put(f"{prefix}/status", b'{"healthy": true}')
             foreign.delete(f"{prefix}/ground")
-        simulator.put(f"{prefix}/sim/truth", REAL)
+        simulator.put(f"{prefix}/sim/truth", REAL, congestion_control=zenoh.CongestionControl.BLOCK)
         recorder = service.truth
         assert recorder is not None
         deadline = time.monotonic() + WAIT_S
