@@ -12,6 +12,8 @@ one (``rx-0``, ``rx-1`` -> ``rx-``).
 
 import os
 import re
+import subprocess
+import sys
 import threading
 import time
 from pathlib import Path
@@ -79,3 +81,21 @@ class ForeignLoad:
         (t0, busy0, own0), (t1, busy1, own1) = self._start, self._sample()
         foreign = (busy1 - busy0) - (own1 - own0)
         return round(max(0.0, 100.0 * foreign / os.sysconf("SC_CLK_TCK") / (t1 - t0)), 1)
+
+
+class CpuHog:
+    """A process spinning on ``cpu`` while the context lasts (a second job on the machine)."""
+
+    def __init__(self, cpu: int) -> None:
+        self.cpu = cpu
+        self._process: subprocess.Popen[bytes] | None = None
+
+    def __enter__(self) -> "CpuHog":
+        self._process = subprocess.Popen([sys.executable, "-c", "while True: pass"])
+        os.sched_setaffinity(self._process.pid, {self.cpu})
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        if self._process is not None:
+            self._process.kill()
+            self._process.wait()

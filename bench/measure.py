@@ -8,7 +8,12 @@ record queues are. :func:`measure` offers a slice of frames in one of two modes:
   waits while more than ``window`` frames are unprocessed or a queue is that long,
   so nothing is dropped. frames/s = frames / (first send until the last estimate
   reached the probe and the queues are empty).
-- **paced**: frame ``i`` due at ``start + i / rate_hz``.
+- **paced**: frame ``i`` due at ``start + i / rate_hz``; also while a CPU hog
+  (:class:`~bench.cpu.CpuHog`) runs on the other CPU (``paced_hog``), and at the DBC's
+  nominal rate (``nominal``), where what counts is the CPU the service takes.
+
+CPU: per thread of this process (``cpu_us_per_frame``); ``service_cpu_pct`` is every
+thread but the sender's (``MainThread``) in per cent of one CPU over the measurement.
 
 Latency is per leg estimate: from the frame's time stamp to the probe's arrival
 time. In paced mode it is also reported from each frame's *due* time (a frame
@@ -23,7 +28,7 @@ from typing import Any, Protocol
 import can
 import numpy as np
 
-from bench.cpu import ForeignLoad, cpu_us_per_frame, thread_cpu_ns
+from bench.cpu import CpuHog, ForeignLoad, cpu_us_per_frame, thread_cpu_ns
 from bench.probe import ProbeProcess
 from bench.sender import Sent, send_backpressured, send_paced
 from bench.stats import latency_stats_ms
@@ -46,6 +51,11 @@ class Plan:
     paced_frames: int
     rate_hz: float
     window: int
+    #: The paced measurement again while a CPU hog runs on this CPU (None: left out).
+    hog_cpu: int | None = None
+    #: Frames offered at ``nominal_rate_hz`` (0: left out).
+    nominal_frames: int = 0
+    nominal_rate_hz: float = 0.0
 
 
 def measure(
@@ -99,6 +109,8 @@ def measure(
         result["late_sends"] = sent.late_frames
         result["max_send_lateness_ms"] = round(sent.max_lateness_s * 1e3, 3)
     result["cpu_us_per_frame"] = cpu_per_frame
+    service_us = cpu_per_frame["total"] - cpu_per_frame.get("MainThread", 0.0)
+    result["service_cpu_pct"] = round(service_us * len(frames) / elapsed_s / 1e4, 2)
     result["other_processes_cpu_pct"] = foreign_pct
     return result
 
@@ -121,10 +133,20 @@ def run_system(
     throughput = run(frames[at : at + plan.throughput_frames], None)
     at += plan.throughput_frames
     paced = run(frames[at : at + plan.paced_frames], plan.rate_hz)
-    measured = (warmup, throughput, paced)
+    at += plan.paced_frames
+    results = {"throughput": throughput, "paced": paced}
+    if plan.hog_cpu is not None:
+        with CpuHog(plan.hog_cpu):
+            results["paced_hog"] = run(frames[at : at + plan.paced_frames], plan.rate_hz)
+            results["paced_hog"]["mode"] = "paced_hog"
+        at += plan.paced_frames
+    if plan.nominal_frames:
+        nominal = frames[at : at + plan.nominal_frames]
+        results["nominal"] = run(nominal, plan.nominal_rate_hz)
+        results["nominal"]["mode"] = "nominal"
+    measured = (warmup, *results.values())
     return {
-        "throughput": throughput,
-        "paced": paced,
+        **results,
         "offered": {
             "frames": sum(result["frames"] for result in measured),
             "leg_frames": sum(result["leg_estimates_expected"] for result in measured),

@@ -13,10 +13,15 @@ Writes ``bench/results.json`` and prints a markdown table.
 3. One Zenoh session (peer, ``tcp/127.0.0.1:<free port>``, multicast scouting off)
    carries what the service and the baseline publish; the probe connects to it.
 4. Systems, one after the other, each with a warm-up, a throughput and a paced
-   measurement (:mod:`bench.measure`): the service as configured by default
-   (``pipeline``, as deployed: 128 KiB MCAP chunks, 1 ms GIL switch interval); with the
-   earlier defaults (``pipeline_tuned``: 1 MiB chunks, CPython's 5 ms interval); and
-   the naive baseline (:class:`~bench.targets.NaiveBaseline`).
+   measurement, the paced one again while a CPU hog spins on the other CPU, and one
+   at the DBC's nominal rate (:mod:`bench.measure`): the service as configured by
+   default (``pipeline``, as deployed: one thread receives, processes and publishes,
+   raw frames recorded in batches, signals published at most 10 Hz per message and
+   not recorded, 1 ms GIL switch interval); with reader and publisher in threads of
+   their own (``pipeline_threads``: ``[service] event_loop = false``); with every
+   frame's signals recorded and published (``pipeline_tuned``, the earlier defaults:
+   ``[recording] signals = true``, ``[publish] signals_max_rate_hz = 0``); and the
+   naive baseline (:class:`~bench.targets.NaiveBaseline`).
 """
 
 import argparse
@@ -32,29 +37,30 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from bench.frames import simulated_frames
+from bench.frames import EXAMPLE_CONFIG, simulated_frames
 from bench.machine import free_port, machine_info, pin_to_one_cpu, unpin
 from bench.measure import Plan, run_system
 from bench.probe import ProbeProcess
 from bench.report import markdown_table, targets_met
 from bench.subscriber import peer_config
-from bench.targets import FEEDS, NaiveBaseline, ServiceUnderTest, service_config
+from bench.targets import NaiveBaseline, ServiceUnderTest, service_config
 from daq.run_command import GIL_SWITCH_INTERVAL_S
+from dbc.machine import load_machine_config
 
 RESULTS = Path(__file__).resolve().parent / "results.json"
 #: The frame rate of a saturated 1 Mbit/s bus: an 8-byte standard frame is up to
 #: ~111 bits with stuff bits and the inter-frame space, i.e. ~111 us.
 SATURATED_RATE_HZ = 9000.0
-#: The variant with the earlier defaults, for comparison: 1 MiB MCAP chunks and
-#: CPython's 5 ms GIL switch interval.
-TUNED_CHUNK_SIZE = 1024 * 1024
-TUNED_SWITCH_INTERVAL_S = 0.005
+#: The variants for comparison: four threads instead of the event loop; and the
+#: earlier defaults, every frame's signals recorded and published.
+COMPARED = {
+    "pipeline_threads": {"service": "event_loop = false"},
+    "pipeline_tuned": {"recording": "signals = true", "publish": "signals_max_rate_hz = 0"},
+}
+#: Seconds of frames at the DBC's nominal rate.
+NOMINAL_S = 5.0
 PIPELINE_PREFIX = "bench/pipeline"
 BASELINE_PREFIX = "bench/baseline"
-FEED_DESCRIPTIONS = {
-    "bus": "python-can virtual bus and the service's reader thread",
-    "queue": "service's reader queue (RawFrames put there directly; virtual bus bypassed)",
-}
 
 
 def run_benchmark(
@@ -62,10 +68,10 @@ def run_benchmark(
     throughput_frames: int = 30_000,
     baseline_throughput_frames: int | None = None,
     paced_s: float = 10.0,
+    nominal_s: float = NOMINAL_S,
     rate_hz: float = SATURATED_RATE_HZ,
     warmup: int = 2_000,
     window: int = 1_000,
-    feed: str = "bus",
     pin: bool = True,
     tuned: bool = True,
     rtol: float = 1e-3,
@@ -77,11 +83,19 @@ def run_benchmark(
     """
     baseline_throughput_frames = baseline_throughput_frames or throughput_frames
     paced_frames = max(1, round(paced_s * rate_hz))
+    nominal_hz = nominal_rate_hz()
+    nominal_frames = max(1, round(nominal_s * nominal_hz))
     allowed = os.sched_getaffinity(0)
     cpu, probe_cpu = pin_to_one_cpu() if pin else (None, None)
+    hog_cpu = probe_cpu if pin else next(iter(allowed))
     started = time.monotonic()
     try:
-        count = warmup + max(throughput_frames, baseline_throughput_frames) + paced_frames
+        count = (
+            warmup
+            + max(throughput_frames, baseline_throughput_frames)
+            + 2 * paced_frames
+            + nominal_frames
+        )
         frames = simulated_frames(count, rtol=rtol)
         generated_s = time.monotonic() - started
         gc.collect()
@@ -89,9 +103,17 @@ def run_benchmark(
         try:
             results = _run_systems(
                 frames,
-                Plan(warmup, throughput_frames, paced_frames, rate_hz, window),
+                Plan(
+                    warmup,
+                    throughput_frames,
+                    paced_frames,
+                    rate_hz,
+                    window,
+                    hog_cpu=hog_cpu,
+                    nominal_frames=nominal_frames,
+                    nominal_rate_hz=nominal_hz,
+                ),
                 baseline_throughput_frames=baseline_throughput_frames,
-                feed=feed,
                 probe_cpu=probe_cpu,
                 tuned=tuned,
             )
@@ -100,20 +122,28 @@ def run_benchmark(
     finally:
         if pin:
             unpin(allowed)
-    baseline_fps = results["baseline"]["throughput"]["frames_per_s"]
+    baseline = results["baseline"]["throughput"]
     ratios = {
-        name: round(results[name]["throughput"]["frames_per_s"] / baseline_fps, 2)
-        for name in ("pipeline", "pipeline_tuned")
+        name: round(results[name]["throughput"]["frames_per_s"] / baseline["frames_per_s"], 2)
+        for name in ("pipeline", *COMPARED)
         if name in results
+    }
+    cpu_ratios = {
+        name: round(
+            results[name]["throughput"]["cpu_us_per_frame"]["total"]
+            / baseline["cpu_us_per_frame"]["total"],
+            2,
+        )
+        for name in ratios
     }
     return {
         "machine": machine_info(),
         "setup": {
-            "feed": feed,
-            "feed_description": FEED_DESCRIPTIONS[feed],
             "pinned_cpu": cpu,
             "probe_cpu": probe_cpu,
             "rate_hz": rate_hz,
+            "nominal_rate_hz": nominal_hz,
+            "hog_cpu": hog_cpu,
             "window": window,
             "frames_generated": len(frames),
             "generation_s": round(generated_s, 2),
@@ -122,17 +152,18 @@ def run_benchmark(
         },
         **results,
         "ratio_frames_per_s": ratios["pipeline"],
-        "targets": targets_met(results["pipeline"], ratios["pipeline"], rate_hz),
-        **(
-            {
-                "ratio_frames_per_s_tuned": ratios["pipeline_tuned"],
-                "targets_tuned": targets_met(
-                    results["pipeline_tuned"], ratios["pipeline_tuned"], rate_hz
-                ),
-            }
-            if "pipeline_tuned" in results
-            else {}
-        ),
+        "ratio_cpu_per_frame": cpu_ratios["pipeline"],
+        "targets": targets_met(results["pipeline"], results["baseline"], rate_hz),
+        **{
+            key: value
+            for name in COMPARED
+            if name in results
+            for key, value in (
+                (f"ratio_frames_per_s{name[8:]}", ratios[name]),
+                (f"ratio_cpu_per_frame{name[8:]}", cpu_ratios[name]),
+                (f"targets{name[8:]}", targets_met(results[name], results["baseline"], rate_hz)),
+            )
+        },
         "wall_s": round(time.monotonic() - started, 1),
     }
 
@@ -142,16 +173,15 @@ def _run_systems(
     plan: Plan,
     *,
     baseline_throughput_frames: int,
-    feed: str,
     probe_cpu: int | None,
     tuned: bool,
 ) -> dict[str, Any]:
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     default_switch_s = sys.getswitchinterval()
-    # As deployed: the config's default chunk size and the CLI's GIL switch interval.
-    variants: list[tuple[str, int | None, float]] = [("pipeline", None, GIL_SWITCH_INTERVAL_S)]
+    # As deployed: the config's defaults and the CLI's GIL switch interval.
+    variants: list[tuple[str, dict[str, str]]] = [("pipeline", {})]
     if tuned:
-        variants.append(("pipeline_tuned", TUNED_CHUNK_SIZE, TUNED_SWITCH_INTERVAL_S))
+        variants += COMPARED.items()
     results: dict[str, Any] = {}
     with tempfile.TemporaryDirectory(prefix="portal-bench-") as tmp:
         import zenoh  # only now: its runtime threads inherit the CPU mask
@@ -160,23 +190,22 @@ def _run_systems(
             zenoh.open(peer_config(listen=endpoint)) as session,
             ProbeProcess(session, endpoint, probe_cpu) as probe,
         ):
-            for name, chunk_size, switch_interval_s in variants:
+            for name, tables in variants:
                 workdir = Path(tmp) / name
                 workdir.mkdir()
-                config = service_config(workdir, PIPELINE_PREFIX, chunk_size)
+                config = service_config(workdir, PIPELINE_PREFIX, tables)
                 leg_ids = {
                     config.database.get_message_by_name(leg.message).frame_id
                     for leg in config.machine.legs.values()
                 }
-                service = ServiceUnderTest(config, session, feed)
-                sys.setswitchinterval(switch_interval_s)
+                service = ServiceUnderTest(config, session)
+                sys.setswitchinterval(GIL_SWITCH_INTERVAL_S)
                 try:
                     with service:
                         result = run_system(service, probe, frames, leg_ids, plan)
                 finally:
                     sys.setswitchinterval(default_switch_s)
-                result["chunk_size"] = config.recording.chunk_size
-                result["switch_interval_s"] = switch_interval_s
+                result["settings"] = tables
                 result["recording"] = service.recording()
                 results[name] = result
             with NaiveBaseline(
@@ -194,32 +223,37 @@ def _run_systems(
     return results
 
 
+def nominal_rate_hz() -> float:
+    """Frames per second of the DBC's periodic messages (``GenMsgCycleTime``)."""
+    _, database = load_machine_config(EXAMPLE_CONFIG)
+    return sum(1000.0 / m.cycle_time for m in database.messages if m.cycle_time)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--throughput-frames", type=int, default=30_000)
     parser.add_argument("--baseline-throughput-frames", type=int, default=None)
     parser.add_argument("--paced-s", type=float, default=10.0, help="seconds of paced frames")
+    parser.add_argument(
+        "--nominal-s", type=float, default=NOMINAL_S, help="seconds at the DBC's rate"
+    )
     parser.add_argument("--rate", type=float, default=SATURATED_RATE_HZ, help="paced frames/s")
     parser.add_argument("--warmup", type=int, default=2_000, help="frames before measuring")
     parser.add_argument("--window", type=int, default=1_000, help="backlog limit, frames")
-    parser.add_argument(
-        "--feed",
-        choices=FEEDS,
-        default="bus",
-        help="how the service gets its frames (the baseline always has its virtual bus)",
-    )
     parser.add_argument("--no-pin", action="store_true", help="do not pin to one CPU")
-    parser.add_argument("--no-tuned", action="store_true", help="leave out the tuned variant")
+    parser.add_argument(
+        "--no-tuned", action="store_true", help="leave out the variants compared with"
+    )
     parser.add_argument("--out", type=Path, default=RESULTS)
     args = parser.parse_args(argv)
     results = run_benchmark(
         throughput_frames=args.throughput_frames,
         baseline_throughput_frames=args.baseline_throughput_frames,
         paced_s=args.paced_s,
+        nominal_s=args.nominal_s,
         rate_hz=args.rate,
         warmup=args.warmup,
         window=args.window,
-        feed=args.feed,
         pin=not args.no_pin,
         tuned=not args.no_tuned,
     )
@@ -227,9 +261,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     print(markdown_table(results))
     busy = [
         f"{system} {mode}: {result['other_processes_cpu_pct']}%"
-        for system in ("pipeline", "pipeline_tuned", "baseline")
+        for system in ("pipeline", *COMPARED, "baseline")
         if system in results
-        for mode, result in ((mode, results[system][mode]) for mode in ("throughput", "paced"))
+        for mode, result in ((m, results[system][m]) for m in ("throughput", "paced", "nominal"))
         if result["elapsed_s"] >= 1.0 and result["other_processes_cpu_pct"] > 5
     ]
     if busy:

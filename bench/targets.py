@@ -16,6 +16,7 @@ import threading
 import time
 import uuid
 from collections import Counter
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -25,7 +26,8 @@ from cantools.database.can import Database
 from mcap.reader import make_reader
 
 from bench.frames import EXAMPLE_CONFIG
-from daq.frames import RawFrame
+from daq.can_batch import recorded_frames
+from daq.mcap_file import RAW_TOPIC
 from daq.recorder import Recorder
 from daq.runner import bus_factory, recording_attachments
 from daq.service import Service
@@ -33,11 +35,10 @@ from daq.service_config import ServiceConfig, load_service_config
 from dbc.decoding import FrameDecoder
 from dbc.machine import MachineConfig
 
-#: How the service gets its frames: through the virtual bus and its reader thread,
-#: or put (as RawFrames stamped with time.time()) straight into the reader's queue.
-FEEDS = ("bus", "queue")
-
 _SERVICE_TABLES = """
+[service]
+{service}
+
 [bus]
 interface = "virtual"
 channel = "{channel}"
@@ -45,33 +46,37 @@ channel = "{channel}"
 [zenoh]
 key_prefix = "{prefix}"
 
+[publish]
+{publish}
+
 [recording]
 directory = "{directory}"
+{recording}
 """
 
 
-def service_config(workdir: Path, prefix: str, chunk_size: int | None = None) -> ServiceConfig:
-    """The example machine with the service's defaults, a virtual bus and a recording dir
-    (and ``[recording] chunk_size`` when given)."""
+def service_config(workdir: Path, prefix: str, tables: Mapping[str, str] = {}) -> ServiceConfig:
+    """The example machine with the service's defaults, a virtual bus and a recording dir,
+    and the extra lines ``tables`` gives for ``service``, ``publish`` and ``recording``."""
     path = workdir / "portal-daq.toml"
-    tables = _SERVICE_TABLES.format(
-        channel=f"bench-{uuid.uuid4().hex}", prefix=prefix, directory=workdir / "recordings"
+    text = _SERVICE_TABLES.format(
+        channel=f"bench-{uuid.uuid4().hex}",
+        prefix=prefix,
+        directory=workdir / "recordings",
+        service=tables.get("service", ""),
+        publish=tables.get("publish", ""),
+        recording=tables.get("recording", ""),
     )
-    if chunk_size is not None:
-        tables += f"chunk_size = {chunk_size}\n"
-    path.write_text(tables + "\n" + EXAMPLE_CONFIG.read_text())
+    path.write_text(text + "\n" + EXAMPLE_CONFIG.read_text())
     return load_service_config(path)
 
 
 class ServiceUnderTest:
-    """The service running in threads of this process, fed through ``feed``."""
+    """The service running in threads of this process, fed through a virtual bus."""
 
-    def __init__(self, config: ServiceConfig, session: zenoh.Session, feed: str = "bus") -> None:
-        if feed not in FEEDS:
-            raise ValueError(f"feed must be one of {FEEDS}, got {feed!r}")
+    def __init__(self, config: ServiceConfig, session: zenoh.Session) -> None:
         self.config = config
-        self.feed = feed
-        frame_ids = FrameDecoder(config.database, config.machine.protection).frame_ids
+        filters = FrameDecoder(config.database, config.machine.protection).receive_filters
         self.recorder = Recorder(
             config.recording,
             config.database,
@@ -80,7 +85,7 @@ class ServiceUnderTest:
         )
         self.service = Service(
             config,
-            open_bus=bus_factory(config.bus, frame_ids),
+            open_bus=bus_factory(config.bus, filters),
             session=session,
             recorder=self.recorder,
         )
@@ -92,10 +97,9 @@ class ServiceUnderTest:
         self._thread.start()
         if not self.service.reader.opened.wait(10.0):
             raise RuntimeError("the service did not open its bus")
-        if self.feed == "bus":
-            self._bus = can.Bus(
-                interface="virtual", channel=self.config.bus.channel, preserve_timestamps=True
-            )
+        self._bus = can.Bus(
+            interface="virtual", channel=self.config.bus.channel, preserve_timestamps=True
+        )
         return self
 
     def __exit__(self, *exc_info: object) -> None:
@@ -105,15 +109,10 @@ class ServiceUnderTest:
             self._bus.shutdown()
 
     def send(self, message: can.Message) -> float:
-        """Put ``message`` on the bus (or into the reader's queue) now; its time stamp."""
-        stamp = time.time()
-        if self._bus is not None:
-            message.timestamp = stamp
-            self._bus.send(message)
-        else:
-            self.service.inbox.put(
-                RawFrame(stamp, message.arbitration_id, message.is_extended_id, message.data)
-            )
+        """Put ``message`` on the bus now; its time stamp."""
+        assert self._bus is not None
+        message.timestamp = stamp = time.time()
+        self._bus.send(message)
         return stamp
 
     def processed(self) -> int:
@@ -144,22 +143,30 @@ class ServiceUnderTest:
         }
 
     def recording(self) -> dict[str, Any]:
-        """Files written, their size and messages per kind of topic, from the MCAP
-        summaries (call after the service closed: the files are finished then)."""
+        """Files written, their size, messages per kind of topic (from the MCAP
+        summaries) and the raw frames in them (call after the service closed: the files
+        are finished then)."""
         paths = [path for path in self.recorder.paths if path.exists()]
         messages: Counter[str] = Counter()
+        frames = 0
         for path in paths:
             with open(path, "rb") as file:
-                summary = make_reader(file).get_summary()
-            if summary is None or summary.statistics is None:
-                continue
-            for channel_id, count in summary.statistics.channel_message_counts.items():
-                topic = summary.channels[channel_id].topic
-                messages[topic.split("/")[1]] += count  # can, signals, leg, daq
+                reader = make_reader(file)
+                summary = reader.get_summary()
+                if summary is None or summary.statistics is None:
+                    continue
+                for channel_id, count in summary.statistics.channel_message_counts.items():
+                    topic = summary.channels[channel_id].topic
+                    messages[topic.split("/")[1]] += count  # can, signals, leg, daq
+                for _, channel, message in reader.iter_messages(topics=[RAW_TOPIC]):
+                    frames += sum(
+                        1 for _ in recorded_frames(channel.message_encoding, message.data)
+                    )
         return {
             "files": len(paths),
             "bytes": sum(path.stat().st_size for path in paths),
             "messages": dict(messages),
+            "raw_frames": frames,
         }
 
 

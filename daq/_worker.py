@@ -1,9 +1,11 @@
 """The lifecycle the service's background workers share: one thread each.
 
 Reader, consumer, publisher and recorder each run a loop in a daemon thread of their
-own. The constructor starts nothing; ``start`` (or entering the context) prepares the
-resource and starts the thread; ``close`` (or leaving the context) asks the loop to
-stop, joins it and releases the resource. Both are idempotent.
+own, unless ``threaded`` is False (the reader and the publisher in the service's
+event loop: the consumer's thread calls them). The constructor starts nothing;
+``start`` (or entering the context) prepares the resource and starts the thread;
+``close`` (or leaving the context) asks the loop to stop, joins it and releases the
+resource. Both are idempotent.
 """
 
 import threading
@@ -19,10 +21,13 @@ class Worker:
     """
 
     thread_name = "worker"
+    #: False: ``start`` only prepares the resource; another thread calls the worker.
+    threaded = True
 
     def __init__(self) -> None:
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
+        self._started = False
 
     def __enter__(self) -> Self:
         self.start()
@@ -36,9 +41,12 @@ class Worker:
         return self._thread is not None and self._thread.is_alive()
 
     def start(self) -> None:
-        if self._thread is not None:
+        if self._started:
             return
         self._before_start()
+        self._started = True
+        if not self.threaded:
+            return
         self._thread = threading.Thread(target=self._run, name=self.thread_name, daemon=True)
         self._thread.start()
 

@@ -8,6 +8,11 @@ for other interfaces and in tests a python-can bus in a
 into a bounded queue with ``put_nowait``: a full queue drops the frame and
 counts it (``dropped``); the reader never blocks on the consumer.
 
+Without a thread (``threaded=False``, the service's event loop) the consumer's
+thread calls :meth:`BusReader.poll` instead: one wake-up, the first frame within a
+timeout and then every frame already waiting (``recv(0)`` until there is none,
+i.e. until ``EAGAIN`` on a socket), with the bus events in their place.
+
 Bus states (:mod:`daq.frames`), each change queued as a :class:`BusEvent` in
 order with the frames:
 
@@ -45,6 +50,7 @@ from typing import Protocol
 import can
 
 from daq._worker import Worker
+from daq.can_batch import MAX_FRAMES
 from daq.errors import BusError
 from daq.frames import BUS_ABSENT, BUS_CLOSED, BUS_DOWN, BUS_UP, BusEvent, RawFrame
 from daq.frames import from_can_message as _raw
@@ -129,10 +135,25 @@ def sysfs_link_probe(channel: str) -> LinkProbe:
     return link_up
 
 
-class BusReader(Worker):
-    """Receives from the bus in a thread of its own and enqueues into ``inbox``.
+class _Collected:
+    """What :meth:`BusReader.poll` returns, taking the place of the queue (never full)."""
 
-    ``close`` stops the thread and shuts the bus down.
+    def __init__(self) -> None:
+        self.items: list[RawFrame | BusEvent] = []
+
+    def put_nowait(self, item: RawFrame | BusEvent) -> None:
+        self.items.append(item)
+
+    def take(self) -> list[RawFrame | BusEvent]:
+        items, self.items = self.items, []
+        return items
+
+
+class BusReader(Worker):
+    """Receives from the bus in a thread of its own and enqueues into ``inbox``; or,
+    with ``threaded=False`` (and no inbox), when :meth:`poll` ed.
+
+    ``close`` stops the thread (if any) and shuts the bus down.
     """
 
     thread_name = "can-reader"
@@ -140,16 +161,19 @@ class BusReader(Worker):
     def __init__(
         self,
         open_bus: BusFactory,
-        inbox: Inbox,
+        inbox: Inbox | None,
         *,
         channel: str,
+        threaded: bool = True,
         link_up: LinkProbe | None = None,
         recv_timeout_s: float = 0.1,
         now: Callable[[], float] = time.time,
     ) -> None:
         super().__init__()
+        self.threaded = threaded
         self._open_bus = open_bus
-        self._inbox = inbox
+        self._collected = _Collected()
+        self._inbox: Inbox | _Collected = self._collected if inbox is None else inbox
         self.channel = channel
         self._link_up = link_up
         self._recv_timeout_s = recv_timeout_s
@@ -162,6 +186,9 @@ class BusReader(Worker):
         self._unreported_rx = 0
         #: The open source's kernel drop counter as last seen.
         self._source_dropped = 0
+        #: Reopening the bus: the next attempt not before this (monotonic), and the wait.
+        self._retry_at = 0.0
+        self._backoff_s = BACKOFF_MIN_S
         #: The bus was opened at least once (the service reports READY then).
         self.opened = threading.Event()
         self.state = BUS_CLOSED
@@ -185,31 +212,48 @@ class BusReader(Worker):
     # --- reader thread -----------------------------------------------------
 
     def _run(self) -> None:
-        backoff_s = BACKOFF_MIN_S
         while not self._stop.is_set():
-            self.heartbeat = time.monotonic()
-            if self._bus is None:
-                if self._try_open():
-                    backoff_s = BACKOFF_MIN_S
-                else:
-                    self._stop.wait(backoff_s)
-                    backoff_s = min(2 * backoff_s, BACKOFF_MAX_S)
-                continue
-            try:
-                frame = self._bus.recv(self._recv_timeout_s)
-            except (can.CanOperationError, OSError) as exc:
-                self._lost(exc)
-                continue
-            if frame is None:
-                if self.state == BUS_DOWN and self._link_up is not None and self._link_up():
-                    self._set_state(BUS_UP, "interface up again", reset=True)
-                self._deliver_pending()
-                continue
-            self.received += 1
-            self._count_kernel_drops(self._bus.kernel_dropped)
-            if self.state != BUS_UP:
-                self._set_state(BUS_UP, "frames again", reset=True)
-            self._offer(frame)
+            self._turn(self._recv_timeout_s)
+
+    def poll(self, timeout_s: float) -> list[RawFrame | BusEvent]:
+        """One wake-up without a thread: the frames received within ``timeout_s`` and every
+        one waiting after the first (at most :data:`MAX_FRAMES`), bus events in their
+        place. Opens and reopens the bus (waiting at most ``timeout_s`` for a retry)."""
+        received = 0
+        while self._turn(timeout_s if received == 0 else 0.0):
+            received += 1
+            if received == MAX_FRAMES:
+                break
+        return self._collected.take()
+
+    def _turn(self, timeout_s: float) -> bool:
+        """One receive (or open attempt); True when a frame came."""
+        self.heartbeat = now = time.monotonic()
+        if self._bus is None:
+            if now < self._retry_at:
+                self._stop.wait(min(timeout_s, self._retry_at - now))
+            elif self._try_open():
+                self._backoff_s = BACKOFF_MIN_S
+            else:
+                self._retry_at = now + self._backoff_s
+                self._backoff_s = min(2 * self._backoff_s, BACKOFF_MAX_S)
+            return False
+        try:
+            frame = self._bus.recv(timeout_s)
+        except (can.CanOperationError, OSError) as exc:
+            self._lost(exc)
+            return False
+        if frame is None:
+            if self.state == BUS_DOWN and self._link_up is not None and self._link_up():
+                self._set_state(BUS_UP, "interface up again", reset=True)
+            self._deliver_pending()
+            return False
+        self.received += 1
+        self._count_kernel_drops(self._bus.kernel_dropped)
+        if self.state != BUS_UP:
+            self._set_state(BUS_UP, "frames again", reset=True)
+        self._offer(frame)
+        return True
 
     def _try_open(self) -> bool:
         try:

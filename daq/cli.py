@@ -20,6 +20,7 @@ from daq.subcommand import PROG, Subcommand
 SUBCOMMAND_MODULES = (
     "daq.calibrate.command",
     "daq.dashboard.cli",
+    "daq.export_command",
     "daq.monitor.cli",
     "daq.recover_command",
     "daq.replay_command",

@@ -1,9 +1,13 @@
 """The consumer thread: the one place where frames are decoded and estimated.
 
-It takes frames and bus events from the reader's queue, runs each frame
-through the :class:`~daq.pipeline.Pipeline`, and hands the results to the
-publisher and the recorder through their own bounded queues (``submit`` never
-blocks). It owns the estimator, so it also builds the timed messages: the
+It takes frames and bus events from the reader's queue, everything queued in one go
+(at most :data:`~daq.can_batch.MAX_FRAMES`), runs each frame through the
+:class:`~daq.pipeline.Pipeline`, and hands the results on through bounded queues
+(``submit`` never blocks): to the recorder one :class:`~daq.mcap_file.RecordBatch`
+per run of frames (a bus event between frames is handed on in its place), to the
+publisher each leg estimate (JSON encoded once, the same bytes the recorder writes)
+and the decoded signals of each message at most ``[publish] signals_max_rate_hz``
+(by frame time). It owns the estimator, so it also builds the timed messages: the
 all-legs ground message at ``ground_rate_hz`` and the soil metrics every
 ``status_period_s``.
 """
@@ -12,20 +16,27 @@ import logging
 import math
 import queue
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Protocol
 
 from daq import payloads
 from daq._worker import Worker
+from daq.can_batch import MAX_FRAMES
 from daq.frames import BusEvent, RawFrame
-from daq.pipeline import FrameResult, Pipeline
+from daq.mcap_file import RecordBatch, decoded_frames, encoded_estimates
+from daq.pipeline import Pipeline
 from daq.service_config import PublishSettings
+from dbc.decoding import DecodedFrame
 from estimator.machine import MachineSnapshot
 
 logger = logging.getLogger(__name__)
 
 #: On close, queued frames are still processed for at most this long.
 DRAIN_S = 0.5
+#: The recorder is handed what was processed at most this often (a frame's batch
+#: waits at most this long): one hand-off per period, not per wake-up, however the
+#: frames trickle in (at the DBC's rate one wake-up carries a frame or two).
+RECORD_PERIOD_S = 0.05
 
 #: Staleness is judged against the bus, not the wall clock: a leg is stale when newer
 #: frames of other messages went by without its own (the estimator's bus time, see
@@ -37,15 +48,42 @@ LAG_TOLERANCE_S = 0.5
 
 
 class Publisher(Protocol):
-    def submit(self, suffix: str, payload: payloads.JsonObject) -> None: ...
+    def submit(self, suffix: str, payload: payloads.JsonObject | bytes) -> None: ...
 
 
 class Recording(Protocol):
-    def submit(self, item: FrameResult | BusEvent | MachineSnapshot) -> None: ...
+    def submit(self, item: RecordBatch | BusEvent | MachineSnapshot) -> None: ...
+
+
+class Source(Protocol):
+    """Where the frames come from: one call is one wake-up's worth (see :meth:`poll`)."""
+
+    def poll(self, timeout_s: float) -> Sequence[RawFrame | BusEvent]:
+        """What arrived within ``timeout_s``: everything there after the first item."""
+        ...
+
+
+class QueueSource:
+    """The reader thread's queue as a :class:`Source`: waits for one item, then drains."""
+
+    def __init__(self, inbox: "queue.Queue[RawFrame | BusEvent]") -> None:
+        self._inbox = inbox
+
+    def poll(self, timeout_s: float) -> list[RawFrame | BusEvent]:
+        items: list[RawFrame | BusEvent] = []
+        get = self._inbox.get_nowait
+        try:
+            items.append(self._inbox.get(timeout=timeout_s) if timeout_s > 0 else get())
+            while len(items) < MAX_FRAMES:
+                items.append(get())
+        except queue.Empty:
+            pass
+        return items
 
 
 class Consumer(Worker):
-    """Drains ``inbox`` in a thread of its own; the constructor starts nothing.
+    """Polls ``source`` (a :class:`Source`, e.g. the bus reader in the event loop, or the
+    reader thread's queue) in a thread of its own; the constructor starts nothing.
 
     ``close`` processes what is queued (for at most :data:`DRAIN_S`) and stops.
     """
@@ -55,24 +93,30 @@ class Consumer(Worker):
     def __init__(
         self,
         pipeline: Pipeline,
-        inbox: "queue.Queue[RawFrame | BusEvent]",
+        source: "Source | queue.Queue[RawFrame | BusEvent]",
         settings: PublishSettings,
         *,
         publisher: Publisher | None = None,
         recorder: Recording | None = None,
+        record_signals: bool = False,
         now: Callable[[], float] = time.time,
         monotonic: Callable[[], float] = time.monotonic,
     ) -> None:
         super().__init__()
         self.pipeline = pipeline
-        self._inbox = inbox
+        self._source = QueueSource(source) if isinstance(source, queue.Queue) else source
         self._settings = settings
         self._publisher = publisher
         self._recorder = recorder
+        self._record_signals = record_signals
         #: ``/ground`` snapshots are taken at the publish rate for the publisher and
         #: the recorder.
         self._snapshots = publisher is not None or recorder is not None
         self._now = now
+        rate_hz = settings.signals_max_rate_hz
+        self._signals_period_s = 1.0 / rate_hz if rate_hz > 0 else 0.0
+        #: Frame time of the signals last published, by message.
+        self._signals_published_t_s: dict[str, float] = {}
         self._monotonic = monotonic
         #: ``monotonic()`` when the latest frame was handled.
         self._latest_handled_s = float("nan")
@@ -80,29 +124,90 @@ class Consumer(Worker):
         self.heartbeat = time.monotonic()
         #: Bus events seen that reset the rolling counters.
         self.resets = 0
+        #: Batches processed but not yet handed to the recorder, and when they are due.
+        self._unrecorded: list[RecordBatch] = []
+        self._unrecorded_frames = 0
+        self._record_due = float("inf")
 
-    def handle(self, item: RawFrame | BusEvent) -> FrameResult | None:
-        """Process one item (the thread's work; callable directly in tests)."""
-        if isinstance(item, BusEvent):
-            if item.reset_counters:
-                self.pipeline.reset_counters()
-                self.resets += 1
-            if self._recorder is not None:
-                self._recorder.submit(item)
-            return None
-        result = self.pipeline.process(item)
-        self._latest_handled_s = self._monotonic()
+    def handle(self, item: RawFrame | BusEvent) -> None:
+        """Process one item (callable directly in tests)."""
+        self.handle_batch((item,))
+
+    def handle_batch(self, items: Sequence[RawFrame | BusEvent]) -> None:
+        """Process what was taken from the queue in one go (the thread's work): each run
+        of frames is one batch, events keep their place."""
+        start = 0
+        for at, item in enumerate(items):
+            if isinstance(item, BusEvent):
+                self._frames(items[start:at])  # type: ignore[arg-type]  # frames only
+                self._event(item)
+                start = at + 1
+        self._frames(items[start:])  # type: ignore[arg-type]
+
+    def _event(self, event: BusEvent) -> None:
+        if event.reset_counters:
+            self.pipeline.reset_counters()
+            self.resets += 1
         if self._recorder is not None:
-            self._recorder.submit(result)
+            self._hand_over()
+            self._recorder.submit(event)
+
+    def _hand_over(self) -> None:
+        """Hand the recorder what was processed since the last time, as one batch."""
+        batches = self._unrecorded
+        if self._recorder is None or not batches:
+            return
+        self._unrecorded = []
+        self._unrecorded_frames = 0
+        self._record_due = float("inf")
+        if len(batches) == 1:
+            self._recorder.submit(batches[0])
+            return
+        self._recorder.submit(
+            RecordBatch(
+                [frame for batch in batches for frame in batch.frames],
+                [estimate for batch in batches for estimate in batch.estimates],
+                [decoded for batch in batches for decoded in batch.decoded],
+            )
+        )
+
+    def _frames(self, frames: Sequence[RawFrame]) -> None:
+        if not frames:
+            return
+        process = self.pipeline.process
+        results = [process(frame) for frame in frames]
+        self._latest_handled_s = self._monotonic()
         publisher = self._publisher
-        if publisher is not None:
-            for estimate in result.estimates:
-                publisher.submit(f"leg/{estimate.leg}/ground", payloads.leg_ground(estimate))
-            if self._settings.signals and result.decoded is not None:
-                publisher.submit(
-                    f"signals/{result.decoded.message}", payloads.signals(result.decoded)
-                )
-        return result
+        signals = publisher is not None and self._settings.signals
+        estimates: list[tuple[str, float, bytes]] = []
+        for result in results:  # each frame's messages in its place: signals not last
+            if result.estimates:
+                encoded = encoded_estimates(result)
+                estimates += encoded
+                if publisher is not None:
+                    for leg, _, data in encoded:
+                        publisher.submit(f"leg/{leg}/ground", data)
+            if signals and result.decoded is not None and self._signals_due(result.decoded):
+                assert publisher is not None  # signals is False without one
+                message = result.decoded.message
+                publisher.submit(f"signals/{message}", payloads.signals(result.decoded))
+        if self._recorder is None:
+            return
+        decoded = decoded_frames(results) if self._record_signals else ()
+        if not self._unrecorded:
+            self._record_due = time.monotonic() + RECORD_PERIOD_S
+        self._unrecorded.append(RecordBatch(frames, estimates, decoded))
+        self._unrecorded_frames += len(frames)
+        if self._unrecorded_frames >= MAX_FRAMES or time.monotonic() >= self._record_due:
+            self._hand_over()
+
+    def _signals_due(self, decoded: DecodedFrame) -> bool:
+        """At most one message's signals per ``signals_max_rate_hz`` (by frame time)."""
+        last_t_s = self._signals_published_t_s.get(decoded.message, float("-inf"))
+        if not decoded.t_s - last_t_s >= self._signals_period_s:
+            return False
+        self._signals_published_t_s[decoded.message] = decoded.t_s
+        return True
 
     def judged_at(self) -> float:
         """The time, on the frames' clock, at which legs are judged stale: the latest
@@ -127,32 +232,34 @@ class Consumer(Worker):
                 if self._publisher is not None:
                     self._publisher.submit("ground", payloads.machine_ground(snapshot))
                 if self._recorder is not None:
+                    self._hand_over()  # the frames before it, first
                     self._recorder.submit(snapshot)
             if self._publisher is not None and now >= next_metrics:
                 next_metrics = max(next_metrics + metrics_period_s, now)
                 metrics = payloads.soil_metrics(self._now(), self.pipeline.metrics())
                 self._publisher.submit("metrics", metrics)
+            if now >= self._record_due:
+                self._hand_over()
             if self._stop.is_set():
                 break
-            wait_s = timeout_s
+            wait_s = min(timeout_s, self._record_due - now)
             if self._snapshots:
-                wait_s = max(0.0, min(timeout_s, next_ground - time.monotonic()))
-            try:
-                item = self._inbox.get(timeout=wait_s)
-            except queue.Empty:
-                continue
-            self._handle_guarded(item)
+                wait_s = min(wait_s, next_ground - now)
+            wait_s = max(0.0, wait_s - (time.monotonic() - now))
+            self._handle_guarded(self._source.poll(wait_s))
         deadline = time.monotonic() + DRAIN_S
         while time.monotonic() < deadline:
-            try:
-                item = self._inbox.get_nowait()
-            except queue.Empty:
+            items = self._source.poll(0.0)
+            if not items:
                 break
-            self._handle_guarded(item)
+            self._handle_guarded(items)
+        self._hand_over()
 
-    def _handle_guarded(self, item: RawFrame | BusEvent) -> None:
+    def _handle_guarded(self, items: Sequence[RawFrame | BusEvent]) -> None:
+        if not items:
+            return
         try:
-            self.handle(item)
+            self.handle_batch(items)
         except Exception:  # noqa: BLE001 -- a bug on one frame must not stop the service
             self.pipeline.bad["internal_error"] += 1
-            logger.exception("processing %r failed", item)
+            logger.exception("processing a batch of %d items failed", len(items))

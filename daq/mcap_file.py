@@ -1,12 +1,18 @@
-"""One MCAP recording file: channels and JSON schemas of the service, written through mcap.
+"""One MCAP recording file: channels and schemas of the service, written through mcap.
 
 The stream is passed in (opened by :mod:`daq.recorder`, or a ``BytesIO`` in tests).
-Topics, each with a JSON Schema (``jsonschema``) and JSON messages:
+What is written comes in :class:`RecordBatch` es (one per batch of frames the
+consumer processed). Topics: ``/can/raw`` in the binary layout of
+:mod:`daq.can_batch` (its schema in the file), the others with a JSON Schema
+(``jsonschema``) and JSON messages:
 
 =======================  ===================================================
-``/can/raw``             every frame, bad ones included (:data:`RAW_TOPIC`)
-``/signals/<MESSAGE>``   the decoded signals of each good frame
-``/leg/<LEG>/ground``    each leg estimate
+``/can/raw``             every frame, bad ones included, a batch per message
+                         (:data:`RAW_TOPIC`)
+``/signals/<MESSAGE>``   the decoded signals of each good frame, only with
+                         ``[recording] signals = true`` (replay and report
+                         derive them from ``/can/raw`` otherwise)
+``/leg/<LEG>/ground``    each leg estimate (the bytes published on Zenoh)
 ``/ground``              all legs, weight check and stability margin, at the
                          publish rate (:data:`GROUND_TOPIC`)
 ``/daq/bus``             bus state changes (:data:`BUS_TOPIC`)
@@ -23,16 +29,17 @@ recording replays without the files it was made with, and a metadata record
 """
 
 import json
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import IO, Any, cast
 
 from cantools.database.can import Database
 from mcap.writer import CompressionType, Writer
 
-from daq import payloads, schemas
-from daq.frames import BusEvent
+from daq import can_batch, payloads, schemas
+from daq.frames import BusEvent, RawFrame
 from daq.pipeline import FrameResult
+from dbc.decoding import DecodedFrame
 from estimator.machine import MachineSnapshot
 
 RAW_TOPIC = "/can/raw"
@@ -70,6 +77,57 @@ class RecordingGap:
     @property
     def lost_s(self) -> float:
         return self.resumed_t_s - self.stopped_t_s
+
+
+@dataclass(frozen=True, slots=True)
+class RecordBatch:
+    """What one batch of frames gave, as the recorder writes it."""
+
+    #: Every frame, bad ones included, in the order processed.
+    frames: Sequence[RawFrame]
+    #: (leg, frame time in Unix seconds, JSON of :func:`daq.payloads.leg_ground`): the
+    #: bytes published on Zenoh, encoded once.
+    estimates: Sequence[tuple[str, float, bytes]]
+    #: The decoded frames, when signals are recorded (``[recording] signals``).
+    decoded: Sequence[DecodedFrame] = ()
+
+    @classmethod
+    def of(cls, results: Iterable[FrameResult], *, signals: bool) -> "RecordBatch":
+        """The batch of ``results`` (estimates encoded here; signals kept if ``signals``)."""
+        results = list(results)
+        return cls(
+            [result.frame for result in results],
+            [estimate for result in results for estimate in encoded_estimates(result)],
+            decoded_frames(results) if signals else (),
+        )
+
+    def split(self, t_s: float) -> tuple["RecordBatch", "RecordBatch"]:
+        """What came before frame time ``t_s``, and the rest (frames are in time order)."""
+        return (
+            RecordBatch(
+                [f for f in self.frames if f.t_s < t_s],
+                [e for e in self.estimates if e[1] < t_s],
+                [d for d in self.decoded if d.t_s < t_s],
+            ),
+            RecordBatch(
+                [f for f in self.frames if f.t_s >= t_s],
+                [e for e in self.estimates if e[1] >= t_s],
+                [d for d in self.decoded if d.t_s >= t_s],
+            ),
+        )
+
+
+def encoded_estimates(result: FrameResult) -> list[tuple[str, float, bytes]]:
+    """(leg, frame time, JSON) of each estimate of ``result``, as published and recorded."""
+    return [
+        (estimate.leg, estimate.t_s, payloads.json_bytes(payloads.leg_ground(estimate)))
+        for estimate in result.estimates
+    ]
+
+
+def decoded_frames(results: Iterable[FrameResult]) -> list[DecodedFrame]:
+    """The decoded frames of ``results`` (those that decoded)."""
+    return [result.decoded for result in results if result.decoded is not None]
 
 
 class CountingFile:
@@ -165,32 +223,33 @@ class McapFile:
             self._writer.add_metadata(RUN_METADATA, dict(run))
         self._started = True
 
-    def write_result(self, result: FrameResult) -> None:
-        """The raw frame, its signals and its leg estimates."""
-        t_ns = _ns(result.frame.t_s)
-        self._write(
-            RAW_TOPIC, "portal.RawFrame", schemas.RAW_FRAME, t_ns, payloads.raw_frame(result)
-        )
-        if result.decoded is not None:
-            name = result.decoded.message
-            self._write(
-                SIGNALS_TOPIC.format(message=name),
-                f"portal.signals.{name}",
-                None,
-                t_ns,
-                payloads.signals(result.decoded),
+    def write_batch(self, batch: RecordBatch) -> None:
+        """The batch's raw frames (one message), its estimates and signals (one each)."""
+        frames = batch.frames
+        if frames:
+            t_ns = _ns(frames[0].t_s)
+            channel = self._channels.get(RAW_TOPIC) or self._raw_channel()
+            self._add(channel, t_ns, can_batch.encode(frames))
+        for leg, t_s, data in batch.estimates:
+            topic = LEG_TOPIC.format(leg=leg)
+            channel = self._channels.get(topic) or self._json_channel(
+                topic, "portal.LegGround", schemas.LEG_GROUND
             )
-        for estimate in result.estimates:
-            self._write(
-                LEG_TOPIC.format(leg=estimate.leg),
-                "portal.LegGround",
-                schemas.LEG_GROUND,
-                t_ns,
-                payloads.leg_ground(estimate),
+            self._add(channel, _ns(t_s), data)
+        for decoded in batch.decoded:
+            topic = SIGNALS_TOPIC.format(message=decoded.message)
+            channel = self._channels.get(topic) or self._json_channel(
+                topic, f"portal.signals.{decoded.message}", None
             )
+            self._add(channel, _ns(decoded.t_s), payloads.json_bytes(payloads.signals(decoded)))
+
+    def write_result(self, result: FrameResult, *, signals: bool = True) -> None:
+        """One processed frame as a batch of its own (offline writers and tests; the
+        service writes the consumer's batches)."""
+        self.write_batch(RecordBatch.of([result], signals=signals))
 
     def write_event(self, event: BusEvent) -> None:
-        self._write(
+        self._write_json(
             BUS_TOPIC,
             "portal.BusEvent",
             schemas.BUS_EVENT,
@@ -206,7 +265,7 @@ class McapFile:
             "lost_s": gap.lost_s,
             "dropped": gap.dropped,
         }
-        self._write(
+        self._write_json(
             RECORDING_TOPIC,
             "portal.RecordingGap",
             schemas.RECORDING_GAP,
@@ -216,7 +275,7 @@ class McapFile:
 
     def write_ground(self, snapshot: MachineSnapshot) -> None:
         """The ``/ground`` aggregate (with the stability margin), logged at its moment."""
-        self._write(
+        self._write_json(
             GROUND_TOPIC,
             "portal.Ground",
             schemas.GROUND,
@@ -227,11 +286,11 @@ class McapFile:
     def write_truth(self, sample: payloads.JsonObject) -> None:
         """A simulation truth sample (see :func:`daq.sim_truth.truth_payload`), logged at
         its frame time ``t_unix_s``."""
-        self._write(
+        self._write_json(
             TRUTH_TOPIC, "portal_daq.SimTruth", schemas.SIM_TRUTH, _ns(sample["t_unix_s"]), sample
         )
 
-    def _write(
+    def _write_json(
         self,
         topic: str,
         schema_name: str,
@@ -239,29 +298,49 @@ class McapFile:
         t_ns: int,
         payload: payloads.JsonObject,
     ) -> None:
-        channel = self._channels.get(topic)
-        if channel is None:
-            channel = self._channels[topic] = self._register(topic, schema_name, schema)
-        self._writer.add_message(
-            channel_id=channel, log_time=t_ns, publish_time=t_ns, data=payloads.json_bytes(payload)
-        )
+        channel = self._channels.get(topic) or self._json_channel(topic, schema_name, schema)
+        self._add(channel, t_ns, payloads.json_bytes(payload))
+
+    def _add(self, channel: int, t_ns: int, data: bytes) -> None:
+        self._writer.add_message(channel_id=channel, log_time=t_ns, publish_time=t_ns, data=data)
         self.message_count += 1
         if self.first_log_time_ns is None:
             self.first_log_time_ns = t_ns
 
-    def _register(self, topic: str, schema_name: str, schema: schemas.Schema | None) -> int:
+    def _json_channel(self, topic: str, schema_name: str, schema: schemas.Schema | None) -> int:
+        if schema is None:  # a signals channel: the schema comes from the DBC
+            message = self._messages[schema_name.removeprefix("portal.signals.")]
+            schema = schemas.signals_schema(message)
+        return self._register(topic, schema_name, "jsonschema", json.dumps(schema).encode(), "json")
+
+    def _raw_channel(self) -> int:
+        return self._register(
+            RAW_TOPIC,
+            can_batch.SCHEMA_NAME,
+            can_batch.ENCODING,
+            can_batch.SCHEMA_TEXT.encode(),
+            can_batch.ENCODING,
+        )
+
+    def _register(
+        self,
+        topic: str,
+        schema_name: str,
+        schema_encoding: str,
+        schema_data: bytes,
+        message_encoding: str,
+    ) -> int:
         schema_id = self._schemas.get(schema_name)
         if schema_id is None:
-            if schema is None:  # a signals channel: the schema comes from the DBC
-                message = self._messages[schema_name.removeprefix("portal.signals.")]
-                schema = schemas.signals_schema(message)
             schema_id = self._writer.register_schema(
-                name=schema_name, encoding="jsonschema", data=json.dumps(schema).encode()
+                name=schema_name, encoding=schema_encoding, data=schema_data
             )
             self._schemas[schema_name] = schema_id
-        return self._writer.register_channel(
-            topic=topic, message_encoding="json", schema_id=schema_id
+        channel = self._writer.register_channel(
+            topic=topic, message_encoding=message_encoding, schema_id=schema_id
         )
+        self._channels[topic] = channel
+        return channel
 
     def flush(self) -> None:
         """Write out the chunk being built, so that a crash cannot lose it."""

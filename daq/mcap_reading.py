@@ -24,6 +24,8 @@ class RecordedMessage:
     topic: str
     log_time_ns: int
     data: bytes
+    #: The channel's message encoding (``json``, or :data:`daq.can_batch.ENCODING`).
+    encoding: str = "json"
 
 
 @dataclass(frozen=True, slots=True)
@@ -87,7 +89,9 @@ class RecordingStream:
             elif isinstance(record, Message):
                 channel = channels.get(record.channel_id)
                 if channel is not None:
-                    yield RecordedMessage(channel.topic, record.log_time, record.data)
+                    yield RecordedMessage(
+                        channel.topic, record.log_time, record.data, channel.message_encoding
+                    )
             elif isinstance(record, Attachment):
                 yield RecordedAttachment(record.name, record.data)
             elif isinstance(record, Metadata):

@@ -11,7 +11,6 @@ from collections.abc import Mapping
 from typing import Any
 
 from daq.frames import BusEvent
-from daq.pipeline import FrameResult
 from dbc.decoding import DecodedFrame
 from estimator.leg import LegEstimate
 from estimator.machine import MachineSnapshot
@@ -166,23 +165,6 @@ def signals(frame: DecodedFrame) -> JsonObject:
     if frame.source_address is not None:
         payload["source_address"] = frame.source_address
     return payload
-
-
-def raw_frame(result: FrameResult) -> JsonObject:
-    """MCAP ``/can/raw``: every frame, bad ones included, with the fault if any."""
-    frame = result.frame
-    return {
-        "t": frame.t_s,
-        "id": frame.arbitration_id,
-        "extended": frame.is_extended_id,
-        "dlc": frame.dlc,
-        "data": frame.data.hex(),
-        "error_frame": frame.is_error_frame,
-        "remote_frame": frame.is_remote_frame,
-        "fd": frame.is_fd,
-        "error": result.error_kind,
-        "reason": result.error.reason if result.error is not None else None,
-    }
 
 
 def bus_event(event: BusEvent) -> JsonObject:

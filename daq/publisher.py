@@ -2,9 +2,11 @@
 
 The session is passed in (opened in ``daq.__main__``). :meth:`ZenohPublisher.submit`
 never blocks: it queues (key, payload) into a bounded queue, or drops and counts.
-The publisher thread serialises to JSON (NaN as ``null``) and puts with encoding
-``application/json``; any exception while publishing one message is counted
-(:attr:`ZenohPublisher.errors`) and the message skipped.
+The publisher thread serialises to JSON (NaN as ``null``; a payload may come
+encoded already) and puts with encoding ``application/json``; any exception while
+publishing one message is counted (:attr:`ZenohPublisher.errors`) and the message
+skipped. With ``threaded=False`` (the service's event loop) ``submit`` puts at once,
+in the caller's thread.
 
 Every key gets a :func:`zenoh.ext.declare_advanced_publisher` that keeps its latest
 sample (:data:`CACHE`), numbers its samples and sends a heartbeat when it published
@@ -15,13 +17,15 @@ it, and its miss listener tells it how many samples it missed. (A plain ``get``
 does not reach that cache: it answers only advanced subscribers' queries.)
 
 Congestion control is ``BLOCK``: Zenoh never drops a sample silently for a slow link.
-A put to a congested link waits; the bounded queue in front takes up the slack and
-beyond it messages are dropped and counted (``dropped.publish`` on the status topic).
-Zenoh closes a link that stays blocked longer than ``wait_before_close``
-(:data:`daq.zenoh_session.BLOCK_WAIT_BEFORE_CLOSE_US`, shorter than the watchdog's
-heartbeat limit), so one stalled subscriber cannot stall the service; it reconnects
-and counts what it missed. A liveliness token ``<prefix>/alive`` lives as long as
-the publisher.
+A put to a congested link waits; in a thread of its own the bounded queue in front
+takes up the slack and beyond it messages are dropped and counted (``dropped.publish``
+on the status topic); in the event loop (``threaded=False``) the loop waits and the
+CAN socket's receive buffer takes up the slack (beyond it the kernel's drops are
+counted, ``dropped.kernel``). Zenoh closes a link that stays blocked longer than
+``wait_before_close`` (:data:`daq.zenoh_session.BLOCK_WAIT_BEFORE_CLOSE_US`, shorter
+than the watchdog's heartbeat limit), so one stalled subscriber cannot stall the
+service for longer; it reconnects and counts what it missed. A liveliness token
+``<prefix>/alive`` lives as long as the publisher.
 """
 
 import logging
@@ -56,11 +60,19 @@ class ZenohPublisher(Worker):
 
     thread_name = "zenoh-publisher"
 
-    def __init__(self, session: zenoh.Session, prefix: str, *, queue_size: int = 10_000) -> None:
+    def __init__(
+        self,
+        session: zenoh.Session,
+        prefix: str,
+        *,
+        queue_size: int = 10_000,
+        threaded: bool = True,
+    ) -> None:
         super().__init__()
+        self.threaded = threaded
         self.session = session
         self.prefix = prefix
-        self._queue: queue.Queue[tuple[str, JsonObject]] = queue.Queue(maxsize=queue_size)
+        self._queue: queue.Queue[tuple[str, JsonObject | bytes]] = queue.Queue(maxsize=queue_size)
         self._publishers: dict[str, zenoh.ext.AdvancedPublisher] = {}
         self._token: zenoh.LivelinessToken | None = None
         self._closed = False
@@ -81,8 +93,12 @@ class ZenohPublisher(Worker):
     def _before_start(self) -> None:
         self._token = self.session.liveliness().declare_token(self.key("alive"))
 
-    def submit(self, suffix: str, payload: JsonObject) -> None:
-        """Queue ``payload`` for ``<prefix>/<suffix>``; never blocks (full: dropped, counted)."""
+    def submit(self, suffix: str, payload: JsonObject | bytes) -> None:
+        """Queue ``payload`` (or its JSON, already encoded) for ``<prefix>/<suffix>``; never
+        blocks (full: dropped, counted). Without a thread of its own: put at once."""
+        if not self.threaded:
+            self._put(suffix, payload)
+            return
         try:
             self._queue.put_nowait((suffix, payload))
         except queue.Full:
@@ -118,10 +134,10 @@ class ZenohPublisher(Worker):
                 continue
             self._put(suffix, payload)
 
-    def _put(self, suffix: str, payload: JsonObject) -> None:
+    def _put(self, suffix: str, payload: JsonObject | bytes) -> None:
         key = self.key(suffix)
         try:
-            data = json_bytes(payload)
+            data = payload if isinstance(payload, bytes) else json_bytes(payload)
             publisher = self._publishers.get(key)
             if publisher is None:
                 publisher = self._publishers[key] = zenoh.ext.declare_advanced_publisher(

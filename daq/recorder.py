@@ -1,9 +1,10 @@
 """Recording to rotating MCAP files, in a thread of its own fed through a bounded queue.
 
-The consumer hands each :class:`~daq.pipeline.FrameResult` (and each bus event)
-to :meth:`Recorder.submit`, which never blocks: when the queue is full the item
-is dropped and counted. The recorder thread serialises to JSON, writes through
-:class:`~daq.mcap_file.McapFile`, writes the chunk in progress out every
+The consumer hands each :class:`~daq.mcap_file.RecordBatch` (the frames it processed
+in one go, their estimates already encoded) and each bus event to
+:meth:`Recorder.submit`, which never blocks: when the queue is full the item is
+dropped and counted (a batch as its frames). The recorder thread writes a batch per
+call through :class:`~daq.mcap_file.McapFile`, writes the chunk in progress out every
 ``flush_period_s`` and starts a new file when one reaches ``max_bytes`` or spans
 ``max_duration_s`` of frame time. Files are named
 ``<machine>_<UTC start, YYYYmmddTHHMMSS.mmmZ>.mcap``. The files of one recorder (one
@@ -44,8 +45,7 @@ from cantools.database.can import Database
 from daq._worker import Worker
 from daq.errors import RecordingError
 from daq.frames import BusEvent
-from daq.mcap_file import CountingFile, McapFile, RecordingGap
-from daq.pipeline import FrameResult
+from daq.mcap_file import CountingFile, McapFile, RecordBatch, RecordingGap
 from daq.recording_run import run_metadata
 from daq.recover import is_cut_short, recover_file
 from daq.service_config import RecordingSettings
@@ -59,7 +59,7 @@ RETRY_AFTER_S = 5.0
 #: On close, queued items are still written for at most this long.
 DRAIN_S = 0.5
 
-Item = FrameResult | BusEvent | TruthRecord | MachineSnapshot
+Item = RecordBatch | BusEvent | TruthRecord | MachineSnapshot
 
 
 def file_name(machine_id: str, t_s: float) -> str:
@@ -70,6 +70,10 @@ def file_name(machine_id: str, t_s: float) -> str:
     """
     stamp = datetime.fromtimestamp(t_s, UTC)
     return f"{machine_id}_{stamp:%Y%m%dT%H%M%S}.{stamp.microsecond // 1000:03d}Z.mcap"
+
+
+def _count(item: Item) -> int:
+    return (len(item.frames) or 1) if isinstance(item, RecordBatch) else 1
 
 
 class Recorder(Worker):
@@ -110,7 +114,8 @@ class Recorder(Worker):
         #: Wall-clock time recording stopped at (a write error), None while recording.
         self.stopped_t_s: float | None = None
         self._dropped_at_stop = 0
-        #: Items dropped: queue full, or no file open after a write error.
+        #: Items dropped (a batch counts its frames): queue full, or no file open after
+        #: a write error.
         self.dropped = 0
         #: Write errors.
         self.errors = 0
@@ -182,7 +187,7 @@ class Recorder(Worker):
         try:
             self._queue.put_nowait(item)
         except queue.Full:
-            self.dropped += 1
+            self.dropped += _count(item)
 
     def _after_stop(self) -> None:
         """Finish the file; the thread wrote what was queued (for at most :data:`DRAIN_S`)."""
@@ -218,22 +223,40 @@ class Recorder(Worker):
                 logger.exception("skipping an item the recorder cannot write (counting them)")
 
     def _write(self, item: Item) -> None:
+        if not self._ready(item):
+            self.dropped += _count(item)
+            return
+        if isinstance(item, RecordBatch) and item.frames:
+            # A batch spanning the file's duration: its later frames begin the next file.
+            head, tail = item.split(self._rotation_t_s(item.frames[0].t_s))
+            if tail.frames:
+                self._write_to_file(head)
+                self._write(tail)
+                return
+        self._write_to_file(item)
+
+    def _ready(self, item: Item) -> bool:
+        """A file to write ``item`` to: (re)opened after an error, rotated when due."""
         if self._file is None:
             if time.monotonic() < self._retry_at or not self._guarded(
                 lambda: self._open(self._now())
             ):
-                self.dropped += 1
-                return
+                return False
         # Frame time drives rotation; bus events carry wall-clock time.
-        if isinstance(item, FrameResult) and self._due_for_rotation(item.frame.t_s):
+        if (
+            isinstance(item, RecordBatch)
+            and item.frames
+            and self._due_for_rotation(item.frames[0].t_s)
+        ):
             self._close_file()
-            if not self._guarded(lambda: self._open(self._now())):
-                self.dropped += 1
-                return
+            return self._guarded(lambda: self._open(self._now()))
+        return True
+
+    def _write_to_file(self, item: Item) -> None:
         mcap = self._file
         assert mcap is not None
-        if isinstance(item, FrameResult):
-            self._guarded(lambda: mcap.write_result(item))
+        if isinstance(item, RecordBatch):
+            self._guarded(lambda: mcap.write_batch(item))
         elif isinstance(item, TruthRecord):
             sample = truth_payload(item)
             if sample is None:
@@ -251,10 +274,14 @@ class Recorder(Worker):
         mcap, stream = self._file, self._stream
         if mcap is None or stream is None or mcap.message_count == 0:
             return False
-        if stream.count >= self.settings.max_bytes:
-            return True
-        first_ns = mcap.first_log_time_ns
-        return first_ns is not None and t_s * 1e9 - first_ns >= self.settings.max_duration_s * 1e9
+        return stream.count >= self.settings.max_bytes or t_s >= self._rotation_t_s(t_s)
+
+    def _rotation_t_s(self, t_s: float) -> float:
+        """The frame time from which frames go into the next file (``t_s``: the first
+        frame to write, which begins the file when the file is empty)."""
+        mcap = self._file
+        first_ns = mcap.first_log_time_ns if mcap is not None else None
+        return (t_s if first_ns is None else first_ns / 1e9) + self.settings.max_duration_s
 
     def _guarded(self, action: Callable[[], object]) -> bool:
         """Run a file operation; a write error stops recording until a retry succeeds."""

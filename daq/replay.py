@@ -3,7 +3,8 @@
 Sources:
 
 - the service's MCAP files: the ``/can/raw`` channel (every frame, bad ones
-  included) and ``/daq/bus`` (gaps that reset the rolling counters), in file
+  included; batches of :mod:`daq.can_batch`, or one JSON frame per message in
+  recordings made before) and ``/daq/bus`` (gaps that reset the rolling counters), in file
   order, which is the order the live pipeline processed them. The files of one
   run (a directory, or files in any order: :mod:`daq.recording_run`) are chained
   in the order of the run. The machine configuration and DBC come from the first
@@ -28,11 +29,12 @@ from typing import IO
 import can
 from cantools.database.can import Database
 
+from daq.can_batch import recorded_frames
 from daq.errors import RecordingError
 from daq.frames import BusEvent, RawFrame, from_can_message
 from daq.mcap_file import BUS_TOPIC, CONFIG_ATTACHMENT, DBC_ATTACHMENT, RAW_TOPIC
 from daq.mcap_reading import RecordedAttachment, RecordedMessage, RecordingStream
-from daq.pipeline import Pipeline
+from daq.pipeline import FrameResult, Pipeline
 from daq.recording_run import MCAP_SUFFIX, expand, run_files
 from dbc.database import load_database_string
 from dbc.errors import ConfigError
@@ -57,14 +59,20 @@ CSV_COLUMNS = (
 Machine = tuple[MachineConfig, Database]
 
 
-def estimates(pipeline: Pipeline, items: Iterable[RawFrame | BusEvent]) -> Iterator[LegEstimate]:
-    """Every leg estimate the frames give, in order; bus gaps reset the counters."""
+def results(pipeline: Pipeline, items: Iterable[RawFrame | BusEvent]) -> Iterator[FrameResult]:
+    """What each frame gives, in order; bus gaps reset the counters."""
     for item in items:
         if isinstance(item, BusEvent):
             if item.reset_counters:
                 pipeline.reset_counters()
             continue
-        yield from pipeline.process(item).estimates
+        yield pipeline.process(item)
+
+
+def estimates(pipeline: Pipeline, items: Iterable[RawFrame | BusEvent]) -> Iterator[LegEstimate]:
+    """Every leg estimate the frames give, in order; bus gaps reset the counters."""
+    for result in results(pipeline, items):
+        yield from result.estimates
 
 
 def write_csv(rows: Iterable[LegEstimate], out: IO[str]) -> int:
@@ -127,41 +135,45 @@ def _open(path: Path) -> IO[bytes]:
 def run_estimates(files: Sequence[Path], machine: Machine | None) -> Iterator[LegEstimate]:
     """The estimates of MCAP ``files`` (one run, in order) chained through one pipeline;
     ``machine`` None: the configuration embedded in the first file."""
+    for result in run_results(files, machine):
+        yield from result.estimates
+
+
+def run_results(files: Sequence[Path], machine: Machine | None) -> Iterator[FrameResult]:
+    """What the pipeline makes of every frame of MCAP ``files`` (one run, in order)."""
+    attachments: dict[str, bytes] = {}
     pipeline: Pipeline | None = None
+    for item in run_items(files, attachments):
+        if pipeline is None:
+            pipeline = Pipeline.from_config(*(machine or embedded_machine(attachments, files[0])))
+        yield from results(pipeline, (item,))
+
+
+def run_items(
+    files: Sequence[Path], attachments: dict[str, bytes] | None = None
+) -> Iterator[RawFrame | BusEvent]:
+    """The frames and bus events of MCAP ``files`` (one run, in order); the first file's
+    attachments are put into ``attachments`` as they are read (before its messages)."""
     for path in files:
         with _open(path) as stream:
-            attachments: dict[str, bytes] = {}
             for record in RecordingStream(stream, str(path)):
                 if isinstance(record, RecordedAttachment):
-                    attachments[record.name] = record.data
-                    continue
-                if not isinstance(record, RecordedMessage):
-                    continue
-                if pipeline is None:
-                    pipeline = Pipeline.from_config(
-                        *(machine or embedded_machine(attachments, path))
-                    )
-                item = _item(record)
-                if item is not None:
-                    yield from estimates(pipeline, (item,))
+                    if attachments is not None:
+                        attachments.setdefault(record.name, record.data)
+                elif isinstance(record, RecordedMessage):
+                    yield from _items(record, path)
 
 
-def _item(record: RecordedMessage) -> RawFrame | BusEvent | None:
+def _items(record: RecordedMessage, path: Path) -> Iterable[RawFrame | BusEvent]:
     if record.topic == RAW_TOPIC:
-        raw = json.loads(record.data)
-        return RawFrame(
-            t_s=raw["t"],
-            arbitration_id=raw["id"],
-            is_extended_id=raw["extended"],
-            data=bytes.fromhex(raw["data"]),
-            is_error_frame=raw["error_frame"],
-            is_remote_frame=raw["remote_frame"],
-            is_fd=raw.get("fd", False),  # recordings made before CAN FD lack it
-        )
+        try:
+            return list(recorded_frames(record.encoding, record.data))
+        except (ValueError, KeyError) as exc:  # BatchFormatError, JSON
+            raise RecordingError(path, f"a {RAW_TOPIC} message is unreadable: {exc}") from exc
     if record.topic == BUS_TOPIC:
         event = json.loads(record.data)
-        return BusEvent(event["t"], event["state"], event["reason"], event["reset_counters"])
-    return None
+        return (BusEvent(event["t"], event["state"], event["reason"], event["reset_counters"]),)
+    return ()
 
 
 def embedded_machine(attachments: dict[str, bytes], path: Path) -> Machine:

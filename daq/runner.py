@@ -18,35 +18,30 @@ from daq.sd_notify import SdNotifier
 from daq.service import Service
 from daq.service_config import BusSettings, ServiceConfig
 from daq.socketcan import SocketCanSource
-from daq.socketcan_wire import CAN_EFF_MASK, CAN_SFF_MASK
 from daq.stop_signal import Stop
 from daq.zenoh_session import open_session
-from dbc.decoding import FrameDecoder
+from dbc.decoding import FrameDecoder, ReceiveFilter
 
 logger = logging.getLogger(__name__)
 
 
-def kernel_filters(frame_ids: list[tuple[int, bool]]) -> list[CanFilter]:
-    """python-can ``can_filters`` passing exactly the given (ID, extended) pairs."""
+def kernel_filters(filters: list[ReceiveFilter]) -> list[CanFilter]:
+    """python-can ``can_filters`` of the given receive filters."""
     return [
-        {
-            "can_id": frame_id,
-            "can_mask": CAN_EFF_MASK if extended else CAN_SFF_MASK,
-            "extended": extended,
-        }
-        for frame_id, extended in frame_ids
+        {"can_id": can_id, "can_mask": can_mask, "extended": extended}
+        for can_id, can_mask, extended in filters
     ]
 
 
-def bus_factory(settings: BusSettings, frame_ids: list[tuple[int, bool]]) -> BusFactory:
-    """Opens the configured bus; kernel filters for ``frame_ids`` if ``kernel_filters``.
+def bus_factory(settings: BusSettings, filters: list[ReceiveFilter]) -> BusFactory:
+    """Opens the configured bus; kernel receive ``filters`` if ``kernel_filters``.
 
     SocketCAN is read through the service's own socket (:mod:`daq.socketcan`: FD
     frames, forced receive buffer, kernel drop counter); any other interface
     through python-can. A receive buffer clamped below ``receive_buffer_bytes``
     is warned about once.
     """
-    ids = frame_ids if settings.kernel_filters else None
+    ids = filters if settings.kernel_filters else None
     warned = False
 
     def open_socketcan() -> FrameSource:
@@ -55,7 +50,7 @@ def bus_factory(settings: BusSettings, frame_ids: list[tuple[int, bool]]) -> Bus
             settings.channel,
             receive_buffer_bytes=settings.receive_buffer_bytes,
             receive_own_messages=settings.receive_own_messages,
-            frame_ids=ids,
+            receive_filters=ids,
         )
         source.open()
         granted = source.rcvbuf_bytes or 0
@@ -101,7 +96,7 @@ def run_service(config: ServiceConfig, stop: Stop) -> None:
 
     Raises ZenohError, RecordingError (or ConfigError for a bad Zenoh file) at start.
     """
-    frame_ids = FrameDecoder(config.database, config.machine.protection).frame_ids
+    filters = FrameDecoder(config.database, config.machine.protection).receive_filters
     recorder = None
     if config.recording.directory is not None:
         recorder = Recorder(
@@ -119,7 +114,7 @@ def run_service(config: ServiceConfig, stop: Stop) -> None:
     ):
         service = Service(
             config,
-            open_bus=bus_factory(config.bus, frame_ids),
+            open_bus=bus_factory(config.bus, filters),
             session=session,
             recorder=recorder,
             notifier=notifier,

@@ -27,26 +27,6 @@ def _object(title: str, properties: dict[str, Any], optional: tuple[str, ...] = 
     }
 
 
-RAW_FRAME = _object(
-    "portal.RawFrame",
-    {
-        "t": _TIME,
-        "id": {"type": "integer", "description": "arbitration ID"},
-        "extended": {"type": "boolean", "description": "29-bit ID"},
-        "dlc": {"type": "integer"},
-        "data": {"type": "string", "description": "payload, hex"},
-        "error_frame": {"type": "boolean"},
-        "remote_frame": {"type": "boolean"},
-        "fd": {"type": "boolean", "description": "a CAN FD frame"},
-        "error": {
-            "type": ["string", "null"],
-            "description": "why the frame could not be used: unknown_id, wrong_dlc, "
-            "decode_error, fd_frame, error_frame, remote_frame; null when it decoded",
-        },
-        "reason": {"type": ["string", "null"]},
-    },
-)
-
 LEG_GROUND = _object(
     "portal.LegGround",
     {

@@ -3,7 +3,14 @@
 Everything that touches the outside is passed in: a factory that opens the CAN
 bus, the Zenoh session, the recorder and the systemd notifier (built in
 ``daq.__main__``; in tests a python-can ``virtual`` bus, a loopback Zenoh
-session and a temporary directory). Data path::
+session and a temporary directory). Data path, as an event loop (``[service]
+event_loop = true``, the default): one thread polls the bus, processes what came
+in one go, publishes; the recorder is handed a batch every 50 ms::
+
+    bus --recv until none--> Consumer (BusReader.poll, Pipeline, ZenohPublisher.submit)
+                                 \\--queue--> Recorder (MCAP)
+
+With ``event_loop = false`` reader and publisher have threads of their own::
 
     bus --recv--> BusReader --queue--> Consumer (Pipeline) --queue--> ZenohPublisher
                                                          \\--queue--> Recorder (MCAP)
@@ -76,10 +83,14 @@ class Service:
     ) -> None:
         self.config = config
         self._now = now
+        self.event_loop = event_loop = config.service.event_loop
         self.inbox: queue.Queue[RawFrame | BusEvent] = queue.Queue(maxsize=config.bus.queue_size)
         self.pipeline = Pipeline.from_config(config.machine, config.database)
         self.publisher = ZenohPublisher(
-            session, config.zenoh.key_prefix, queue_size=config.publish.queue_size
+            session,
+            config.zenoh.key_prefix,
+            queue_size=config.publish.queue_size,
+            threaded=not event_loop,
         )
         self.recorder = recorder
         #: Records the simulator bridge's truth, if any is published (``[recording] truth``).
@@ -89,14 +100,20 @@ class Service:
             self.truth = TruthSubscriber(session, key, recorder.submit)
         self.notifier = notifier or SdNotifier(None)
         self.reader = BusReader(
-            open_bus, self.inbox, channel=config.bus.channel, link_up=link_up, now=now
+            open_bus,
+            None if event_loop else self.inbox,
+            channel=config.bus.channel,
+            link_up=link_up,
+            now=now,
+            threaded=not event_loop,
         )
         self.consumer = Consumer(
             self.pipeline,
-            self.inbox,
+            self.reader if event_loop else self.inbox,
             config.publish,
             publisher=self.publisher,
             recorder=recorder,
+            record_signals=config.recording.signals,
             now=now,
         )
         self.session = session
@@ -145,8 +162,12 @@ class Service:
         if self._closed:
             return
         self._closed = True
-        self.reader.close()
-        self.consumer.close()
+        if self.event_loop:  # the consumer's thread polls the reader: stop it first
+            self.consumer.close()
+            self.reader.close()
+        else:
+            self.reader.close()
+            self.consumer.close()
         self.publisher.close()
         if self.truth is not None:
             self.truth.close()
@@ -190,11 +211,14 @@ class Service:
     def threads(self) -> dict[str, float | None]:
         """Age in seconds of each thread's last loop turn; None for a dead thread."""
         now = time.monotonic()
+        consumer = (self.consumer.alive, self.consumer.heartbeat)
         parts = {
             "reader": (self.reader.alive, self.reader.heartbeat),
-            "consumer": (self.consumer.alive, self.consumer.heartbeat),
+            "consumer": consumer,
             "publisher": (self.publisher.alive, self.publisher.heartbeat),
         }
+        if self.event_loop:  # reader and publisher run in the consumer's thread
+            parts["reader"] = parts["publisher"] = consumer
         return {name: now - beat if alive else None for name, (alive, beat) in parts.items()}
 
     def alive(self) -> bool:

@@ -1,8 +1,8 @@
 """The service configuration: bus, Zenoh, publishing and recording, next to the machine's.
 
 One TOML file holds both parts (example: ``deploy/portal-daq.example.toml``): the
-machine tables read by :mod:`dbc.machine` and the service tables ``[bus]``,
-``[zenoh]``, ``[publish]`` and ``[recording]`` read here. Every service table is
+machine tables read by :mod:`dbc.machine` and the service tables ``[service]``,
+``[bus]``, ``[zenoh]``, ``[publish]`` and ``[recording]`` read here. Every service table is
 optional; left-out keys take the defaults of the dataclasses below. Relative
 paths are relative to the config file. Unknown keys are refused like in the
 machine part, naming file and key.
@@ -26,6 +26,17 @@ from dbc.toml_table import TomlTable
 KEY_PREFIX_PATTERN = r"[^/*$?#\s]+(/[^/*$?#\s]+)*"
 ZENOH_MODES = ("peer", "client", "router")
 COMPRESSIONS = ("zstd", "lz4", "none")
+
+
+@dataclass(frozen=True, slots=True)
+class ServiceSettings:
+    """``[service]``: how the service's work is spread over threads."""
+
+    #: One thread (an event loop) receives, processes and publishes; the recorder has
+    #: its own. False: the reader and the publisher each get a thread too, handing
+    #: frames and messages on through queues (four threads). The event loop takes less
+    #: CPU, most of all at low frame rates where every hand-off wakes a thread (bench/).
+    event_loop: bool = True
 
 
 @dataclass(frozen=True, slots=True)
@@ -75,8 +86,13 @@ class PublishSettings:
 
     #: Rate of the all-legs ``<prefix>/ground`` message.
     ground_rate_hz: float = 10.0
-    #: Publish every decoded message on ``<prefix>/signals/<MESSAGE>``.
+    #: Publish decoded messages on ``<prefix>/signals/<MESSAGE>``.
     signals: bool = True
+    #: ... each message at most this often (by frame time); 0: every frame. 10 Hz is
+    #: what a dashboard or monitor shows (a screen refreshes no faster than a person
+    #: reads; the leg estimates go out with every frame regardless); every frame of a
+    #: saturated bus would cost the service about a third of its CPU (bench/).
+    signals_max_rate_hz: float = 10.0
     #: Period of ``<prefix>/status``, ``<prefix>/metrics`` and systemd's STATUS=.
     status_period_s: float = 1.0
     #: Messages waiting for the Zenoh thread; beyond, they are dropped and counted.
@@ -106,6 +122,10 @@ class RecordingSettings:
     #: Zenoh) on the ``/sim/truth`` channel, whenever a bridge publishes it. Off by
     #: default: on the machine nobody else may write into the recording.
     truth: bool = False
+    #: Also record the decoded signals of every frame (``/signals/<MESSAGE>``, JSON).
+    #: Off: they are derivable from ``/can/raw`` (replay and report do), and writing
+    #: them costs about as much as everything else the recorder does (bench/).
+    signals: bool = False
 
 
 @dataclass(frozen=True)
@@ -116,6 +136,7 @@ class ServiceConfig:
     source: str
     machine: MachineConfig
     database: Database
+    service: ServiceSettings
     bus: BusSettings
     zenoh: ZenohSettings
     publish: PublishSettings
@@ -137,6 +158,7 @@ def load_service_config(path: str | Path) -> ServiceConfig:
         source=source,
         machine=machine,
         database=database,
+        service=_service(root.table("service", required=False)),
         bus=_bus(root.table("bus", required=False)),
         zenoh=_zenoh(root.table("zenoh", required=False), config_dir, machine.machine_id),
         publish=_publish(root.table("publish", required=False)),
@@ -155,6 +177,13 @@ def _positive(table: TomlTable, name: str, default: float) -> float:
     return value
 
 
+def _not_negative(table: TomlTable, name: str, default: float) -> float:
+    value = table.number(name, default)
+    if value < 0:
+        raise table.error(name, f"must be >= 0, got {value}")
+    return value
+
+
 def _positive_int(table: TomlTable, name: str, default: int) -> int:
     value = table.integer(name, default)
     if value <= 0:
@@ -169,6 +198,11 @@ def _choice(table: TomlTable, name: str, choices: tuple[str, ...], default: Any)
     if value not in choices:
         raise table.error(name, f"must be one of {list(choices)}, got {value!r}")
     return value
+
+
+def _service(table: TomlTable) -> ServiceSettings:
+    table.reject_unknown(_keys(ServiceSettings))
+    return ServiceSettings(event_loop=table.boolean("event_loop", ServiceSettings().event_loop))
 
 
 def _bus(table: TomlTable) -> BusSettings:
@@ -229,6 +263,9 @@ def _publish(table: TomlTable) -> PublishSettings:
     return PublishSettings(
         ground_rate_hz=_positive(table, "ground_rate_hz", defaults.ground_rate_hz),
         signals=table.boolean("signals", defaults.signals),
+        signals_max_rate_hz=_not_negative(
+            table, "signals_max_rate_hz", defaults.signals_max_rate_hz
+        ),
         status_period_s=_positive(table, "status_period_s", defaults.status_period_s),
         queue_size=_positive_int(table, "queue_size", defaults.queue_size),
     )
@@ -253,4 +290,5 @@ def _recording(table: TomlTable, config_dir: Path) -> RecordingSettings:
         flush_period_s=_positive(table, "flush_period_s", defaults.flush_period_s),
         queue_size=_positive_int(table, "queue_size", defaults.queue_size),
         truth=table.boolean("truth", defaults.truth),
+        signals=table.boolean("signals", defaults.signals),
     )

@@ -35,6 +35,7 @@ from daq.socketcan_wire import (
     parse_ancillary,
     parse_frame,
 )
+from dbc.decoding import ReceiveFilter
 
 logger = logging.getLogger(__name__)
 
@@ -55,8 +56,8 @@ class SocketCanSource:
     """A bound ``CAN_RAW`` socket on ``channel``; a frame source for the reader.
 
     The constructor opens nothing; :meth:`open` (or ``with``) does, and raises
-    ``OSError`` (e.g. ENODEV for a missing interface). ``frame_ids`` installs
-    kernel filters passing only those (ID, extended) pairs.
+    ``OSError`` (e.g. ENODEV for a missing interface). ``receive_filters``
+    installs them as kernel filters.
     """
 
     def __init__(
@@ -65,12 +66,12 @@ class SocketCanSource:
         *,
         receive_buffer_bytes: int,
         receive_own_messages: bool = False,
-        frame_ids: list[tuple[int, bool]] | None = None,
+        receive_filters: list[ReceiveFilter] | None = None,
     ) -> None:
         self.channel = channel
         self._requested_bytes = receive_buffer_bytes
         self._own = receive_own_messages
-        self._frame_ids = frame_ids
+        self._receive_filters = receive_filters
         self._socket: socket.socket | None = None
         self._timeout_s: float | None = None
         #: Receive buffer the kernel granted (read back after setting it).
@@ -92,9 +93,9 @@ class SocketCanSource:
         try:
             sock.setsockopt(socket.SOL_CAN_RAW, socket.CAN_RAW_FD_FRAMES, 1)
             sock.setsockopt(socket.SOL_CAN_RAW, socket.CAN_RAW_RECV_OWN_MSGS, int(self._own))
-            if self._frame_ids is not None:
+            if self._receive_filters is not None:
                 sock.setsockopt(
-                    socket.SOL_CAN_RAW, socket.CAN_RAW_FILTER, pack_filters(self._frame_ids)
+                    socket.SOL_CAN_RAW, socket.CAN_RAW_FILTER, pack_filters(self._receive_filters)
                 )
             sock.setsockopt(socket.SOL_SOCKET, SO_TIMESTAMPNS, 1)
             sock.setsockopt(socket.SOL_SOCKET, SO_RXQ_OVFL, 1)
@@ -107,7 +108,8 @@ class SocketCanSource:
         self._socket = sock
 
     def recv(self, timeout_s: float) -> RawFrame | None:
-        """The next frame, or None after ``timeout_s`` without one; raises ``OSError``."""
+        """The next frame, or None after ``timeout_s`` without one (``timeout_s`` 0: at
+        once, ``EAGAIN``); raises ``OSError``."""
         sock = self._socket
         if sock is None:
             raise OSError(errno.EBADF, "the CAN socket is not open")
@@ -116,7 +118,7 @@ class SocketCanSource:
             self._timeout_s = timeout_s
         try:
             buffer, ancillary, _flags, _address = sock.recvmsg(CANFD_MTU, ANCILLARY_BYTES)
-        except TimeoutError:
+        except (TimeoutError, BlockingIOError):  # timeout 0: a non-blocking socket
             return None
         extra = parse_ancillary(ancillary)
         self.kernel_dropped = extra.dropped

@@ -23,6 +23,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 
 from daq.frames import RawFrame
+from dbc.decoding import ReceiveFilter
 
 #: Sizes of ``struct can_frame`` and ``struct canfd_frame``: how a received frame
 #: says whether it is classic or FD.
@@ -98,12 +99,12 @@ def parse_ancillary(messages: Iterable[tuple[int, int, bytes]]) -> Ancillary:
     return Ancillary(t_s, dropped)
 
 
-def pack_filters(frame_ids: Iterable[tuple[int, bool]]) -> bytes:
-    """``CAN_RAW_FILTER`` bytes passing exactly the given (ID, extended) pairs."""
+def pack_filters(filters: Iterable[ReceiveFilter]) -> bytes:
+    """``CAN_RAW_FILTER`` bytes of the given filters (each matches its frame format only)."""
     words: list[int] = []
-    for frame_id, extended in frame_ids:
+    for can_id, can_mask, extended in filters:
         if extended:
-            words += [frame_id | CAN_EFF_FLAG, CAN_EFF_MASK | CAN_EFF_FLAG]
+            words += [can_id | CAN_EFF_FLAG, can_mask | CAN_EFF_FLAG]
         else:
-            words += [frame_id, CAN_SFF_MASK | CAN_EFF_FLAG]
+            words += [can_id, can_mask | CAN_EFF_FLAG]
     return struct.pack(f"={len(words)}I", *words)

@@ -18,6 +18,7 @@ float signals). The tests decode random frames both ways and compare.
 
 from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import NamedTuple
 
 from cantools.database.can import Database, Message
 from cantools.database.namedsignalvalue import NamedSignalValue
@@ -39,6 +40,22 @@ SignalValue = float | int | str
 
 #: Signal name -> factor from its DBC unit to SI, per message name.
 UnitFactors = Mapping[str, Mapping[str, float]]
+
+#: Identifier masks of standard and extended frames.
+SFF_MASK = 0x7FF
+EFF_MASK = 0x1FFFFFFF
+#: The PGN bits of a J1939 ID (reserved, data page, PDU format, PDU specific), and of a
+#: PDU1 (destination-specific) one, whose PDU specific is the destination address.
+J1939_PDU2_MASK = 0x03FFFF00
+J1939_PDU1_MASK = 0x03FF0000
+
+
+class ReceiveFilter(NamedTuple):
+    """A kernel receive filter: a frame passes when ``id & can_mask == can_id & can_mask``."""
+
+    can_id: int
+    can_mask: int
+    extended: bool
 
 
 @dataclass(frozen=True, slots=True)
@@ -212,14 +229,19 @@ class FrameDecoder:
         self._j1939_ids: dict[int, _MessageCodec] = {}
 
     @property
-    def frame_ids(self) -> list[tuple[int, bool]]:
-        """(ID, extended) of every known non-J1939 message, e.g. for kernel receive filters."""
-        return sorted(self._codecs)
-
-    @property
-    def j1939_pgns(self) -> list[int]:
-        """The PGNs of the DBC's J1939 messages."""
-        return sorted(self._by_pgn)
+    def receive_filters(self) -> list[ReceiveFilter]:
+        """Kernel receive filters passing the DBC's frames and nothing else: each message's
+        exact ID, and each J1939 PGN from any priority and source address."""
+        filters = [
+            ReceiveFilter(frame_id, EFF_MASK if extended else SFF_MASK, extended)
+            for frame_id, extended in sorted(self._codecs)
+        ]
+        for pgn in sorted(self._by_pgn):
+            pdu1 = (pgn >> 8) & 0xFF < 240
+            filters.append(
+                ReceiveFilter(pgn << 8, J1939_PDU1_MASK if pdu1 else J1939_PDU2_MASK, True)
+            )
+        return filters
 
     def decode(
         self,

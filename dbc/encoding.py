@@ -13,7 +13,7 @@ from cantools.database.can import Database
 
 from dbc.decoding import SignalValue, UnitFactors, is_j1939
 from dbc.machine import MachineConfig
-from dbc.protection import Protection
+from dbc.protection import CrcCheck, Protection
 
 
 @dataclass(frozen=True, slots=True)
@@ -45,6 +45,8 @@ class FrameEncoder:
         self._protection = dict(protection)
         self._to_si = dict(to_si or {})
         self._counters: dict[tuple[str, int | None], int] = {}
+        # Built once per message: a CRC check builds its lookup table (~0.2 ms).
+        self._crc_checks: dict[str, CrcCheck | None] = {}
 
     @classmethod
     def from_config(cls, config: MachineConfig, database: Database) -> "FrameEncoder":
@@ -79,7 +81,11 @@ class FrameEncoder:
         if protection is not None and protection.crc is not None:
             values[protection.crc] = 0
         data = bytearray(message.encode(values, scaling=True, padding=False, strict=True))
-        crc = protection.crc_check(message) if protection is not None else None
+        if message_name not in self._crc_checks:
+            self._crc_checks[message_name] = (
+                protection.crc_check(message) if protection is not None else None
+            )
+        crc = self._crc_checks[message_name]
         if crc is not None:
             crc.write(data, counter, corrupt=corrupt_crc)
         frame_id = message.frame_id

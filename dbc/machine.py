@@ -84,7 +84,7 @@ MACHINE_TABLES = (
 DEFAULT_STATUS_OK: tuple[str | int, ...] = ("ok",)
 #: Tables of the service configuration that may share the file; this loader leaves
 #: them to :mod:`daq.service_config`, which checks them.
-SERVICE_TABLES = ("bus", "zenoh", "publish", "recording")
+SERVICE_TABLES = ("service", "bus", "zenoh", "publish", "recording")
 
 
 @dataclass(frozen=True, slots=True)

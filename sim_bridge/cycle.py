@@ -5,7 +5,7 @@ cosine-smoothed ramp between two set-points, so velocities start and end at zero
 
 - move carriage:  t = 2..7 s, over SB2 -> over SB1; then on to the counterweight
   position behind SB1 while SB2 is lifted (t = 7.5..10.5 s); back over SB1 once SB2's
-  feet touch down (t = 43..44.5 s), so all six feet carry the load again;
+  feet touch down (t = 43.2..44.7 s), so all six feet carry the load again;
 - fold:           t = 8..12 s inclination lifts SB2's feet, t = 14..18 s SB2's legs fold
   up (retract), t = 18..23 s the bridge folds (PT1-filtered command, hard stop at 23 s);
 - rotate:         t = 23..32 s the bridge turns 180 deg, from between SB1_F2/F3 to over SB1_F1;
@@ -25,6 +25,10 @@ FloatArray = npt.NDArray[np.float64]
 
 #: Length of one simulated cycle (the step takes 44 s; one idle second follows).
 CYCLE_END_S = 45.0
+#: SB2's feet are pressed onto the ground (the set-down preload) over this time, s.
+SET_DOWN_PRELOAD_S = (42.5, 44.0)
+#: The carriage comes back over SB1 once SB2's feet are down, over this time, s.
+CARRIAGE_BACK_S = (43.2, 44.7)
 
 
 def ramp(t_s: npt.ArrayLike, start_s: float, end_s: float) -> FloatArray:
@@ -45,29 +49,35 @@ def ramp_rate(t_s: npt.ArrayLike, start_s: float, end_s: float) -> FloatArray:
 def carriage_m(t_s: npt.ArrayLike, p: ModelParams) -> FloatArray:
     """Carriage position from SB1's axis towards SB2.
 
-    It leaves the counterweight position only after SB2's feet touch down (~43.2 s):
+    It leaves the counterweight position only once SB2's feet touch down (~43.3 s):
     earlier, the centre of gravity would pass SB1_F1 and tip the machine over it.
     """
     return (
         p.carriage_start_m
         + (p.carriage_over_sb1_m - p.carriage_start_m) * ramp(t_s, 2.0, 7.0)
         + (p.carriage_counterweight_m - p.carriage_over_sb1_m)
-        * (ramp(t_s, 7.5, 10.5) - ramp(t_s, 43.0, 44.5))
+        * (ramp(t_s, 7.5, 10.5) - ramp(t_s, *CARRIAGE_BACK_S))
     )
 
 
 def inclination_rad(t_s: npt.ArrayLike, p: ModelParams) -> FloatArray:
-    """Bridge inclination at SB1 (positive lifts SB2); slightly negative at the end so
-    SB2's feet are pressed onto the ground by ``set_down_preload_m``."""
+    """Bridge inclination at SB1 (positive lifts SB2): lifted at 10..12 s, back at 38..44 s;
+    slightly negative at the end so SB2's feet are pressed onto the ground by
+    ``set_down_preload_m``. The preload comes on slowly (42.5..44 s) so that the feet touch
+    down gently: a steep force kink at touchdown is what a spike filter handles worst."""
     lift = math.radians(p.lift_inclination_deg)
     preload = p.set_down_preload_m / p.bridge_length_m
-    return lift * ramp(t_s, 10.0, 12.0) - (lift + preload) * ramp(t_s, 38.0, 44.0)
+    return lift * (ramp(t_s, 10.0, 12.0) - ramp(t_s, 38.0, 44.0)) - preload * ramp(
+        t_s, *SET_DOWN_PRELOAD_S
+    )
 
 
 def inclination_rate_rad_s(t_s: npt.ArrayLike, p: ModelParams) -> FloatArray:
     lift = math.radians(p.lift_inclination_deg)
     preload = p.set_down_preload_m / p.bridge_length_m
-    return lift * ramp_rate(t_s, 10.0, 12.0) - (lift + preload) * ramp_rate(t_s, 38.0, 44.0)
+    return lift * (ramp_rate(t_s, 10.0, 12.0) - ramp_rate(t_s, 38.0, 44.0)) - preload * ramp_rate(
+        t_s, *SET_DOWN_PRELOAD_S
+    )
 
 
 def sb2_stroke_m(t_s: npt.ArrayLike, p: ModelParams) -> FloatArray:
@@ -104,7 +114,7 @@ def phase_index(t_s: npt.ArrayLike) -> npt.NDArray[np.int_]:
     """Index into sim_bridge.result.PHASES: idle, move_carriage, fold, rotate, unfold."""
     t = np.asarray(t_s, dtype=np.float64)
     return np.select(
-        [t < 2.0, t < 7.0, t < 8.0, t < 23.0, t < 32.5, t < 44.0, t < 44.5],
+        [t < 2.0, t < 7.0, t < 8.0, t < 23.0, t < 32.5, t < 44.0, t < CARRIAGE_BACK_S[1]],
         [0, 1, 0, 2, 3, 4, 1],
         default=0,
     )

@@ -13,7 +13,9 @@ fault hits the same frames at any ``--speed``. The faults and their command-line
 ``--freeze-counter TARGET@START:DURATION``
     The message's rolling counter stops advancing: every frame in the window repeats the
     last counter sent before it (``counter``); afterwards it advances from there again.
-    TARGET is a message (``LEG_SB1_F1``) or a leg (``SB1_F1``, meaning its message).
+    TARGET is a message (``LEG_SB1_F1``), a leg (``SB1_F1``, meaning its message, or its
+    trigger chamber's transducer), one J1939 transducer (``HYD_PRESS@0x21``) or all
+    transducers sending a message (``HYD_PRESS``).
 ``--silent TARGET@START:DURATION``
     The message is not sent in the window (``stale`` after the stale time). Nothing is
     built either, so its counter resumes where it stopped. TARGET as above.
@@ -175,9 +177,13 @@ class FaultInjector:
         self.seed = faults.seed if faults.seed is not None else secrets.randbits(32)
         self._rng = np.random.default_rng(self.seed)
         self._freeze = [
-            _message_window(w, "--freeze-counter", targets) for w in faults.freeze_counter
+            pair
+            for w in faults.freeze_counter
+            for pair in _message_windows(w, "--freeze-counter", targets)
         ]
-        self._silent = [_message_window(w, "--silent", targets) for w in faults.silent]
+        self._silent = [
+            pair for w in faults.silent for pair in _message_windows(w, "--silent", targets)
+        ]
         for flag, windows in (
             ("--stuck", faults.stuck),
             ("--out-of-range", faults.out_of_range),
@@ -259,14 +265,18 @@ def _check_leg(flag: str, window: FaultWindow, targets: FaultTargets) -> None:
         )
 
 
-def _message_window(
+def _message_windows(
     window: FaultWindow, flag: str, targets: FaultTargets
-) -> tuple[str, FaultWindow]:
-    """(message, window) for a fault that names a message or a leg."""
+) -> list[tuple[str, FaultWindow]]:
+    """(sender, window) pairs for a fault that names a sender, a leg, or a DBC message
+    sent by several J1939 transducers (``HYD_PRESS``: every ``HYD_PRESS@0x..``)."""
     if window.target in targets.messages:
-        return window.target, window
+        return [(window.target, window)]
     if window.target in targets.leg_messages:
-        return targets.leg_messages[window.target], window
+        return [(targets.leg_messages[window.target], window)]
+    senders = [sender for sender in targets.messages if sender.startswith(f"{window.target}@")]
+    if senders:
+        return [(sender, window) for sender in senders]
     raise ConfigError(
         SOURCE,
         f"{flag} {window}",

@@ -130,7 +130,10 @@ class FrameBuilder:
 
     A *sender* is one message, or for a J1939 message mapped to several source
     addresses (one transducer per chamber) one per address (``HYD_PRESS@0x21``);
-    each sends at its message's cycle time. Values are in SI; the encoder turns
+    each sends at its message's cycle time. Within one instant the senders of a
+    message go out in address order, those of the legs' other chambers before those
+    of trigger chambers: each leg sample then pairs the chamber values of one
+    simulation row (skew 0), from the very first sample on. Values are in SI; the encoder turns
     them into the DBC's units. Constructed once from the machine configuration and
     the DBC; raises :class:`~dbc.errors.ConfigError` when a config leg is not a
     simulated leg.
@@ -144,6 +147,9 @@ class FrameBuilder:
             for signal in (protection.counter, protection.crc)
             if signal is not None
         }
+        self._with_crc = frozenset(
+            name for name, protection in config.protection.items() if protection.crc is not None
+        )
         chambers_by_sender: dict[tuple[str, int | None], list[_ChamberSignals]] = {}
         for leg in config.legs.values():
             if leg.name not in LEGS:
@@ -158,6 +164,11 @@ class FrameBuilder:
                 chambers_by_sender.setdefault((mapped.message, mapped.source_address), []).append(
                     _chamber_signals(message, leg.name, chamber, mapped)
                 )
+        # Senders carrying a leg's trigger chamber go after the others of their message.
+        triggers = {
+            (leg.trigger_chamber.message, leg.trigger_chamber.source_address)
+            for leg in config.legs.values()
+        }
         getters = _named_getters(status_ok)
         self._plans: dict[str, _MessagePlan] = {}
         #: Signals sent as a constant 0, as "MESSAGE.SIGNAL".
@@ -171,7 +182,10 @@ class FrameBuilder:
                 continue
             addresses = sorted(
                 {address for name, address in chambers_by_sender if name == message.name},
-                key=lambda address: -1 if address is None else address,
+                key=lambda address: (
+                    (message.name, address) in triggers,
+                    -1 if address is None else address,
+                ),
             ) or [None]
             for address in addresses:
                 chambers = tuple(chambers_by_sender.get((message.name, address), ()))
@@ -190,7 +204,11 @@ class FrameBuilder:
                 if not chambers and not named:
                     self.skipped.append(message.name)
                     continue
-                self.defaulted += [f"{message.name}.{signal.name}" for signal, _ in constants]
+                self.defaulted += [
+                    name
+                    for name in (f"{message.name}.{signal.name}" for signal, _ in constants)
+                    if name not in self.defaulted
+                ]
                 sender = sender_name(message.name, address)
                 self._plans[sender] = _MessagePlan(
                     message.name, address, chambers, tuple(named), tuple(constants)
@@ -222,6 +240,10 @@ class FrameBuilder:
         """The DBC message of ``sender`` and the J1939 source address it sends from."""
         plan = self._plans[sender]
         return plan.message, plan.source_address
+
+    def has_crc(self, sender: str) -> bool:
+        """``sender``'s message carries a CRC (what ``--bad-crc`` can corrupt)."""
+        return self._plans[sender].message in self._with_crc
 
     def signals(
         self,

@@ -59,7 +59,7 @@ class ModelParams:
     #: Over SB2 at the start of the cycle.
     carriage_start_m: float = 4.5
     #: Over SB1 after the carriage move (t = 7 s): SB1 carries ~64 % with six feet down;
-    #: back here at the end of the step (t = 44.5 s), SB1 carries ~62 %.
+    #: back here at the end of the step (t = 44.7 s), SB1 carries ~62 %.
     carriage_over_sb1_m: float = 1.5
     #: Counterweight position behind SB1's axis, reached while SB2 is lifted
     #: (t = 8..12 s), so that the centre of gravity lies over SB1's feet.
@@ -110,7 +110,7 @@ class ModelParams:
     lift_inclination_deg: float = 3.0
     #: SB2's feet press this far into their springs when set down at the end of the step,
     #: so they carry load from t = 44 s on, before the carriage has come back over SB1.
-    set_down_preload_m: float = 2.0e-3
+    set_down_preload_m: float = 3.0e-3
     #: Leg strokes: extended (standing) and retracted (folded up in the air).
     stroke_extended_m: float = 1.0
     stroke_retracted_m: float = 0.3

@@ -95,18 +95,20 @@ class Playout:
                 message, self.result, position.row, position.cycle, overrides
             )
             dbc_message, source_address = self._builder.target(message)
+            # a message without a CRC has none to corrupt: sent as it is, not counted
+            corrupt_crc = fate.corrupt_crc and self._builder.has_crc(message)
             frame = self._encoder.encode(
                 dbc_message,
                 signals,
                 counter=counter,
-                corrupt_crc=fate.corrupt_crc,
+                corrupt_crc=corrupt_crc,
                 source_address=source_address,
             )
             counts.built[message] += 1
             if not fate.send:
                 counts.dropped[message] += 1
                 continue
-            if fate.corrupt_crc:
+            if corrupt_crc:
                 counts.bad_crc[message] += 1
             outgoing.append(OutgoingFrame(message, frame))
         return position, outgoing

@@ -111,7 +111,11 @@ def _shade_phases(axes: Axes, result: SimulationResult) -> None:
 
 def _label_phases(axes: Axes, result: SimulationResult) -> None:
     transform = axes.get_xaxis_transform()
-    for start_s, end_s, phase in phase_spans(result):
+    spans = phase_spans(result)
+    width_s = spans[-1][1] - spans[0][0]
+    for start_s, end_s, phase in spans:
+        if end_s - start_s < 0.04 * width_s:  # too narrow to name
+            continue
         name = PHASES[phase] if 0 <= phase < len(PHASES) else str(phase)
         axes.text(
             (start_s + end_s) / 2, 1.01, name, transform=transform, ha="center", fontsize="x-small"

@@ -2,6 +2,10 @@
 
 from pathlib import Path
 
+from daq.can_batch import recorded_frames
+from daq.frames import RawFrame
+from daq.mcap_file import RAW_TOPIC
+from daq.mcap_reading import RecordedMessage, RecordingStream
 from dbc.machine import load_machine_config
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -13,3 +17,14 @@ LEGS = ("SB1_F1", "SB1_F2", "SB1_F3", "SB2_F1", "SB2_F2", "SB2_F3")
 def example_machine():  # type: ignore[no-untyped-def]
     """(MachineConfig, cantools Database) of deploy/machine.example.toml."""
     return load_machine_config(EXAMPLE_CONFIG)
+
+
+def recorded_raw_frames(path: Path) -> list[RawFrame]:
+    """Every frame on ``/can/raw`` of an MCAP recording (batches or JSON), in file order."""
+    with open(path, "rb") as file:
+        return [
+            frame
+            for record in RecordingStream(file)
+            if isinstance(record, RecordedMessage) and record.topic == RAW_TOPIC
+            for frame in recorded_frames(record.encoding, record.data)
+        ]

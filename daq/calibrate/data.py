@@ -74,7 +74,11 @@ def read_instants(paths: Sequence[Path], machine: Machine) -> Instants:
         rows = list(run_estimates([path], machine))
         if not rows:
             raise RecordingError(path, "no leg estimates: no /can/raw leg frames to replay")
-        stale_s = 3.0 * PERIOD_S
+        config = machine[0]
+        # A leg is stale as in the service: after stale_after_cycles of its cycle times.
+        stale_s = config.estimator.stale_after_cycles * max(
+            leg.cycle_time_s for leg in config.legs.values()
+        )
         snaps = snapshots(rows, legs, PERIOD_S, stale_s)
         still = _still(path, snaps.t_s)
         keep = quasi_static(snaps, WINDOW, MAX_CHANGE_N) & still

@@ -189,10 +189,12 @@ def pressure_bar(pressure_Pa: float | None, limit_Pa: float, cells: int = BAR_CE
 
 
 def plain_line(viewer: ViewerConfig, state: LiveState, now_s: float, wall_s: float) -> str:
-    """One line for ``--plain``: local time, status, then every leg.
+    """One line for ``--plain``: local time, status, the weight check, then every leg with
+    its soil metrics (peak pressure, time above the limit), as the full screen has them.
 
-    E.g. ``12:00:01 bus up 600 frames/s 0 bad 0 dropped | SB1_F1 61.2 kN 185.5 kPa
-    ground ok | ...`` (one line).
+    E.g. ``12:00:01 bus up 600 frames/s 0 bad 0 dropped | weight 184.1 of 184.4 kN
+    residual -0.3 kN 6 in contact complete | SB1_F1 61.2 kN 185.5 kPa ground ok peak
+    312.3 kPa above 4.2 s | ...`` (one line).
     """
     parts = [time.strftime("%H:%M:%S", time.localtime(wall_s))]
     status = state.status
@@ -206,15 +208,22 @@ def plain_line(viewer: ViewerConfig, state: LiveState, now_s: float, wall_s: flo
             f"{stale}bus {s.bus_state} {_number(s.frames_per_s, 0)} frames/s "
             f"{s.frames_bad} bad {s.dropped} dropped"
         )
-    ground = state.ground
-    if ground is None:
+    received = state.ground
+    if received is None:
         return " ".join(parts) + f" | waiting for {viewer.key(GROUND)}"
     line = " ".join(parts)
-    age_s = ground.age_s(now_s)
+    age_s = received.age_s(now_s)
     if age_s > viewer.ground_stale_s:
         line += f" | STALE ground {age_s:.1f} s"
+    ground = received.value
+    line += (
+        f" | weight {_kN(ground.total_force_N)} of {_kN(ground.weight_N)} kN residual "
+        f"{_kN(ground.residual_N, signed=True)} kN {_number(ground.legs_in_contact, 0)} in "
+        f"contact {'complete' if ground.complete else 'incomplete'}"
+    )
+    metrics = state.metrics.value.legs if state.metrics is not None else {}
     for leg in leg_names(viewer, state):
-        reading = ground.value.legs.get(leg)
+        reading = ground.legs.get(leg)
         if reading is None:
             line += f" | {leg} -"
             continue
@@ -222,7 +231,13 @@ def plain_line(viewer: ViewerConfig, state: LiveState, now_s: float, wall_s: flo
             f" | {leg} {_kN(reading.force_N)} kN {_kPa(reading.pressure_Pa)} kPa "
             f"{'ground' if reading.contact else 'air'} {_validity(reading).replace(' ', ':')}"
         )
-    margin = ground.value.stability
+        leg_metrics = metrics.get(leg)
+        if leg_metrics is not None:
+            line += (
+                f" peak {_kPa(leg_metrics.peak_pressure_Pa)} kPa above "
+                f"{_number(leg_metrics.time_above_limit_s, 1)} s"
+            )
+    margin = ground.stability
     if viewer.warning_margin_m is not None:
         if margin is None:
             line += " | margin -"

@@ -306,7 +306,7 @@ def deviation_boxplot_figure(content: ReportContent) -> Figure:
     axes.legend(loc="upper right", fontsize="small")
     figure.suptitle(
         f"{content.recording.machine_id}: deviation of the calculated from the true ground "
-        "force per foot\n(black: on the ground, compared with the paper's bounds, grey lines "
-        "±1 and ±3.6 kN; grey boxes: lifted legs; box: quartiles, whiskers: 1.5 IQR)"
+        "force per foot\n(black: on the ground, against the paper's bounds ±1 and ±3.6 kN; "
+        "grey: lifted; box: quartiles, whiskers: 1.5 IQR)"
     )
     return figure

@@ -14,7 +14,10 @@ The machine configuration comes from ``config_path`` when given, else from the f
 file's embedded attachments; without either, the report still draws what was recorded (with
 the estimator's default settings). A recording without leg estimates but with
 ``/can/raw`` is replayed through :mod:`daq.replay`'s pipeline, which gives the
-estimates the live service would have recorded, bit for bit.
+estimates the live service would have recorded, bit for bit. So is a recording whose
+``/can/raw`` holds batches (:mod:`daq.can_batch`): they store the frames only, and the
+signals (machine state, message counts) and bad frames come from the replay, unless
+signals were recorded (``[recording] signals = true``).
 """
 
 import logging
@@ -25,11 +28,13 @@ from typing import IO
 
 from mcap.writer import MCAP0_MAGIC
 
+from daq.can_batch import ENCODING as BATCH_ENCODING
+from daq.can_batch import recorded_frames
 from daq.errors import RecordingError
+from daq.mcap_file import RAW_TOPIC
 from daq.mcap_reading import RecordedAttachment, RecordedMessage, RecordingStream
-from daq.payloads import leg_ground
 from daq.recording_run import expand, run_files
-from daq.replay import Machine, embedded_machine, run_estimates
+from daq.replay import Machine, embedded_machine, run_results
 from daq.report.tracks import Recording, RecordingCollector
 from dbc.errors import ConfigError, DbcError
 from dbc.machine import MachineConfig, load_machine_config
@@ -85,13 +90,24 @@ def load_recording(paths: Path | Sequence[Path], config_path: Path | None = None
     collector = RecordingCollector()
     attachments: dict[str, bytes] = {}
     complete = True
+    batches = False
     for path in files:
         with _open(path) as stream:
             reader = RecordingStream(stream, str(path))
             for record in reader:
                 if isinstance(record, RecordedAttachment):
                     attachments.setdefault(record.name, record.data)  # the first file's
-                elif isinstance(record, RecordedMessage):
+                elif not isinstance(record, RecordedMessage):
+                    continue
+                elif record.topic == RAW_TOPIC and record.encoding == BATCH_ENCODING:
+                    batches = True
+                    try:
+                        collector.add_frames(recorded_frames(record.encoding, record.data))
+                    except ValueError as exc:
+                        raise RecordingError(
+                            path, f"a {RAW_TOPIC} batch is unreadable: {exc}"
+                        ) from exc
+                else:
                     collector.add(record.topic, record.data)
         complete = complete and reader.complete
     if collector.frames == 0 and not collector.has_estimates:
@@ -106,16 +122,15 @@ def load_recording(paths: Path | Sequence[Path], config_path: Path | None = None
             machine = embedded_machine(attachments, first)
         except (ConfigError, DbcError) as exc:
             logger.warning("the configuration embedded in %s is unusable: %s", first, exc)
-    recomputed = False
-    if not collector.has_estimates and collector.frames:
+    recomputed = not collector.has_estimates and collector.frames > 0
+    derive_signals = batches and not collector.has_signals
+    if recomputed or batches:
         if machine is None:
-            raise ConfigError(
-                first, "", "no leg estimates recorded; recomputing them needs --config"
-            )
-        logger.info("%s has no leg estimates: recomputing them from /can/raw", first)
-        for estimate in run_estimates(files, machine):
-            collector.add_estimate(leg_ground(estimate))
-        recomputed = True
+            what = "leg estimates recorded; recomputing" if recomputed else "signals; deriving"
+            raise ConfigError(first, "", f"no {what} them needs --config")
+        logger.info("%s: deriving what was not recorded from /can/raw", first)
+        for result in run_results(files, machine):
+            collector.derive(result, bad=batches, signals=derive_signals, estimates=recomputed)
     config: MachineConfig | None = machine[0] if machine is not None else None
     machine_id = config.machine_id if config else machine_id_from_name(first) or first.stem
     name = (

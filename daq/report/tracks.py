@@ -1,8 +1,11 @@
 """What a report needs from one recording, as arrays: legs, machine state, truth, counts.
 
 Pure: :class:`RecordingCollector` takes the recording's messages one by one (topic and
-JSON payload, as :mod:`daq.mcap_file` wrote them) and builds a :class:`Recording`.
-Opening the file is :mod:`daq.report.loading`'s job.
+JSON payload, as :mod:`daq.mcap_file` wrote them; raw frames as :class:`RawFrame` s), and
+what a replay of the raw frames derives (:meth:`RecordingCollector.derive`: signals and
+bad frames, which a recording of batches does not store, and estimates when none were
+recorded), and builds a :class:`Recording`. Opening the file is
+:mod:`daq.report.loading`'s job.
 
 All times are frame times, Unix seconds (``t_s``). A recorded ``null`` (NaN) stays NaN.
 """
@@ -16,7 +19,11 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from daq.frames import RawFrame
 from daq.mcap_file import BUS_TOPIC, RAW_TOPIC, RECORDING_TOPIC, TRUTH_TOPIC
+from daq.payloads import leg_ground
+from daq.payloads import signals as signals_payload
+from daq.pipeline import FrameResult
 from dbc.machine import MachineConfig
 from dbc.protection import COUNTER_JUMP, CRC_FAULT
 
@@ -248,6 +255,10 @@ class RecordingCollector:
         return bool(self._legs)
 
     @property
+    def has_signals(self) -> bool:
+        return bool(self._messages)
+
+    @property
     def frames(self) -> int:
         return self._frames
 
@@ -255,27 +266,35 @@ class RecordingCollector:
     def truth_samples(self) -> int:
         return len(self._truth)
 
+    def add_frames(self, frames: Iterable[RawFrame]) -> None:
+        """Raw frames of a ``/can/raw`` batch (what they decode to comes from :meth:`derive`)."""
+        for frame in frames:
+            self._frames += 1
+            self._seen(frame.t_s)
+
+    def derive(self, result: FrameResult, *, bad: bool, signals: bool, estimates: bool) -> None:
+        """What a replay of one raw frame gave, as far as the recording lacks it: the kind
+        of a bad frame (``bad``), the decoded signals with their CRC and counter checks
+        (``signals``), the leg estimates (``estimates``)."""
+        if bad and result.error is not None:
+            self._bad[result.error.kind] += 1
+        if signals and result.decoded is not None:
+            self._add_signals(result.decoded.message, signals_payload(result.decoded))
+        if estimates:
+            for estimate in result.estimates:
+                self.add_estimate(leg_ground(estimate))
+
     def add(self, topic: str, data: bytes) -> None:
-        """One recorded message (its JSON bytes); topics a report does not use are skipped."""
-        if topic == RAW_TOPIC:
+        """One recorded JSON message; topics a report does not use are skipped (and
+        ``/can/raw`` batches go to :meth:`add_frames`)."""
+        if topic == RAW_TOPIC:  # a recording made before batches: one JSON frame
             raw = json.loads(data)
             self._frames += 1
             self._seen(raw["t"])
             if raw.get("error") is not None:
                 self._bad[raw["error"]] += 1
         elif topic.startswith(SIGNALS_PREFIX):
-            signals = json.loads(data)
-            self._messages[topic.removeprefix(SIGNALS_PREFIX)] += 1
-            if "faults" in signals:
-                self._bad.update(str(fault) for fault in signals["faults"])
-                self._frames_lost += int(signals.get("frames_lost", 0))
-            elif not signals.get("crc_ok", True):  # recordings before the faults list
-                self._bad[CRC_FAULT] += 1
-            elif not signals.get("counter_ok", True):
-                self._bad[COUNTER_JUMP] += 1
-            state = StateTrack.row(signals) if topic == STATE_TOPIC else None
-            if state is not None:
-                self._state.append(state)
+            self._add_signals(topic.removeprefix(SIGNALS_PREFIX), json.loads(data))
         elif topic.startswith(LEG_PREFIX) and topic.endswith(LEG_SUFFIX):
             self.add_estimate(json.loads(data))
         elif topic == TRUTH_TOPIC:
@@ -288,6 +307,19 @@ class RecordingCollector:
         elif topic == RECORDING_TOPIC:
             lost_s = _number(json.loads(data).get("lost_s"))
             self._gaps.append(lost_s if lost_s == lost_s else 0.0)
+
+    def _add_signals(self, message: str, payload: Mapping[str, Any]) -> None:
+        self._messages[message] += 1
+        if "faults" in payload:
+            self._bad.update(str(fault) for fault in payload["faults"])
+            self._frames_lost += int(payload.get("frames_lost", 0))
+        elif not payload.get("crc_ok", True):  # recordings before the faults list
+            self._bad[CRC_FAULT] += 1
+        elif not payload.get("counter_ok", True):
+            self._bad[COUNTER_JUMP] += 1
+        state = StateTrack.row(payload) if SIGNALS_PREFIX + message == STATE_TOPIC else None
+        if state is not None:
+            self._state.append(state)
 
     def add_estimate(self, payload: dict[str, Any]) -> None:
         """One leg estimate in the shape of :func:`daq.payloads.leg_ground`."""

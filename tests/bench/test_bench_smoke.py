@@ -12,17 +12,19 @@ import pytest
 from bench.report import markdown_table
 from bench.run import main, run_benchmark
 
-MODES = ("throughput", "paced")
+MODES = ("throughput", "paced", "paced_hog", "nominal")
 LATENCY_KEYS = {"count", "median", "p90", "p99", "p99_9", "mean", "max"}
 
 
 @pytest.fixture(scope="module")
 def results() -> dict:
-    return run_benchmark(throughput_frames=300, paced_s=0.05, rate_hz=2000.0, warmup=50, pin=False)
+    return run_benchmark(
+        throughput_frames=300, paced_s=0.05, nominal_s=0.05, rate_hz=2000.0, warmup=50, pin=False
+    )
 
 
 def test_every_system_and_mode_is_reported(results: dict) -> None:
-    for system in ("pipeline", "pipeline_tuned", "baseline"):
+    for system in ("pipeline", "pipeline_threads", "pipeline_tuned", "baseline"):
         for mode in MODES:
             r = results[system][mode]
             assert r["mode"] == mode
@@ -31,28 +33,31 @@ def test_every_system_and_mode_is_reported(results: dict) -> None:
             assert r["leg_estimates_received"] == r["leg_estimates_expected"] > 0
             assert set(r["latency_ms"]) == LATENCY_KEYS
             assert r["latency_ms"]["count"] == r["leg_estimates_received"]
-            assert r["cpu_us_per_frame"]["total"] > 0
+            assert r["cpu_us_per_frame"]["total"] > 0 and r["service_cpu_pct"] >= 0
         assert set(results[system]["paced"]["latency_from_due_ms"]) == LATENCY_KEYS
+    assert results["pipeline"]["nominal"]["frames"] == round(0.05 * 1010.0)  # the DBC's rate
 
 
 def test_the_service_checked_and_recorded_everything(results: dict) -> None:
-    for system in ("pipeline", "pipeline_tuned"):
+    for system in ("pipeline", "pipeline_threads", "pipeline_tuned"):
         counters = results[system]["counters"]
         assert counters["bad"] == {}  # every simulated frame passes its CRC and counter
         assert not any(counters["dropped"].values())
-        assert counters["frames_processed"] == 50 + 300 + 100
+        frames = 50 + 300 + 2 * 100 + 50  # warm-up, throughput, paced twice, nominal
+        assert counters["frames_processed"] == frames
         recording = results[system]["recording"]
         assert recording["files"] == 1 and recording["bytes"] > 0
         offered = results[system]["offered"]
-        assert offered["frames"] == 450
-        assert recording["messages"]["can"] == recording["messages"]["signals"] == 450
+        assert offered["frames"] == frames
+        assert recording["raw_frames"] == frames
+        assert recording["messages"]["can"] < frames  # batches
         assert recording["messages"]["leg"] == offered["leg_frames"]
-    # As deployed: the config's default chunks and the CLI's switch interval; the
-    # comparison variant: the earlier defaults.
-    assert results["pipeline"]["chunk_size"] == 128 * 1024
-    assert results["pipeline"]["switch_interval_s"] == 0.001
-    assert results["pipeline_tuned"]["chunk_size"] == 1024 * 1024
-    assert results["pipeline_tuned"]["switch_interval_s"] == 0.005
+    # As deployed: signals neither recorded nor published with every frame; the
+    # comparison variant: the earlier defaults, every frame's signals.
+    assert "signals" not in results["pipeline"]["recording"]["messages"]
+    assert results["pipeline_tuned"]["recording"]["messages"]["signals"] == frames
+    assert results["pipeline"]["settings"] == {}
+    assert results["pipeline_threads"]["settings"] == {"service": "event_loop = false"}
 
 
 def test_machine_setup_ratio_and_targets(results: dict) -> None:
@@ -61,12 +66,18 @@ def test_machine_setup_ratio_and_targets(results: dict) -> None:
     assert results["setup"]["pinned_cpu"] is None  # pin=False
     assert results["setup"]["frame_mix"]["LEG_SB1_F1"] > 0
     assert results["ratio_frames_per_s"] > 0 and results["ratio_frames_per_s_tuned"] > 0
-    assert set(results["targets_tuned"]) == set(results["targets"])
+    assert results["ratio_cpu_per_frame"] > 0
+    assert set(results["targets_tuned"]) == set(results["targets_threads"])
+    assert set(results["targets_threads"]) == set(results["targets"])
     assert set(results["targets"]) == {
-        "keeps_up_with_saturated_bus",
-        "p99_latency_under_2ms_at_rate",
-        "at_least_5x_baseline",
+        "frames_per_s_at_least_baseline",
+        "cpu_per_frame_at_most_baseline",
+        "nothing_lost",
+        "paced_p99_under_1ms",
+        "paced_with_cpu_hog_p99_under_1ms",
+        "nominal_rate_cpu_at_most_2pct",
     }
+    assert results["targets"]["nothing_lost"] is True
     assert all(isinstance(met, bool) for met in results["targets"].values())
     json.dumps(results)  # what bench/results.json holds
 
@@ -74,15 +85,16 @@ def test_machine_setup_ratio_and_targets(results: dict) -> None:
 def test_markdown_table_has_a_row_per_system_and_mode(results: dict) -> None:
     table = markdown_table(results)
     rows = [line for line in table.splitlines() if line.startswith("| ") and "---" not in line]
-    assert len(rows) == 1 + 3 * len(MODES)
-    assert "Machine: " in table and "x the baseline's frames/s" in table
+    assert len(rows) == 1 + 4 * len(MODES)
+    assert "Machine: " in table and "x the baseline's frames/s" in table and "load average" in table
 
 
 def test_command_line_writes_the_results_file(tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]
     out = tmp_path / "results.json"
     argv = ["--throughput-frames", "100", "--paced-s", "0.02", "--rate", "2000", "--warmup", "20"]
+    argv += ["--nominal-s", "0.02"]
     assert main([*argv, "--no-pin", "--no-tuned", "--out", str(out)]) == 0
     written = json.loads(out.read_text())
-    assert "pipeline_tuned" not in written
+    assert "pipeline_tuned" not in written and "pipeline_threads" not in written
     assert written["pipeline"]["paced"]["frames"] == 40
-    assert "| service pipeline |" in capsys.readouterr().out
+    assert "| service (as deployed) |" in capsys.readouterr().out

@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import errno
+import logging
 import queue
+import threading
 import time
 import uuid
 from collections import deque
@@ -16,6 +18,7 @@ from daq.bus_reader import BusReader, FrameSource, PythonCanSource, bus_error
 from daq.frames import BusEvent, RawFrame
 from daq.runner import bus_factory, kernel_filters
 from daq.service_config import BusSettings
+from dbc.decoding import ReceiveFilter
 
 WAIT_S = 10.0
 
@@ -185,6 +188,33 @@ def test_kernel_drops_are_counted_and_queued_where_they_happened() -> None:
     assert reader.kernel_dropped == 7 and reader.rcvbuf_bytes == 4096
 
 
+def test_a_missing_socketcan_interface_is_logged_once_per_state_change(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    """The retries of a bus that stays absent log nothing more: one WARNING at the change
+    (python-can's socketcan backend logged its own ERROR on every retry; the service's own
+    socket logs none)."""
+    settings = BusSettings(interface="socketcan", channel="nosuchcan9")
+    open_socketcan = bus_factory(settings, [])
+    attempts: list[int] = []
+    retried = threading.Event()
+
+    def open_bus() -> FrameSource:
+        attempts.append(1)
+        if len(attempts) >= 4:
+            retried.set()
+        return open_socketcan()
+
+    inbox: queue.Queue[RawFrame | BusEvent] = queue.Queue()
+    with caplog.at_level(logging.DEBUG), BusReader(open_bus, inbox, channel="nosuchcan9"):
+        assert drain(inbox, 1) == [("absent", False)]
+        assert retried.wait(WAIT_S)
+    lines = [r for r in caplog.records if r.levelno >= logging.WARNING]
+    assert len(lines) == 1 and lines[0].name == "daq.bus_reader", lines
+    assert "nosuchcan9: absent" in lines[0].getMessage()
+    assert not [r for r in caplog.records if r.name.startswith("can.")]
+
+
 def test_bus_errors_carry_a_hint() -> None:
     error = bus_error("can0", can.CanOperationError("Failed", errno.ENETDOWN))
     assert "ip link set can0 up" in str(error) and error.channel == "can0"
@@ -193,9 +223,10 @@ def test_bus_errors_carry_a_hint() -> None:
 
 
 def test_kernel_filters_pass_exactly_the_dbc_ids() -> None:
-    assert kernel_filters([(0x100, False), (0x18FEF100, True)]) == [
+    filters = [ReceiveFilter(0x100, 0x7FF, False), ReceiveFilter(0xFF2000, 0x3FFFF00, True)]
+    assert kernel_filters(filters) == [
         {"can_id": 0x100, "can_mask": 0x7FF, "extended": False},
-        {"can_id": 0x18FEF100, "can_mask": 0x1FFFFFFF, "extended": True},
+        {"can_id": 0xFF2000, "can_mask": 0x3FFFF00, "extended": True},
     ]
 
 
@@ -203,7 +234,7 @@ def test_kernel_filters_pass_exactly_the_dbc_ids() -> None:
 def test_bus_factory_filters_only_when_asked(filtered: bool) -> None:
     channel = f"test-{uuid.uuid4().hex}"
     settings = BusSettings(interface="virtual", channel=channel, kernel_filters=filtered)
-    source = bus_factory(settings, [(0x100, False)])()
+    source = bus_factory(settings, [ReceiveFilter(0x100, 0x7FF, False)])()
     try:
         with can.Bus(interface="virtual", channel=channel) as sender:
             sender.send(message(0x7AB))

@@ -205,7 +205,17 @@ def test_unknown_legs_are_shown_after_the_configured_ones() -> None:
 def test_plain_line() -> None:
     wall_s = time.mktime((2025, 5, 1, 12, 0, 1, 0, 0, -1))
     line = plain_line(VIEWER, state_at(received_s=100.0), now_s=100.5, wall_s=wall_s)
-    assert line.startswith("12:00:01 bus up 600 frames/s 3 bad 1 dropped | SB1_F1 82.5 kN 250.0 ")
+    assert line.startswith("12:00:01 bus up 600 frames/s 3 bad 1 dropped | weight ")
+    # the weight check, and per leg the soil metrics, as the full screen shows them
+    ground = state_at().ground
+    assert ground is not None
+    g = ground.value
+    assert (
+        f"| weight {g.total_force_N / 1e3:.1f} of {g.weight_N / 1e3:.1f} kN residual "
+        f"{g.residual_N / 1e3:+.1f} kN {g.legs_in_contact} in contact "
+        f"{'complete' if g.complete else 'incomplete'} | SB1_F1 82.5 kN 250.0 kPa" in line
+    )
+    assert "| SB1_F1 82.5 kN 250.0 kPa ground ok peak 312.3 kPa above 4.2 s |" in line
     assert "| SB2_F1 0.0 kN 0.0 kPa air ok |" in line
     assert line.endswith("| SB2_F3 - kN - kPa air INVALID:stale")
     assert "\n" not in line

@@ -9,9 +9,10 @@ from pathlib import Path
 import pytest
 from mcap.reader import NonSeekingReader, make_reader
 
+from daq.can_batch import recorded_frames
 from daq.errors import RecordingError
 from daq.frames import BusEvent, RawFrame
-from daq.mcap_file import CountingFile, McapFile
+from daq.mcap_file import CountingFile, McapFile, RecordBatch
 from daq.mcap_reading import RecordedMessage, RecordingStream
 from daq.pipeline import Pipeline
 from daq.recorder import Recorder, file_name
@@ -19,7 +20,7 @@ from daq.recording_run import read_run_file, run_files
 from daq.service_config import RecordingSettings
 from dbc.encoding import FrameEncoder
 from tests.daq.service_support import leg_signals
-from tests.helpers import example_machine
+from tests.helpers import example_machine, recorded_raw_frames
 
 
 def results(count: int, t0: float = 1000.0, dt: float = 0.01):  # type: ignore[no-untyped-def]
@@ -32,12 +33,7 @@ def results(count: int, t0: float = 1000.0, dt: float = 0.01):  # type: ignore[n
 
 
 def raw_times(path: Path) -> list[float]:
-    with open(path, "rb") as file:
-        return [
-            json.loads(record.data)["t"]
-            for record in RecordingStream(file)
-            if isinstance(record, RecordedMessage) and record.topic == "/can/raw"
-        ]
+    return [frame.t_s for frame in recorded_raw_frames(path)]
 
 
 def wait_drained(recorder: Recorder) -> None:
@@ -52,7 +48,7 @@ def test_rotation_by_size_keeps_every_message_in_order(tmp_path: Path) -> None:
     clock = iter(range(10**6))
     with Recorder(settings, database, machine_id="m", now=lambda: float(next(clock))) as recorder:
         for result in results(400):
-            recorder.submit(result)
+            recorder.submit(RecordBatch.of([result], signals=True))
         wait_drained(recorder)
     assert len(recorder.paths) > 2 and recorder.dropped == 0 and recorder.errors == 0
     assert sorted(recorder.paths) == recorder.paths  # names sort by start time
@@ -69,11 +65,27 @@ def test_rotation_by_frame_time(tmp_path: Path) -> None:
     settings = RecordingSettings(directory=tmp_path, max_duration_s=1.0)
     with Recorder(settings, database, machine_id="m") as recorder:
         for result in results(35, dt=0.1):  # 3.4 s of frames
-            recorder.submit(result)
+            recorder.submit(RecordBatch.of([result], signals=True))
         recorder.submit(BusEvent(2000.0, "down", "test"))
         wait_drained(recorder)
     assert len(recorder.paths) == 4
     assert [len(raw_times(path)) for path in recorder.paths] == [10, 10, 10, 5]
+
+
+def test_one_batch_spanning_several_files_is_split_by_frame_time(tmp_path: Path) -> None:
+    _, database = example_machine()
+    settings = RecordingSettings(directory=tmp_path, max_duration_s=1.0)
+    with Recorder(settings, database, machine_id="m") as recorder:
+        recorder.submit(RecordBatch.of(results(35, dt=0.1), signals=True))  # 3.4 s at once
+        wait_drained(recorder)
+    assert [len(raw_times(path)) for path in recorder.paths] == [10, 10, 10, 5]
+    with open(recorder.paths[1], "rb") as file:
+        leg_times = [
+            json.loads(r.data)["t"]
+            for r in RecordingStream(file)
+            if isinstance(r, RecordedMessage) and r.topic.startswith("/leg/")
+        ]
+    assert leg_times == raw_times(recorder.paths[1])  # the estimates went with their frames
 
 
 def record_run(directory: Path, run_id: str, t0: float) -> list[Path]:
@@ -81,7 +93,7 @@ def record_run(directory: Path, run_id: str, t0: float) -> list[Path]:
     settings = RecordingSettings(directory=directory, max_duration_s=1.0)
     with Recorder(settings, database, machine_id="m", run_id=run_id) as recorder:
         for result in results(35, t0=t0, dt=0.1):
-            recorder.submit(result)
+            recorder.submit(RecordBatch.of([result], signals=True))
         wait_drained(recorder)
     return recorder.paths
 
@@ -135,9 +147,10 @@ def test_a_file_cut_short_reads_back_to_its_last_complete_chunk(tmp_path: Path) 
                 stream_reader = RecordingStream(file)
                 records = list(stream_reader)
             times = [
-                json.loads(r.data)["t"]
+                frame.t_s
                 for r in records
                 if isinstance(r, RecordedMessage) and r.topic == "/can/raw"
+                for frame in recorded_frames(r.encoding, r.data)
             ]
             assert times[:frames] == [1000.0 + 0.01 * i for i in range(frames)]
             assert not stream_reader.complete and stream_reader.stopped_by

@@ -23,7 +23,8 @@ def test_example_loads_with_documented_values() -> None:
     assert config.zenoh.key_prefix == "portal/pam-proto-1"
     assert config.zenoh.config_file == EXAMPLE.parent / "zenoh.json5"
     assert config.publish.ground_rate_hz == 10.0 and config.publish.signals is True
-    assert config.recording.compression == "zstd"
+    assert config.recording.compression == "zstd" and config.recording.signals is False
+    assert config.service.event_loop is True and config.publish.signals_max_rate_hz == 10.0
     assert config.recording.directory == Path("/var/lib/portal-daq/recordings")
     zenoh_config(config.zenoh)  # the JSON5 file is valid for Zenoh
 
@@ -70,6 +71,11 @@ def refused(tmp_path: Path, text: str) -> ConfigError:
         ("[recording]\nmax_bytes = 100", "recording.max_bytes", ">= chunk_size"),
         ('[recording]\nmax_duration_s = "1h"', "recording.max_duration_s", "must be a number"),
         ("[recordings]\nx = 1", "recordings", "unknown key"),
+        ('[service]\nevent_loop = "yes"', "service.event_loop", "true or false"),
+        ("[service]\nthreads = 4", "service.threads", "unknown key"),
+        ("[publish]\nsignals_max_rate_hz = -1", "publish.signals_max_rate_hz", ">= 0"),
+        ('[publish]\nsignals_max_rate_hz = "10 Hz"', "publish.signals_max_rate_hz", "a number"),
+        ("[recording]\nsignals = 1", "recording.signals", "true or false"),
     ],
 )
 def test_wrong_service_table_is_refused_naming_the_key(
@@ -78,6 +84,21 @@ def test_wrong_service_table_is_refused_naming_the_key(
     error = refused(tmp_path, text)
     assert error.key == key
     assert reason in str(error)
+
+
+def test_performance_keys_default_and_set(tmp_path: Path) -> None:
+    defaults = load_service_config(MACHINE_ONLY)
+    assert defaults.service.event_loop is True
+    assert defaults.publish.signals_max_rate_hz == 10.0 and defaults.recording.signals is False
+    path = tmp_path / "portal-daq.toml"
+    text = (
+        "[service]\nevent_loop = false\n[publish]\nsignals_max_rate_hz = 0\n"
+        "[recording]\nsignals = true\n"
+    )
+    path.write_text(text + MACHINE_ONLY.read_text())
+    config = load_service_config(path)
+    assert config.service.event_loop is False
+    assert config.publish.signals_max_rate_hz == 0.0 and config.recording.signals is True
 
 
 def test_receive_buffer_size_is_read(tmp_path: Path) -> None:

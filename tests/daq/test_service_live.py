@@ -5,6 +5,8 @@ from __future__ import annotations
 import io
 import json
 import queue
+import subprocess
+import sys
 import time
 import uuid
 from collections.abc import Iterator
@@ -16,10 +18,13 @@ import pytest
 import zenoh
 from mcap.reader import make_reader
 
+from daq import can_batch
 from daq.bus_reader import BusReader, PythonCanSource
 from daq.frames import BusEvent, RawFrame
+from daq.payloads import json_bytes, leg_ground
+from daq.pipeline import Pipeline
 from daq.recorder import Recorder
-from daq.replay import replay
+from daq.replay import replay, results
 from daq.report.loading import load_recording
 from daq.runner import bus_factory, recording_attachments
 from daq.service import Service
@@ -40,7 +45,7 @@ from tests.daq.service_support import (
     subscriber_session,
     write_service_config,
 )
-from tests.helpers import LEGS
+from tests.helpers import LEGS, recorded_raw_frames
 
 FRAMES_PER_LEG = 25
 
@@ -57,7 +62,7 @@ def config(tmp_path: Path) -> ServiceConfig:
 def live_service(config: ServiceConfig) -> Iterator[Service]:
     """The service on a virtual bus, with a real Zenoh session and recorder, running
     (:meth:`Service.run`) in a thread as it does in the main thread of the process."""
-    frame_ids = FrameDecoder(config.database, config.machine.protection).frame_ids
+    filters = FrameDecoder(config.database, config.machine.protection).receive_filters
     recorder = Recorder(
         config.recording,
         config.database,
@@ -67,7 +72,7 @@ def live_service(config: ServiceConfig) -> Iterator[Service]:
     with zenoh.open(zenoh_config(config.zenoh)) as session:
         service = Service(
             config,
-            open_bus=bus_factory(config.bus, frame_ids),
+            open_bus=bus_factory(config.bus, filters),
             session=session,
             recorder=recorder,
         )
@@ -100,11 +105,13 @@ def encoder_for(config: ServiceConfig) -> FrameEncoder:
 
 
 def recorded(path: Path) -> list[tuple[str, dict]]:
+    """The JSON messages of a recording (``/can/raw`` batches: :func:`recorded_raw_frames`)."""
     with open(path, "rb") as file:
         reader = make_reader(file)
         return [
             (channel.topic, json.loads(message.data))
             for _, channel, message in reader.iter_messages(log_time_order=False)
+            if channel.message_encoding == "json"
         ]
 
 
@@ -124,8 +131,12 @@ def test_published_estimates_match_equation_4_and_running_median(config: Service
             assert_estimates_match(config.machine, leg, sent, collector.of(key))
         encodings = {encoding for key, _, encoding in collector.samples}
         assert encodings == {"application/json"}
+        # 25 frames 10 ms apart, signals at most 10 Hz by default: frames 0, 10, 20
+        # (or 11 and 21, as frame times round)
         signals = collector.of(f"{prefix}/signals/LEG_SB1_F1")
-        assert len(signals) == FRAMES_PER_LEG and signals[0]["crc_ok"] is True
+        assert len(signals) == 3 and signals[0]["crc_ok"] is True
+        times = [s["t"] for s in signals]
+        assert all(0.1 <= b - a < 0.12 for a, b in zip(times, times[1:], strict=False))
 
         ground = collector.wait_for(
             f"{prefix}/ground", lambda p: p["legs"]["SB2_F3"]["force_N"] is not None
@@ -193,19 +204,24 @@ def test_bad_frames_are_counted_and_recorded_raw(config: ServiceConfig) -> None:
         leg = collector.of(f"{prefix}/leg/SB1_F1/ground")
         assert [m["reasons"] for m in leg] == [[], ["crc"], [], ["counter"]]
         path = service.recorder.paths[0]  # type: ignore[union-attr]
-    raw = [payload for topic, payload in recorded(path) if topic == "/can/raw"]
-    assert [(r["id"], r["error"]) for r in raw] == [
-        (0x100, None),
-        (0x7AB, "unknown_id"),
-        (0x100, "wrong_dlc"),
-        (0x1ABCDE, "unknown_id"),
-        (0x100, "remote_frame"),
-        (0x80, "error_frame"),
-        (0x100, None),
-        (0x100, None),
-        (0x100, None),
+    raw = recorded_raw_frames(path)  # the frames as received; replay derives the kinds
+    assert [r.arbitration_id for r in raw] == [0x100, 0x7AB, 0x100, 0x1ABCDE, 0x100, 0x80] + [
+        0x100
+    ] * 3
+    assert raw[1].data == bytes([1, 2]) and raw[3].is_extended_id and raw[2].dlc == 7
+    assert raw[4].is_remote_frame and raw[5].is_error_frame and not raw[0].is_remote_frame
+    pipeline = Pipeline.from_config(config.machine, config.database)
+    assert [pipeline.process(r).error_kind for r in raw] == [
+        None,
+        "unknown_id",
+        "wrong_dlc",
+        "unknown_id",
+        "remote_frame",
+        "error_frame",
+        None,
+        None,
+        None,
     ]
-    assert raw[1]["data"] == "0102" and raw[3]["extended"] is True and raw[2]["dlc"] == 7
 
 
 def test_late_joiner_gets_the_latest_value_of_every_key(config: ServiceConfig) -> None:
@@ -334,7 +350,17 @@ def test_mcap_channels_and_schemas_are_readable(config: ServiceConfig) -> None:
         summary = reader.get_summary()
         assert summary is not None  # finished cleanly: summary present
         topics = {channel.topic: channel for channel in summary.channels.values()}
-        assert {"/can/raw", "/signals/LEG_SB1_F1", "/leg/SB1_F1/ground", "/daq/bus"} <= set(topics)
+        # signals are not recorded by default ([recording] signals = false)
+        legs = {f"/leg/{leg}/ground" for leg in LEGS}
+        assert set(topics) == {"/can/raw", "/daq/bus", "/ground"} | legs
+        raw = topics.pop("/can/raw")
+        assert raw.message_encoding == can_batch.ENCODING
+        raw_schema = summary.schemas[raw.schema_id]
+        assert (
+            raw_schema.name == "portal.CanFrameBatch"
+            and raw_schema.encoding == raw.message_encoding
+        )
+        assert raw_schema.data.decode() == can_batch.SCHEMA_TEXT
         for channel in topics.values():
             assert channel.message_encoding == "json"
             schema = summary.schemas[channel.schema_id]
@@ -343,10 +369,15 @@ def test_mcap_channels_and_schemas_are_readable(config: ServiceConfig) -> None:
         assert summary.statistics is not None and summary.statistics.message_count > 0
         names = {a.name for a in reader.iter_attachments()}
         assert names == {"portal-daq.toml", "portal_sensors.dbc"}
-        for schema, _, message in reader.iter_messages():
+        frames = 0
+        for schema, channel, message in reader.iter_messages():
             assert schema is not None
+            if channel.topic == "/can/raw":
+                frames += len(list(can_batch.decode(message.data)))
+                continue
             payload = json.loads(message.data)
             assert set(json.loads(schema.data)["required"]) <= set(payload)
+        assert frames == 18
 
 
 def test_reader_never_blocks_and_counts_overflow() -> None:
@@ -376,3 +407,78 @@ def test_reader_never_blocks_and_counts_overflow() -> None:
     ]
     assert reader.dropped == 16
     assert reader.state == "closed"
+
+
+@pytest.mark.parametrize("event_loop", [True, False])
+def test_raw_batches_read_by_mcap_and_portal_daq_replay_give_the_live_estimates(
+    tmp_path: Path, event_loop: bool
+) -> None:
+    """The recording's /can/raw batches, read with mcap's own reader and decoded by the
+    layout in daq.can_batch, and `portal-daq replay` of the file, give the estimates
+    received live on Zenoh, bit for bit (faults included; both thread layouts)."""
+    path = write_service_config(
+        tmp_path,
+        channel=f"test-{uuid.uuid4().hex}",
+        port=free_port(),
+        recording=tmp_path / "rec",
+        extra=f"\n[service]\nevent_loop = {str(event_loop).lower()}\n",
+    )
+    config = load_service_config(path)
+    assert config.service.event_loop is event_loop
+    encoder = encoder_for(config)
+    messages = leg_messages(encoder, FRAMES_PER_LEG, time.time())
+    t = messages[-1].timestamp + 0.01
+    messages += [
+        can_message(encoder.encode("LEG_SB2_F1", leg_signals("SB2_F1", 2e7, 1e6), counter=5), t),
+        can_message(
+            encoder.encode("LEG_SB2_F1", leg_signals("SB2_F1", 1e7, 1e6), corrupt_crc=True), t
+        ),
+    ]
+    prefix = config.zenoh.key_prefix
+    with live_service(config) as service, subscriber_session(zenoh_port(config)) as session:
+        collector = connected_collector(session, prefix)
+        with sender(config) as bus:
+            for message in messages:
+                bus.send(message)
+        collector.wait_until(
+            lambda: (
+                sum(len(collector.of(f"{prefix}/leg/{leg}/ground")) for leg in LEGS)
+                == len(messages)
+            )
+        )
+        recorder = service.recorder
+        assert recorder is not None
+    live = [payload for key, payload, _ in collector.samples if "/leg/" in key]
+    (recording,) = recorder.paths
+    # mcap's reader, file order; the batches decoded with the documented layout
+    items: list[RawFrame | BusEvent] = []
+    with open(recording, "rb") as file:
+        reader = make_reader(file)
+        for schema, channel, message in reader.iter_messages(log_time_order=False):
+            if channel.topic == "/can/raw":
+                assert schema is not None and schema.name == "portal.CanFrameBatch"
+                items += can_batch.decode(message.data)
+            elif channel.topic == "/daq/bus":
+                event = json.loads(message.data)
+                fields = ("t", "state", "reason", "reset_counters")
+                items.append(BusEvent(*(event[field] for field in fields)))
+    assert sum(isinstance(item, RawFrame) for item in items) == len(messages)
+    pipeline = Pipeline.from_config(config.machine, config.database)
+    replayed = [e for result in results(pipeline, items) for e in result.estimates]
+    # JSON floats round-trip exactly (repr), NaN as null: equal payloads are equal bits
+    assert [json.loads(json_bytes(leg_ground(e))) for e in replayed] == live
+    assert live[-2]["reasons"] == ["counter"] and live[-1]["reasons"] == ["crc"]
+    # portal-daq replay, the command line
+    done = subprocess.run(
+        [sys.executable, "-m", "daq", "replay", str(recording)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=True,
+    )
+    rows = [row.split(",") for row in done.stdout.splitlines()[1:]]
+    keys = ("t", "force_N", "force_raw_N", "pressure_Pa", "p_piston_Pa", "p_rod_Pa")
+    for row, estimate in zip(rows, live, strict=True):
+        assert row[0] == estimate["leg"] and row[9] == "|".join(estimate["reasons"])
+        for value, key in zip(row[1:7], keys, strict=True):
+            assert float(value) == estimate[key] or (value == "nan" and estimate[key] is None)

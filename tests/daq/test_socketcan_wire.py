@@ -13,6 +13,7 @@ from daq.socketcan_wire import (
     parse_ancillary,
     parse_frame,
 )
+from dbc.decoding import ReceiveFilter
 
 
 def can_frame(can_id: int, data: bytes) -> bytes:
@@ -71,6 +72,7 @@ def test_time_stamp_and_drop_counter_from_ancillary_data() -> None:
 
 
 def test_filters_match_standard_and_extended_ids_exactly() -> None:
-    packed = pack_filters([(0x100, False), (0x18FEF100, True)])
+    filters = [ReceiveFilter(0x100, 0x7FF, False), ReceiveFilter(0x18FEF100, 0x1FFFFFFF, True)]
+    packed = pack_filters(filters)
     assert struct.unpack("=4I", packed) == (0x100, 0x800007FF, 0x98FEF100, 0x9FFFFFFF)
     assert pack_filters([]) == b""

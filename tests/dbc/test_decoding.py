@@ -6,7 +6,7 @@ from cantools.database.can import Database, Message, Signal
 from hypothesis import given
 from hypothesis import strategies as st
 
-from dbc.decoding import FrameDecoder
+from dbc.decoding import FrameDecoder, ReceiveFilter
 from dbc.encoding import EncodedFrame, FrameEncoder
 from dbc.errors import (
     FdFrameError,
@@ -225,8 +225,26 @@ def test_every_message_has_cycle_time_units_and_ranges() -> None:
     ]
 
 
-def test_frame_ids_for_kernel_filters() -> None:
-    ids = FrameDecoder(DATABASE, CONFIG.protection).frame_ids
-    assert (0x100, False) in ids and (0x130, False) in ids
-    assert len(ids) == len(DATABASE.messages)
-    assert np.all(np.diff([i for i, _ in ids]) > 0)
+def test_receive_filters_pass_the_dbc_ids_exactly() -> None:
+    filters = FrameDecoder(DATABASE, CONFIG.protection).receive_filters
+    assert (0x100, 0x7FF, False) in filters and (0x130, 0x7FF, False) in filters
+    assert len(filters) == len(DATABASE.messages)
+    assert np.all(np.diff([f.can_id for f in filters]) > 0)
+
+
+def _passes(filters: list[ReceiveFilter], frame_id: int, extended: bool) -> bool:
+    return any(
+        f.extended == extended and frame_id & f.can_mask == f.can_id & f.can_mask for f in filters
+    )
+
+
+def test_receive_filters_pass_a_j1939_pgn_from_any_priority_and_source() -> None:
+    from tests.dbc.test_transducers import DATABASE as TRANSDUCERS
+
+    filters = FrameDecoder(TRANSDUCERS, {}).receive_filters
+    assert ReceiveFilter(0xFF2000, 0x3FFFF00, True) in filters
+    for frame_id in (0x18FF2021, 0x0CFF2099, 0x1CFF20FE):  # priorities 6, 3, 7
+        assert _passes(filters, frame_id, True)
+    for frame_id in (0x18FF2121, 0x18FE2021, 0x19FF2021):  # other PS, PF, data page
+        assert not _passes(filters, frame_id, True)
+    assert not _passes(filters, 0x100 | 0x18FF0000, True) and _passes(filters, 0x100, False)

@@ -60,6 +60,9 @@ def test_the_wheel_ships_the_example_config_as_the_simulators_default(venv: Path
     default = installed_default_config(venv, elsewhere)
     assert default.is_file() and default.is_relative_to(venv), default
     assert not default.is_relative_to(ROOT)
+    # license = "MIT" in pyproject.toml, and its text ships with the wheel
+    (license_file,) = venv.glob("lib/python*/site-packages/portal_daq-*.dist-info/licenses/LICENSE")
+    assert license_file.read_text().startswith("MIT License")
 
 
 def test_portal_sim_and_plot_run_from_another_directory(venv: Path) -> None:

@@ -8,7 +8,6 @@ recorded frame) with a generous timeout.
 from __future__ import annotations
 
 import itertools
-import json
 import os
 import signal
 import socket
@@ -23,7 +22,9 @@ import can
 import pytest
 from mcap.reader import NonSeekingReader
 
-from daq.mcap_reading import RecordedMessage, RecordingStream
+from daq import can_batch
+from daq.mcap_reading import RecordingStream
+from daq.pipeline import Pipeline
 from daq.replay import replay
 from daq.report.content import analyse
 from daq.report.loading import load_recording
@@ -40,7 +41,7 @@ from tests.daq.service_support import (
     subscriber_session,
     write_service_config,
 )
-from tests.helpers import LEGS, ROOT
+from tests.helpers import LEGS, ROOT, recorded_raw_frames
 
 pytestmark = pytest.mark.vcan
 
@@ -252,9 +253,11 @@ def test_fd_frame_on_a_leg_id_is_counted_and_recorded_raw(tmp_path: Path) -> Non
     assert status["frames"]["received"] == 1 and status["bad"] == {"fd_frame": 1}
     assert not collector.of(f"{prefix}/leg/SB1_F1/ground")
     (path,) = (tmp_path / "rec").iterdir()
-    (frame,) = raw_frames(path)
-    assert (frame["id"], frame["fd"], frame["error"]) == (0x100, True, "fd_frame")
-    assert frame["data"] == "11" * 12
+    (frame,) = recorded_raw_frames(path)  # the frame as received, FD flag in the batch
+    assert (frame.arbitration_id, frame.is_fd, frame.data) == (0x100, True, bytes([0x11] * 12))
+    assert Pipeline.from_config(config.machine, config.database).process(frame).error_kind == (
+        "fd_frame"
+    )
 
 
 #: ~600 frames/s (cangen's gap in ms) for ~4.5 s, a stall of 2 s in the middle.
@@ -329,20 +332,21 @@ def test_sigkill_leaves_a_recording_readable_up_to_its_last_chunk(tmp_path: Path
                 bus.send(message, timeout=5.0)
         (path,) = (tmp_path / "rec").iterdir()
         deadline = time.monotonic() + WAIT_S
-        while len(raw_frames(path)) < len(messages):  # flushed every 0.2 s
+        while len(recorded_raw_frames(path)) < len(messages):  # flushed every 0.2 s
             assert time.monotonic() < deadline, "frames not recorded"
             time.sleep(0.1)
         process.kill()
         process.wait(timeout=WAIT_S)
-    frames = raw_frames(path)
-    sent = [(m.arbitration_id, bytes(m.data).hex()) for m in messages]
-    assert [(f["id"], f["data"]) for f in frames[: len(sent)]] == sent
+    frames = recorded_raw_frames(path)
+    sent = [(m.arbitration_id, bytes(m.data)) for m in messages]
+    assert [(f.arbitration_id, f.data) for f in frames[: len(sent)]] == sent
     # mcap's own non-seeking reader, tolerating the missing summary
     count = 0
     with open(path, "rb") as file:
         try:
-            for _, channel, _ in NonSeekingReader(file).iter_messages(log_time_order=False):
-                count += channel.topic == "/can/raw"
+            for _, channel, message in NonSeekingReader(file).iter_messages(log_time_order=False):
+                if channel.topic == "/can/raw":
+                    count += len(list(can_batch.decode(message.data)))
         except Exception:  # noqa: BLE001 -- the end is cut off
             pass
     assert count >= len(sent)
@@ -353,12 +357,3 @@ def test_sigkill_leaves_a_recording_readable_up_to_its_last_chunk(tmp_path: Path
     # the crashed file replays (configuration embedded in the file)
     with open(tmp_path / "out.csv", "w") as out:
         assert replay(path, out) >= len(sent)
-
-
-def raw_frames(path: Path) -> list[dict[str, object]]:
-    with open(path, "rb") as file:
-        return [
-            json.loads(record.data)
-            for record in RecordingStream(file)
-            if isinstance(record, RecordedMessage) and record.topic == "/can/raw"
-        ]

@@ -9,15 +9,13 @@ single frames can be late by tens of ms.
 """
 
 import re
-import signal
-import subprocess
-import sys
 from collections import defaultdict
 from pathlib import Path
 
 import pytest
 
-from tests.helpers import EXAMPLE_CONFIG, ROOT
+from tests.helpers import EXAMPLE_CONFIG
+from tests.vcan.bridge_support import run_bridge_recorded
 
 pytestmark = pytest.mark.vcan
 
@@ -41,17 +39,11 @@ def mean_interval_s(times: list[float]) -> float:
 
 def test_the_bridge_keeps_the_dbc_cycle_times_on_vcan0(tmp_path: Path) -> None:
     log = tmp_path / "candump.log"
-    with open(log, "w") as out, subprocess.Popen(["candump", "-L", "vcan0"], stdout=out) as dump:
-        try:
-            bridge = subprocess.run(
-                [sys.executable, "-m", "sim_bridge", "--config", str(EXAMPLE_CONFIG),
-                 "--channel", "vcan0", "--cycles", "1", "--speed", str(SPEED),
-                 "--duration", str(DURATION_S), "--rtol", "1e-3"],
-                cwd=ROOT, capture_output=True, text=True, timeout=120,
-            )  # fmt: skip
-        finally:
-            dump.send_signal(signal.SIGINT)  # candump flushes its output and exits
-            dump.wait(timeout=30)
+    bridge = run_bridge_recorded(
+        log,
+        ["--config", str(EXAMPLE_CONFIG), "--channel", "vcan0", "--cycles", "1",
+         "--speed", str(SPEED), "--duration", str(DURATION_S), "--rtol", "1e-3"],
+    )  # fmt: skip
     assert bridge.returncode == 0, bridge.stderr
     times = candump_times(log)
     legs, state = times[0x100], times[0x130]

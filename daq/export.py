@@ -1,0 +1,71 @@
+"""The raw CAN frames of a recording, written through python-can's log writers.
+
+For other tools (``canplayer``, Vector CANalyzer/CANoe, ...): ``portal-daq export
+REC.mcap --to candump|asc|blf`` reads ``/can/raw`` of the service's MCAP files (the
+batches of :mod:`daq.can_batch`, or the JSON frames of older recordings; the files of
+one run chained in its order) and writes every frame, bad ones included, with its
+receive time, through :class:`can.CanutilsLogWriter`, :class:`can.ASCWriter` or
+:class:`can.BLFWriter`. What python-can writes back reads with ``can.LogReader`` (and
+``portal-daq replay --config``) into the same frames.
+"""
+
+from collections.abc import Iterable
+from pathlib import Path
+
+import can
+
+from daq.errors import RecordingError
+from daq.frames import RawFrame
+from daq.recording_run import expand, run_files
+from daq.replay import run_items
+
+#: Format name -> (python-can writer, file suffix).
+FORMATS: dict[str, tuple[type[can.io.generic.FileIOMessageWriter], str]] = {  # type: ignore[type-arg]
+    "candump": (can.CanutilsLogWriter, ".log"),
+    "asc": (can.ASCWriter, ".asc"),
+    "blf": (can.BLFWriter, ".blf"),
+}
+
+
+def message(frame: RawFrame, channel: str) -> can.Message:
+    """The python-can message of a recorded frame."""
+    return can.Message(
+        timestamp=frame.t_s,
+        arbitration_id=frame.arbitration_id,
+        is_extended_id=frame.is_extended_id,
+        is_remote_frame=frame.is_remote_frame,
+        is_error_frame=frame.is_error_frame,
+        is_fd=frame.is_fd,
+        dlc=frame.dlc,
+        data=frame.data,
+        channel=channel,
+        check=False,
+    )
+
+
+def write_frames(frames: Iterable[RawFrame], out: Path, fmt: str, channel: str = "can0") -> int:
+    """Write ``frames`` to ``out`` in ``fmt`` (a key of :data:`FORMATS`); the count."""
+    writer_type, _ = FORMATS[fmt]
+    count = 0
+    try:
+        with writer_type(out) as writer:
+            for frame in frames:
+                writer.on_message_received(message(frame, channel))
+                count += 1
+    except OSError as exc:
+        raise RecordingError(out, f"cannot write it: {exc.strerror or exc}") from exc
+    return count
+
+
+def export(paths: Iterable[Path], out: Path, fmt: str) -> int:
+    """The raw frames of the recording at ``paths`` (MCAP files or a directory of one
+    run) into ``out``; returns the number of frames written."""
+    files = run_files(expand(list(paths)))
+    frames = (item for item in run_items(files) if isinstance(item, RawFrame))
+    return write_frames(frames, out, fmt)
+
+
+def default_out(path: Path, fmt: str) -> Path:
+    """``REC.mcap`` -> ``REC.log`` / ``.asc`` / ``.blf`` beside it (a directory: inside)."""
+    suffix = FORMATS[fmt][1]
+    return path / f"{path.name}{suffix}" if path.is_dir() else path.with_suffix(suffix)

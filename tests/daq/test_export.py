@@ -1,0 +1,72 @@
+"""portal-daq export: the raw frames of a recording through python-can's log writers,
+read back with python-can's reader into the same frames."""
+
+import subprocess
+import sys
+from pathlib import Path
+
+import can
+import pytest
+
+from daq.export import FORMATS, export
+from daq.frames import RawFrame
+from daq.mcap_file import McapFile, RecordBatch
+from tests.helpers import ROOT, example_machine
+
+T0_S = 1_750_000_000.0
+FRAMES = [
+    RawFrame(T0_S + 0.001, 0x100, False, bytes(range(8))),
+    RawFrame(T0_S + 0.002, 0x18FEF100, True, b"\x01\x02\x03"),
+    RawFrame(T0_S + 0.003, 0x7AB, False, b"", is_remote_frame=True),
+    RawFrame(T0_S + 0.004, 0x123, False, bytes(range(12)), is_fd=True),
+    RawFrame(T0_S + 0.005, 0x100, False, bytes(8)),
+]
+
+
+def recording(path: Path) -> Path:
+    _, database = example_machine()
+    with open(path, "wb") as stream, McapFile(stream, database) as mcap:
+        mcap.start()
+        mcap.write_batch(RecordBatch(FRAMES[:2], []))
+        mcap.write_batch(RecordBatch(FRAMES[2:], []))
+    return path
+
+
+@pytest.mark.parametrize("fmt", sorted(FORMATS))
+def test_exported_frames_read_back_the_same(tmp_path: Path, fmt: str) -> None:
+    source = recording(tmp_path / "rec.mcap")
+    out = tmp_path / f"out{FORMATS[fmt][1]}"
+    assert export([source], out, fmt) == len(FRAMES)
+    with can.LogReader(out) as reader:
+        back = list(reader)
+    assert [(m.arbitration_id, m.is_extended_id, m.is_remote_frame, m.is_fd) for m in back] == [
+        (f.arbitration_id, f.is_extended_id, f.is_remote_frame, f.is_fd) for f in FRAMES
+    ]
+    assert [bytes(m.data) for m in back if not m.is_remote_frame] == [
+        f.data for f in FRAMES if not f.is_remote_frame
+    ]
+    times = [m.timestamp - back[0].timestamp for m in back]
+    assert times == pytest.approx([f.t_s - FRAMES[0].t_s for f in FRAMES], abs=1e-5)
+
+
+def test_the_command_line(tmp_path: Path) -> None:
+    source = recording(tmp_path / "rec.mcap")
+    done = subprocess.run(
+        [sys.executable, "-m", "daq", "export", str(source), "--to", "candump"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        cwd=ROOT,
+    )
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == f"{tmp_path / 'rec.log'}: {len(FRAMES)} frames"
+    assert (tmp_path / "rec.log").read_text().count(" can0 ") == len(FRAMES)
+    missing = subprocess.run(
+        [sys.executable, "-m", "daq", "export", str(tmp_path / "no.mcap"), "--to", "asc"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        cwd=ROOT,
+    )
+    assert missing.returncode == 1 and missing.stderr.count("\n") == 1
+    assert missing.stderr.startswith("portal-daq: ")
