@@ -14,6 +14,7 @@ import pytest
 from mcap.reader import make_reader
 
 import daq.recorder
+from daq.mcap_file import RecordBatch
 from daq.recorder import Recorder
 from daq.report.loading import load_recording
 from daq.runner import recording_attachments
@@ -75,7 +76,7 @@ def wait_until(condition, recorder: Recorder, feed: Iterator) -> None:  # type: 
     deadline = time.monotonic() + WAIT_S
     while not condition():
         assert time.monotonic() < deadline, "condition not reached"
-        recorder.submit(next(feed))
+        recorder.submit(RecordBatch.of([next(feed)], signals=False))
         time.sleep(0.005)
 
 
