@@ -82,7 +82,9 @@ class FleetDashboard(HubServer):
                 document = latest_document(viewer, state, self._clock(), dropped=self.feed.dropped)
                 return json_response(document)
             if rest == "api/history":
-                history = self._histories.get(prefix) or PressureHistory(viewer.legs)
+                history = self._histories.get(prefix)
+                if history is None:  # no ground yet: an empty plot
+                    history = PressureHistory(viewer.legs)
                 return json_response(history_document(history, *history_query(query)))
         return not_found(path)
 

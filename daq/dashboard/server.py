@@ -18,6 +18,10 @@ the hub thread applies each payload to the state and the history under a
 lock; the HTTP threads (stdlib ``ThreadingHTTPServer``) read them under the
 same lock. The session is passed in; :meth:`Dashboard.start` binds the HTTP
 address and declares the subscribers; :meth:`Dashboard.close` undoes both.
+
+:class:`HubServer` is that machinery (feed, hub thread, HTTP server, lifecycle);
+:class:`Dashboard` (one service) and :class:`~daq.dashboard.fleet.FleetDashboard`
+(every machine on a router) say what an item does and what a route returns.
 """
 
 import logging

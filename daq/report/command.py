@@ -88,6 +88,8 @@ def parse_report_args(args: Sequence[str]) -> ReportOptions:
     options = parser.parse_args(args)
     if not options.campaign and (options.cluster or options.workers):
         parser.error("--cluster and --workers go with --campaign")
+    if options.cluster and options.workers:
+        parser.error("--workers counts local processes: not with --cluster")
     return ReportOptions(
         tuple(options.recording),
         options.out,

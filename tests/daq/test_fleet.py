@@ -31,6 +31,8 @@ import can
 import pytest
 import zenoh
 
+from daq.dashboard.fleet import FleetDashboard
+from daq.live.fleet import FleetSettings
 from daq.runner import bus_factory
 from daq.service import Service
 from daq.service_config import ServiceConfig, load_service_config
@@ -43,10 +45,11 @@ from sim_bridge.model import simulate
 from sim_bridge.params import ModelParams
 from sim_bridge.playout import Playout
 from sim_bridge.result import SimulationResult
-from tests.daq.service_support import WAIT_S, free_port
-from tests.daq.test_dashboard import get_json, wait_for_json
+from tests.daq.live_support import synthetic_service
+from tests.daq.service_support import WAIT_S, free_port, peer_config
+from tests.daq.test_dashboard import get, get_json, wait_for_json
 from tests.daq.test_dashboard_chromium import CHROMIUM, chromium
-from tests.helpers import EXAMPLE_CONFIG, ROOT, example_machine
+from tests.helpers import EXAMPLE_CONFIG, LEGS, ROOT, example_machine
 
 MACHINES = ("fleet-a", "fleet-b", "fleet-c")
 ROUTER_CONFIG = ROOT / "deploy" / "zenoh-router.json5"
@@ -109,10 +112,10 @@ class Machine:
 
     def __init__(self, config: ServiceConfig, cycle: SimulationResult) -> None:
         self.config = config
-        frame_ids = FrameDecoder(config.database, config.machine.protection).frame_ids
+        filters = FrameDecoder(config.database, config.machine.protection).receive_filters
         self.session = zenoh.open(zenoh_config(config.zenoh))
         self.service = Service(
-            config, open_bus=bus_factory(config.bus, frame_ids), session=self.session
+            config, open_bus=bus_factory(config.bus, filters), session=self.session
         )
         self.bus = can.Bus(interface="virtual", channel=config.bus.channel)
         playout = Playout(
@@ -299,3 +302,31 @@ def test_the_router_lets_no_simulation_truth_through(tmp_path: Path) -> None:
             assert arrived.wait_for(lambda: "portal/m/status" in received, WAIT_S)
         subscriber.undeclare()
     assert "portal/m/sim/truth" not in received
+
+
+def test_fleet_routes_in_process() -> None:
+    """The fleet dashboard's routes against a synthetic service (real Zenoh, loopback)."""
+    port = free_port()
+    with (
+        synthetic_service(port, "portal/pam-x") as service,
+        zenoh.open(peer_config(connect=f"tcp/127.0.0.1:{port}")) as session,
+        FleetDashboard(session, FleetSettings("portal"), ("127.0.0.1", 0)) as dashboard,
+    ):
+        url = dashboard.url
+        fleet = wait_for_json(
+            url + "api/fleet", lambda doc: [m["state"] for m in doc["machines"]] == ["live"]
+        )
+        [machine] = fleet["machines"]
+        assert (machine["machine_id"], machine["legs"]) == ("pam-x", len(LEGS))
+        history = wait_for_json(url + "machine/pam-x/api/history", lambda doc: doc["t"])
+        assert list(history["pressure_Pa"]) == list(LEGS)
+        latest = get_json(url + "machine/pam-x/api/latest")
+        assert latest["legs"] == list(LEGS) and latest["status"]["healthy"] is True
+        status, kind, page = get(url + "machine/pam-x/")
+        assert status == 200 and kind.startswith("text/html") and b'id="plot"' in page
+        status, kind, page = get(url)
+        assert status == 200 and b"portal-daq fleet" in page
+        for missing in ("machine/nobody/api/latest", "machine/pam-x/api/other", "elsewhere"):
+            assert get(url + missing)[0] == 404, missing
+        service.close()  # its token goes: gone
+        wait_for_json(url + "api/fleet", lambda doc: doc["machines"][0]["state"] == "gone")
