@@ -16,16 +16,17 @@ gets the latest value of every key when it joins, also when the service starts a
 it, and its miss listener tells it how many samples it missed. (A plain ``get``
 does not reach that cache: it answers only advanced subscribers' queries.)
 
-Congestion control is ``BLOCK``: Zenoh never drops a sample silently for a slow link.
-A put to a congested link waits; in a thread of its own the bounded queue in front
+Congestion control, in a thread of its own: ``BLOCK``. Zenoh never drops a sample
+silently for a slow link; a put to a congested link waits, the bounded queue in front
 takes up the slack and beyond it messages are dropped and counted (``dropped.publish``
-on the status topic); in the event loop (``threaded=False``) the loop waits and the
-CAN socket's receive buffer takes up the slack (beyond it the kernel's drops are
-counted, ``dropped.kernel``). Zenoh closes a link that stays blocked longer than
+on the status topic). Zenoh closes a link that stays blocked longer than
 ``wait_before_close`` (:data:`daq.zenoh_session.BLOCK_WAIT_BEFORE_CLOSE_US`, shorter
-than the watchdog's heartbeat limit), so one stalled subscriber cannot stall the
-service for longer; it reconnects and counts what it missed. A liveliness token
-``<prefix>/alive`` lives as long as the publisher.
+than the watchdog's heartbeat limit). In the event loop (``threaded=False``):
+``DROP``, because a blocked put would stall the acquisition itself (measured: a slow
+subscriber behind a router held the loop for seconds); Zenoh counts nothing it drops,
+so those losses show where they can be seen, in each advanced subscriber's miss
+listener (the live views' ``missed``). A liveliness token ``<prefix>/alive`` lives as
+long as the publisher.
 """
 
 import logging
@@ -43,6 +44,7 @@ logger = logging.getLogger(__name__)
 #: On close, queued messages are still published for at most this long.
 DRAIN_S = 0.3
 JSON = zenoh.Encoding.APPLICATION_JSON
+BLOCK, DROP = zenoh.CongestionControl.BLOCK, zenoh.CongestionControl.DROP
 #: Late joiners get the latest sample of every key.
 CACHE = zenoh.ext.CacheConfig(max_samples=1)
 #: Sequence numbers on every sample, and a heartbeat after new samples (at most every
@@ -144,7 +146,7 @@ class ZenohPublisher(Worker):
                     self.session,
                     key,
                     encoding=JSON,
-                    congestion_control=zenoh.CongestionControl.BLOCK,
+                    congestion_control=BLOCK if self.threaded else DROP,
                     cache=CACHE,
                     sample_miss_detection=MISS_DETECTION,
                     publisher_detection=True,
