@@ -219,11 +219,22 @@ class BusReader(Worker):
         """One wake-up without a thread: the frames received within ``timeout_s`` and every
         one waiting after the first (at most :data:`MAX_FRAMES`), bus events in their
         place. Opens and reopens the bus (waiting at most ``timeout_s`` for a retry)."""
-        received = 0
-        while self._turn(timeout_s if received == 0 else 0.0):
-            received += 1
-            if received == MAX_FRAMES:
-                break
+        if self._turn(timeout_s) and self._bus is not None:
+            # The first frame went the whole way (state, events); the rest are taken as
+            # they are until none waits (EAGAIN): the bus is up, nothing to report.
+            bus, out = self._bus, self._collected.items
+            received = 1
+            try:
+                while received < MAX_FRAMES:
+                    frame = bus.recv(0.0)
+                    if frame is None:
+                        break
+                    out.append(frame)
+                    received += 1
+            except (can.CanOperationError, OSError) as exc:
+                self._lost(exc)
+            self.received += received - 1
+            self._count_kernel_drops(bus.kernel_dropped)
         return self._collected.take()
 
     def _turn(self, timeout_s: float) -> bool:

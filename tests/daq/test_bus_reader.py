@@ -9,6 +9,7 @@ import threading
 import time
 import uuid
 from collections import deque
+from collections.abc import Iterable
 from typing import Any
 
 import can
@@ -53,16 +54,20 @@ def message(arbitration_id: int) -> can.Message:
 
 
 def drain(inbox: queue.Queue[RawFrame | BusEvent], count: int) -> list[Any]:
-    items = []
-    for _ in range(count):
-        item = inbox.get(timeout=WAIT_S)
+    return names(inbox.get(timeout=WAIT_S) for _ in range(count))
+
+
+def names(items: Iterable[RawFrame | BusEvent]) -> list[Any]:
+    """A frame by its ID, a loss by its counts, a state change by (state, reset)."""
+    named: list[Any] = []
+    for item in items:
         if not isinstance(item, BusEvent):
-            items.append(item.arbitration_id)
+            named.append(item.arbitration_id)
         elif item.kernel_dropped or item.rx_dropped:
-            items.append(("lost", item.kernel_dropped, item.rx_dropped))
+            named.append(("lost", item.kernel_dropped, item.rx_dropped))
         else:
-            items.append((item.state, item.reset_counters))
-    return items
+            named.append((item.state, item.reset_counters))
+    return named
 
 
 def test_down_keeps_the_socket_away_reopens_and_both_reset_counters() -> None:
@@ -92,6 +97,35 @@ def test_down_keeps_the_socket_away_reopens_and_both_reset_counters() -> None:
         ]
     assert first.closed and second.closed
     assert reader.reopens == 1 and reader.received == 3
+
+
+def test_polled_without_a_thread_the_same_states_in_place_and_frames_in_batches() -> None:
+    """The event loop's way (``threaded=False``): each poll is one wake-up, every frame
+    waiting after the first comes with it, the bus events keep their place."""
+    enetdown = can.CanOperationError("Network is down", errno.ENETDOWN)
+    enodev = can.CanOperationError("No such device", errno.ENODEV)
+    first = ScriptedBus([message(1), message(2), message(3), enetdown, None, message(4), enodev])
+    second = ScriptedBus([message(5)])
+    buses: deque[Any] = deque([first, OSError(errno.ENODEV, "No such device"), second])
+
+    def open_bus() -> FrameSource:
+        bus = buses.popleft()
+        if isinstance(bus, BaseException):
+            raise bus
+        return PythonCanSource(bus)
+
+    with BusReader(open_bus, None, channel="can0", threaded=False) as reader:
+        assert not reader.alive  # no thread of its own
+        polls = [names(reader.poll(0.01)) for _ in range(40)]
+    assert [batch for batch in polls if batch] == [
+        [("up", False)],  # opened
+        [1, 2, 3, ("down", False)],  # one wake-up: the frames waiting, then ENETDOWN
+        [("up", True), 4, ("absent", False)],  # frames again; then ENODEV
+        [("up", True)],  # reopened after the backoff (the first retry failed)
+        [5],
+    ]
+    assert first.closed and second.closed
+    assert reader.reopens == 1 and reader.received == 5
 
 
 def test_down_then_link_probe_up_without_frames() -> None:
