@@ -22,6 +22,7 @@ SUBCOMMAND_MODULES = (
     "daq.dashboard.cli",
     "daq.export_command",
     "daq.monitor.cli",
+    "daq.recover_command",
     "daq.replay_command",
     "daq.report.command",
     "daq.router",

@@ -18,6 +18,8 @@ consumer processed). Topics: ``/can/raw`` in the binary layout of
 ``/daq/bus``             bus state changes (:data:`BUS_TOPIC`)
 ``/sim/truth``           simulation ground truth, when a simulator bridge
                          publishes it (:data:`TRUTH_TOPIC`)
+``/daq/recording``       a gap in the recording: the first message of the file
+                         that resumed it (:data:`RECORDING_TOPIC`)
 =======================  ===================================================
 
 The file also carries the configuration and the DBC as attachments, so that a
@@ -45,6 +47,7 @@ BUS_TOPIC = "/daq/bus"
 SIGNALS_TOPIC = "/signals/{message}"
 LEG_TOPIC = "/leg/{leg}/ground"
 TRUTH_TOPIC = "/sim/truth"
+RECORDING_TOPIC = "/daq/recording"
 GROUND_TOPIC = "/ground"
 #: MCAP profile: none of the standard ones (ros1, ros2) fits JSON messages.
 PROFILE = ""
@@ -59,6 +62,21 @@ COMPRESSION = {
     "lz4": CompressionType.LZ4,
     "none": CompressionType.NONE,
 }
+
+
+@dataclass(frozen=True, slots=True)
+class RecordingGap:
+    """Recording stopped (a write error) at ``stopped_t_s`` and resumed at ``resumed_t_s``."""
+
+    #: Wall-clock times, Unix seconds.
+    stopped_t_s: float
+    resumed_t_s: float
+    #: Items (frames with their results, bus events, truth samples) dropped meanwhile.
+    dropped: int
+
+    @property
+    def lost_s(self) -> float:
+        return self.resumed_t_s - self.stopped_t_s
 
 
 @dataclass(frozen=True, slots=True)
@@ -237,6 +255,22 @@ class McapFile:
             schemas.BUS_EVENT,
             _ns(event.t_s),
             payloads.bus_event(event),
+        )
+
+    def write_gap(self, gap: RecordingGap) -> None:
+        """The gap before this file, logged at the time recording resumed."""
+        payload = {
+            "t": gap.resumed_t_s,
+            "stopped_t": gap.stopped_t_s,
+            "lost_s": gap.lost_s,
+            "dropped": gap.dropped,
+        }
+        self._write_json(
+            RECORDING_TOPIC,
+            "portal.RecordingGap",
+            schemas.RECORDING_GAP,
+            _ns(gap.resumed_t_s),
+            payload,
         )
 
     def write_ground(self, snapshot: MachineSnapshot) -> None:

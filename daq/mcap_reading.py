@@ -13,7 +13,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import IO
 
-from mcap.records import Attachment, Channel, Footer, Message, Metadata
+from mcap.records import Attachment, Channel, Footer, McapRecord, Message, Metadata
 from mcap.stream_reader import StreamReader
 
 logger = logging.getLogger(__name__)
@@ -40,6 +40,32 @@ class RecordedMetadata:
     metadata: dict[str, str]
 
 
+class RecordsToTheCut:
+    """The raw mcap records of one stream in file order, up to the first incomplete one.
+
+    After iteration, :attr:`stopped_by` says why reading stopped early (None when the
+    stream ended normally); :mod:`daq.recover` rewrites what this yields.
+    """
+
+    def __init__(self, stream: IO[bytes]) -> None:
+        self._stream = stream
+        self.stopped_by: str | None = None
+
+    def __iter__(self) -> Iterator[McapRecord]:
+        records = StreamReader(self._stream, validate_crcs=True).records
+        while True:
+            try:
+                record = next(records)
+            except StopIteration:
+                return
+            # A cut-off file fails in many ways (EndOfFile, struct.error, a
+            # decompression error, a CRC mismatch): each means "the end is missing".
+            except Exception as exc:  # noqa: BLE001
+                self.stopped_by = f"{type(exc).__name__}: {exc}".rstrip(": ")
+                return
+            yield record
+
+
 class RecordingStream:
     """Iterates over the messages, attachments and metadata of one MCAP stream, in file
     order.
@@ -56,22 +82,8 @@ class RecordingStream:
 
     def __iter__(self) -> Iterator[RecordedMessage | RecordedAttachment | RecordedMetadata]:
         channels: dict[int, Channel] = {}
-        records = StreamReader(self._stream, validate_crcs=True).records
-        while True:
-            try:
-                record = next(records)
-            except StopIteration:
-                return
-            # A cut-off file fails in many ways (EndOfFile, struct.error, a
-            # decompression error, a CRC mismatch): each means "the end is missing".
-            except Exception as exc:  # noqa: BLE001
-                self.stopped_by = f"{type(exc).__name__}: {exc}".rstrip(": ")
-                logger.warning(
-                    "%s ends without its summary (%s): read up to its last complete chunk",
-                    self.name,
-                    self.stopped_by,
-                )
-                return
+        records = RecordsToTheCut(self._stream)
+        for record in records:
             if isinstance(record, Channel):
                 channels[record.id] = record
             elif isinstance(record, Message):
@@ -86,3 +98,10 @@ class RecordingStream:
                 yield RecordedMetadata(record.name, dict(record.metadata))
             elif isinstance(record, Footer):
                 self.complete = True
+        self.stopped_by = records.stopped_by
+        if self.stopped_by is not None:
+            logger.warning(
+                "%s ends without its summary (%s): read up to its last complete chunk",
+                self.name,
+                self.stopped_by,
+            )

@@ -47,6 +47,46 @@ def _finite(value: Any) -> Any:
     return value
 
 
+#: Unix times outside this range (2000-01-01 .. 2100-01-01) are not plausible in a
+#: payload from outside: e.g. milliseconds instead of seconds.
+PLAUSIBLE_UNIX_S = (946_684_800.0, 4_102_444_800.0)
+
+
+def finite_number(value: Any) -> float | None:
+    """``value`` as a finite float, or None (not a number, a bool, NaN, inf, or too big).
+
+    >>> finite_number(1), finite_number(True), finite_number(10**400), finite_number("1")
+    (1.0, None, None, None)
+    """
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return None
+    try:
+        number = float(value)
+    except OverflowError:  # an int beyond the float range, e.g. 400 digits
+        return None
+    return number if math.isfinite(number) else None
+
+
+def unix_time_s(value: Any) -> float | None:
+    """``value`` as Unix seconds within :data:`PLAUSIBLE_UNIX_S`, or None.
+
+    >>> unix_time_s(1750000000.5), unix_time_s(1750000000500)
+    (1750000000.5, None)
+    """
+    t_s = finite_number(value)
+    low, high = PLAUSIBLE_UNIX_S
+    return t_s if t_s is not None and low <= t_s <= high else None
+
+
+def parse_json(payload: bytes) -> Any:
+    """The JSON value of ``payload`` from outside, or None when it is not JSON
+    (not UTF-8, malformed, nested too deep, a number too long to convert)."""
+    try:
+        return json.loads(payload)
+    except (UnicodeDecodeError, ValueError, RecursionError):
+        return None
+
+
 def leg_ground(estimate: LegEstimate) -> JsonObject:
     """``<prefix>/leg/<LEG>/ground`` and the MCAP channel ``/leg/<LEG>/ground``."""
     return {

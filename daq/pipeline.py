@@ -5,7 +5,7 @@ offline replay both feed frames through the same :class:`Pipeline`, so live and
 replayed estimates of one recording are identical.
 """
 
-from collections import Counter
+from collections import Counter, defaultdict
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
@@ -67,6 +67,8 @@ class Pipeline:
         #: frames whose protection failed (``crc``, ``counter``, ``counter_repeat``) and
         #: frames of a leg PGN from an unmapped source address (``unmapped_source``).
         self.bad: Counter[str] = Counter()
+        #: Invalid leg estimates, by leg and reason (``status_sensor_fault``, ``range`` ...).
+        self.leg_faults: defaultdict[str, Counter[str]] = defaultdict(Counter)
         #: Frames lost on the way, as the rolling counters of the frames after them tell.
         self.frames_lost = 0
 
@@ -114,6 +116,9 @@ class Pipeline:
             return FrameResult(frame, decoded, None)
         update = self.estimator.update
         estimates = tuple([update(leg, sample) for leg, sample in samples])
+        for estimate in estimates:
+            if estimate.reasons:
+                self.leg_faults[estimate.leg].update(estimate.reasons)
         return FrameResult(frame, decoded, None, estimates)
 
     def reset_counters(self) -> None:

@@ -1,26 +1,40 @@
-"""Publishing on Zenoh from a thread of its own, with a latest-value cache for late joiners.
+"""Publishing on Zenoh from a thread of its own, through zenoh.ext advanced publishers.
 
 The session is passed in (opened in ``daq.__main__``). :meth:`ZenohPublisher.submit`
 never blocks: it queues (key, payload) into a bounded queue, or drops and counts.
 The publisher thread serialises to JSON (NaN as ``null``; a payload may come
-encoded already), puts with encoding ``application/json`` and keeps the latest
-payload of every key. With ``threaded=False`` (the service's event loop) ``submit``
-puts at once, in the caller's thread.
+encoded already) and puts with encoding ``application/json``; any exception while
+publishing one message is counted (:attr:`ZenohPublisher.errors`) and the message
+skipped. With ``threaded=False`` (the service's event loop) ``submit`` puts at once,
+in the caller's thread.
 
-Late joiners: a queryable on ``<prefix>/**`` answers every ``get`` from that
-cache, so ``session.get("<prefix>/**")`` returns the latest value of every key
-at once. (zenoh.ext's AdvancedPublisher caches too, but only AdvancedSubscribers
-can fetch that history; a queryable serves any Zenoh client, e.g. ``z_get``.)
-A liveliness token ``<prefix>/alive`` lives as long as the publisher.
+Every key gets a :func:`zenoh.ext.declare_advanced_publisher` that keeps its latest
+sample (:data:`CACHE`), numbers its samples and sends a heartbeat when it published
+something new (:data:`MISS_DETECTION`), and declares itself (publisher detection).
+An advanced subscriber with history (the live views, :mod:`daq.live.feed`) therefore
+gets the latest value of every key when it joins, also when the service starts after
+it, and its miss listener tells it how many samples it missed. (A plain ``get``
+does not reach that cache: it answers only advanced subscribers' queries.)
+
+Congestion control, in a thread of its own: ``BLOCK``. Zenoh never drops a sample
+silently for a slow link; a put to a congested link waits, the bounded queue in front
+takes up the slack and beyond it messages are dropped and counted (``dropped.publish``
+on the status topic). Zenoh closes a link that stays blocked longer than
+``wait_before_close`` (:data:`daq.zenoh_session.BLOCK_WAIT_BEFORE_CLOSE_US`, shorter
+than the watchdog's heartbeat limit). In the event loop (``threaded=False``):
+``DROP``, because a blocked put would stall the acquisition itself (measured: a slow
+subscriber behind a router held the loop for seconds); Zenoh counts nothing it drops,
+so those losses show where they can be seen, in each advanced subscriber's miss
+listener (the live views' ``missed``). A liveliness token ``<prefix>/alive`` lives as
+long as the publisher.
 """
 
 import logging
 import queue
-import threading
 import time
-from typing import Any
 
 import zenoh
+import zenoh.ext
 
 from daq._worker import Worker
 from daq.payloads import JsonObject, json_bytes
@@ -30,14 +44,20 @@ logger = logging.getLogger(__name__)
 #: On close, queued messages are still published for at most this long.
 DRAIN_S = 0.3
 JSON = zenoh.Encoding.APPLICATION_JSON
+BLOCK, DROP = zenoh.CongestionControl.BLOCK, zenoh.CongestionControl.DROP
+#: Late joiners get the latest sample of every key.
+CACHE = zenoh.ext.CacheConfig(max_samples=1)
+#: Sequence numbers on every sample, and a heartbeat after new samples (at most every
+#: second) so that a subscriber also notices when the last sample of a burst is lost.
+MISS_DETECTION = zenoh.ext.MissDetectionConfig(heartbeat=None, sporadic_heartbeat=1.0)
 
 
 class ZenohPublisher(Worker):
-    """Publishes JSON payloads under ``prefix``; answers queries from the latest values.
+    """Publishes JSON payloads under ``prefix`` through advanced publishers.
 
-    The constructor declares nothing; :meth:`start` declares the queryable and
-    the liveliness token and starts the thread. :meth:`close` undeclares them
-    (the session stays open: its owner closes it).
+    The constructor declares nothing; :meth:`start` declares the liveliness token and
+    starts the thread, which declares a publisher per key on first use. :meth:`close`
+    undeclares them (the session stays open: its owner closes it).
     """
 
     thread_name = "zenoh-publisher"
@@ -55,13 +75,10 @@ class ZenohPublisher(Worker):
         self.session = session
         self.prefix = prefix
         self._queue: queue.Queue[tuple[str, JsonObject | bytes]] = queue.Queue(maxsize=queue_size)
-        self._publishers: dict[str, zenoh.Publisher] = {}
-        self._latest: dict[str, tuple[zenoh.KeyExpr, bytes]] = {}
-        self._latest_lock = threading.Lock()
-        self._queryable: Any = None
+        self._publishers: dict[str, zenoh.ext.AdvancedPublisher] = {}
         self._token: zenoh.LivelinessToken | None = None
         self._closed = False
-        #: Messages published, dropped (queue full) and failed (Zenoh error).
+        #: Messages published, dropped (queue full) and failed (an error while publishing).
         self.published = 0
         self.dropped = 0
         self.errors = 0
@@ -76,9 +93,6 @@ class ZenohPublisher(Worker):
         return f"{self.prefix}/{suffix}"
 
     def _before_start(self) -> None:
-        self._queryable = self.session.declare_queryable(
-            self.key("**"), self._answer, complete=True
-        )
         self._token = self.session.liveliness().declare_token(self.key("alive"))
 
     def submit(self, suffix: str, payload: JsonObject | bytes) -> None:
@@ -97,28 +111,14 @@ class ZenohPublisher(Worker):
         if self._closed:
             return
         self._closed = True
-        for entity in (*self._publishers.values(), self._queryable, self._token):
+        for entity in (*self._publishers.values(), self._token):
             if entity is None:
                 continue
             try:
-                entity.undeclare()
+                entity.undeclare()  # type: ignore[no-untyped-call]
             except zenoh.ZError as exc:  # e.g. the session was closed first
                 logger.debug("undeclaring %s: %s", entity, exc)
         self._publishers.clear()
-
-    def _answer(self, query: zenoh.Query) -> None:
-        """Queryable callback (Zenoh's thread): reply from the cache, nothing else."""
-        with self._latest_lock:
-            matching = [
-                (key_expr, payload)
-                for key_expr, payload in self._latest.values()
-                if key_expr.intersects(query.key_expr)
-            ]
-        for key_expr, payload in matching:
-            try:
-                query.reply(key_expr, payload, encoding=JSON)
-            except zenoh.ZError as exc:
-                logger.debug("reply on %s failed: %s", key_expr, exc)
 
     def _run(self) -> None:
         deadline: float | None = None
@@ -138,18 +138,23 @@ class ZenohPublisher(Worker):
 
     def _put(self, suffix: str, payload: JsonObject | bytes) -> None:
         key = self.key(suffix)
-        data = payload if isinstance(payload, bytes) else json_bytes(payload)
         try:
+            data = payload if isinstance(payload, bytes) else json_bytes(payload)
             publisher = self._publishers.get(key)
             if publisher is None:
-                publisher = self._publishers[key] = self.session.declare_publisher(
-                    key, encoding=JSON
+                publisher = self._publishers[key] = zenoh.ext.declare_advanced_publisher(
+                    self.session,
+                    key,
+                    encoding=JSON,
+                    congestion_control=BLOCK if self.threaded else DROP,
+                    cache=CACHE,
+                    sample_miss_detection=MISS_DETECTION,
+                    publisher_detection=True,
                 )
             publisher.put(data)
-        except zenoh.ZError as exc:
+        except Exception as exc:  # noqa: BLE001 -- one message must not stop publishing
             self.errors += 1
-            logger.warning("publishing on %s failed: %s", key, exc)
+            if self.errors == 1 or isinstance(exc, zenoh.ZError):
+                logger.warning("publishing on %s failed: %s", key, exc)
             return
         self.published += 1
-        with self._latest_lock:
-            self._latest[key] = (zenoh.KeyExpr(key), data)

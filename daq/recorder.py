@@ -15,10 +15,21 @@ way and written to ``/sim/truth``; one that is not a valid sample is counted
 (:attr:`Recorder.rejected`) and skipped. The consumer's ``/ground`` snapshots (a
 :class:`~estimator.machine.MachineSnapshot`, with the stability margin) go to ``/ground``.
 
-A write error (disk full, directory gone) is logged and counted, the file is
-abandoned and a new one tried after :data:`RETRY_AFTER_S`; it never stops the
-service. :meth:`Recorder.close` (also on SIGTERM) finishes the file, so it has
-its summary; after a crash the file reads back up to its last written chunk.
+A write error (disk full, directory gone) never stops the service and never
+shows a traceback: one log line says that recording stopped and why, the file is
+abandoned (it reads back up to its last written chunk; ``portal-daq recover``
+completes it) and a new one is tried every :data:`RETRY_AFTER_S` while items keep
+coming; every item meanwhile is dropped and counted. A file that cannot even
+take its header is removed again, so retries leave no empty files behind. When a
+file opens again, one log line gives the seconds lost, and the new file begins
+with a ``/daq/recording`` message saying when recording stopped, how long the gap
+is and how many items were dropped (the report shows it). While recording is
+stopped, :attr:`Recorder.failing` is true and the service is not healthy.
+
+Any other exception while writing one item (a bug, a payload nobody foresaw) is
+counted (:attr:`Recorder.failed_items`) and the item skipped.
+:meth:`Recorder.close` (also on SIGTERM) finishes the file, so it has its
+summary; after a crash the file reads back up to its last written chunk.
 """
 
 import logging
@@ -34,8 +45,9 @@ from cantools.database.can import Database
 from daq._worker import Worker
 from daq.errors import RecordingError
 from daq.frames import BusEvent
-from daq.mcap_file import CountingFile, McapFile, RecordBatch
+from daq.mcap_file import CountingFile, McapFile, RecordBatch, RecordingGap
 from daq.recording_run import run_metadata
+from daq.recover import is_cut_short, recover_file
 from daq.service_config import RecordingSettings
 from daq.sim_truth import TruthRecord, truth_payload
 from estimator.machine import MachineSnapshot
@@ -99,6 +111,9 @@ class Recorder(Worker):
         self._stream: CountingFile | None = None
         self._last_flush = 0.0
         self._retry_at = 0.0
+        #: Wall-clock time recording stopped at (a write error), None while recording.
+        self.stopped_t_s: float | None = None
+        self._dropped_at_stop = 0
         #: Items dropped (a batch counts its frames): queue full, or no file open after
         #: a write error.
         self.dropped = 0
@@ -106,6 +121,10 @@ class Recorder(Worker):
         self.errors = 0
         #: Truth samples skipped because they were not valid samples.
         self.rejected = 0
+        #: Items whose writing raised something else than a write error (skipped).
+        self.failed_items = 0
+        #: Recording gaps so far: (stopped at, seconds lost), wall-clock time.
+        self.gaps: list[tuple[float, float]] = []
         #: Files begun, and the current one.
         self.paths: list[Path] = []
         self._files_created = 0
@@ -117,6 +136,11 @@ class Recorder(Worker):
     @property
     def current_path(self) -> Path | None:
         return self.paths[-1] if self._file is not None else None
+
+    @property
+    def failing(self) -> bool:
+        """Recording has stopped after a write error (and not resumed yet)."""
+        return self.stopped_t_s is not None
 
     @property
     def current_bytes(self) -> int:
@@ -135,7 +159,28 @@ class Recorder(Worker):
             ) from exc
         if self.run_id is None:
             self.run_id = uuid.uuid4().hex
-        self._open(self._now())
+        self._recover_previous()
+        self._guarded(lambda: self._open(self._now()))
+
+    def _recover_previous(self) -> None:
+        """Complete the newest file of this machine if the last run was cut short (a crash)."""
+        files = sorted(self.directory.glob(f"{self._machine_id}_*.mcap"))
+        if not files:
+            return
+        previous = files[-1]
+        try:
+            if not is_cut_short(previous):
+                return
+            result = recover_file(previous, compression=self.settings.compression)
+        except RecordingError as exc:
+            logger.error("cannot recover %s (cut short): %s", previous, exc.reason)
+            return
+        logger.warning(
+            "recovered %s (cut short by a crash): %d messages, %d attachments kept",
+            previous,
+            result.messages,
+            result.attachments,
+        )
 
     def submit(self, item: Item) -> None:
         """Queue ``item`` for writing; never blocks (a full queue drops and counts)."""
@@ -158,7 +203,7 @@ class Recorder(Worker):
             except queue.Empty:
                 pass
             else:
-                self._write(item)
+                self._write_guarded(item)
             if time.monotonic() - self._last_flush >= period_s:
                 self._guarded(self._flush)
         deadline = time.monotonic() + DRAIN_S
@@ -167,7 +212,15 @@ class Recorder(Worker):
                 item = self._queue.get_nowait()
             except queue.Empty:
                 break
+            self._write_guarded(item)
+
+    def _write_guarded(self, item: Item) -> None:
+        try:
             self._write(item)
+        except Exception:  # noqa: BLE001 -- one bad item must not stop the recording
+            self.failed_items += 1
+            if self.failed_items == 1:
+                logger.exception("skipping an item the recorder cannot write (counting them)")
 
     def _write(self, item: Item) -> None:
         if not self._ready(item):
@@ -231,20 +284,23 @@ class Recorder(Worker):
         return (t_s if first_ns is None else first_ns / 1e9) + self.settings.max_duration_s
 
     def _guarded(self, action: Callable[[], object]) -> bool:
-        """Run a file operation; an OS error abandons the file and schedules a retry."""
+        """Run a file operation; a write error stops recording until a retry succeeds."""
         try:
             action()
         except (OSError, RecordingError) as exc:
             self.errors += 1
-            logger.error(
-                "recording to %s failed: %s; check free space and the rights on the "
-                "directory; next file in %.0f s",
-                self.directory,
-                exc,
-                RETRY_AFTER_S,
-            )
             self._abandon_file()
             self._retry_at = time.monotonic() + RETRY_AFTER_S
+            if self.stopped_t_s is None:
+                self.stopped_t_s = self._now()
+                self._dropped_at_stop = self.dropped
+                logger.error(
+                    "recording stopped: %s; check free space and the rights on %s; "
+                    "retrying every %.0f s",
+                    _one_line(exc),
+                    self.directory,
+                    RETRY_AFTER_S,
+                )
             return False
         return True
 
@@ -272,16 +328,39 @@ class Recorder(Worker):
         )
         assert self.run_id is not None  # drawn in _before_start
         run = run_metadata(self._machine_id, self.run_id, self._files_created)
-        self._files_created += 1  # a file that fails to start still took its index
         try:
             mcap.start(self._attachments, t_s, run)
+            if self.stopped_t_s is not None:
+                mcap.write_gap(self._gap(t_s))
+            mcap.flush()  # header, attachments and gap on disk now, or the error now
         except BaseException:
             stream.close()
+            path.unlink(missing_ok=True)  # no empty file per retry (and no index taken)
             raise
+        self._files_created += 1
         self._file, self._stream = mcap, stream
         self._last_flush = time.monotonic()
         self.paths.append(path)
-        logger.info("recording to %s", path)
+        if self.stopped_t_s is not None:
+            lost_s = t_s - self.stopped_t_s
+            self.gaps.append((self.stopped_t_s, lost_s))
+            logger.warning(
+                "recording resumed in %s: %.1f s lost (%d items dropped)",
+                path,
+                lost_s,
+                self.dropped - self._dropped_at_stop,
+            )
+            self.stopped_t_s = None
+        else:
+            logger.info("recording to %s", path)
+
+    def _gap(self, t_s: float) -> RecordingGap:
+        stopped_t_s = self.stopped_t_s if self.stopped_t_s is not None else t_s
+        return RecordingGap(
+            stopped_t_s=stopped_t_s,
+            resumed_t_s=t_s,
+            dropped=self.dropped - self._dropped_at_stop,
+        )
 
     def _close_file(self) -> None:
         mcap, stream = self._file, self._stream
@@ -290,9 +369,9 @@ class Recorder(Worker):
             return
         try:
             mcap.close()
-        except OSError as exc:
+        except Exception as exc:  # noqa: BLE001 -- close runs on shutdown: log, never raise
             self.errors += 1
-            logger.error("cannot finish %s: %s", self.paths[-1], exc)
+            logger.error("cannot finish %s: %s", self.paths[-1], _one_line(exc))
         finally:
             stream.close()
 
@@ -304,3 +383,10 @@ class Recorder(Worker):
                 stream.close()
             except OSError:
                 pass
+
+
+def _one_line(exc: BaseException) -> str:
+    """An OS error as ``path: reason`` (errno text), anything else as its first line."""
+    if isinstance(exc, OSError) and exc.strerror:
+        return f"{exc.filename}: {exc.strerror}" if exc.filename else exc.strerror
+    return (str(exc).strip().splitlines() or [type(exc).__name__])[0]

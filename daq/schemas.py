@@ -64,6 +64,16 @@ BUS_EVENT = _object(
     },
 )
 
+RECORDING_GAP = _object(
+    "portal.RecordingGap",
+    {
+        "t": {"type": "number", "description": "wall-clock time recording resumed, Unix seconds"},
+        "stopped_t": {"type": "number", "description": "when it stopped (a write error)"},
+        "lost_s": {"type": "number", "description": "seconds not recorded"},
+        "dropped": {"type": "integer", "description": "items dropped meanwhile"},
+    },
+)
+
 _XY = {"type": "array", "items": {"type": "number"}, "minItems": 2, "maxItems": 2}
 
 #: ``/ground``: the ``<prefix>/ground`` aggregate, at the publish rate.

@@ -21,19 +21,25 @@ With ``event_loop = false`` reader and publisher have threads of their own::
 STATUS= every ``status_period_s``, WATCHDOG=1 while the service is healthy,
 STOPPING=1 when ``stop`` is set, then a clean shutdown.
 
-Healthy, for the watchdog: every thread alive and each of the reader,
-consumer and publisher loops turned within :data:`HEARTBEAT_MAX_AGE_S`. The
+Alive, for the watchdog (:meth:`Service.alive`): every thread alive and each of the
+reader, consumer and publisher loops turned within :data:`HEARTBEAT_MAX_AGE_S`. The
 reader's loop turns at least every receive timeout (0.1 s) even on a quiet
 bus, and while the bus is down or being reopened (the service repairs that
 itself, so a restart by systemd would not help); the consumer's loop turns at
-least every 0.1 s, and stops turning only when it hangs on a frame. The status's
-``healthy`` is also false for a status period in which the kernel dropped frames
-(``dropped.kernel`` rose); that does not stop the watchdog (a restart would not help).
+least every 0.1 s, and stops turning only when it hangs on a frame.
+
+Healthy, on the status topic and STATUS= (:func:`problems`): alive, and during the
+last status period the recorder was recording, nothing was dropped anywhere (every
+key of ``dropped``, ``dropped.kernel`` included), every configured Zenoh ``connect``
+endpoint was reached, and frames came in (none for a whole period, or for the legs'
+stale time when that is longer, is a problem). ``problems`` lists what is wrong, one
+short text each. None of these stops the watchdog (a restart would not help).
 """
 
 import logging
 import math
 import queue
+import re
 import time
 from collections.abc import Callable
 
@@ -50,9 +56,13 @@ from daq.sd_notify import SdNotifier
 from daq.service_config import ServiceConfig
 from daq.sim_truth import TRUTH_KEY, TruthSubscriber
 from daq.stop_signal import Stop
+from daq.zenoh_links import zenoh_status
+from daq.zenoh_session import connect_endpoints
 
 logger = logging.getLogger(__name__)
 
+#: Numbers in a problem's text: a change of only those is not logged again.
+_NUMBER = re.compile(r"\d+(\.\d+)?")
 #: A thread whose loop has not turned for this long is hung: no WATCHDOG=1.
 HEARTBEAT_MAX_AGE_S = 2.0
 
@@ -106,10 +116,22 @@ class Service:
             record_signals=config.recording.signals,
             now=now,
         )
+        self.session = session
+        #: The endpoints the session connects to (``[zenoh] connect`` or the JSON5 file).
+        self.connect = connect_endpoints(config.zenoh, config.source)
+        #: No frame for this long is a problem: the legs' stale time (at least a period).
+        self.silence_s = max(
+            config.publish.status_period_s,
+            config.machine.estimator.stale_after_cycles
+            * max((leg.cycle_time_s for leg in config.machine.legs.values()), default=0.0),
+        )
         self._started_monotonic = time.monotonic()
         self._rate_mark = (time.monotonic(), 0)
         self._frames_per_s = 0.0
-        #: The kernel drop count at the previous status (a rise makes that status unhealthy).
+        self._last_frame_monotonic = time.monotonic()
+        self._dropped_mark: dict[str, int] = {}
+        self._reported_problems: list[str] = []
+        #: The kernel drop count at the previous status (for the log line of a rise).
         self._kernel_dropped_mark = 0
         self._started = False
         self._closed = False
@@ -175,7 +197,7 @@ class Service:
                         notifier.status(status_line(status))
                 if ready and now >= next_watchdog:
                     next_watchdog = max(next_watchdog + watchdog_period_s, now)
-                    if self.healthy():
+                    if self.alive():
                         notifier.watchdog()
                     else:
                         logger.error("a service thread hangs: no WATCHDOG=1 (%s)", self.threads())
@@ -199,7 +221,8 @@ class Service:
             parts["reader"] = parts["publisher"] = consumer
         return {name: now - beat if alive else None for name, (alive, beat) in parts.items()}
 
-    def healthy(self) -> bool:
+    def alive(self) -> bool:
+        """Every thread alive and turning its loop: the watchdog's WATCHDOG=1 condition."""
         recorder_ok = self.recorder is None or self.recorder.alive
         return recorder_ok and all(
             age is not None and age < HEARTBEAT_MAX_AGE_S for age in self.threads().values()
@@ -213,12 +236,14 @@ class Service:
         if now - mark_t > 0:
             self._frames_per_s = (received - mark_received) / (now - mark_t)
         self._rate_mark = (now, received)
+        if received != mark_received:
+            self._last_frame_monotonic = now
         # Read once: the status must show the very count its health was judged on.
         kernel_dropped = self.reader.kernel_dropped
-        kernel_lost = self._kernel_losses(kernel_dropped)
+        self._kernel_losses(kernel_dropped)  # logs a rise; health: see problems()
         bad = dict(self.pipeline.bad)
         recorder = self.recorder
-        return {
+        status: JsonObject = {
             "t": self._now(),
             "uptime_s": now - self._started_monotonic,
             "bus": {
@@ -257,13 +282,38 @@ class Service:
                 "file": str(recorder.current_path) if recorder.current_path else None,
                 "bytes": recorder.current_bytes,
                 "errors": recorder.errors,
+                "failing": recorder.failing,
+                "failed_items": recorder.failed_items,
+                "rejected": recorder.rejected,
+                "gaps": len(recorder.gaps),
+                "lost_s": sum(lost_s for _, lost_s in recorder.gaps),
             },
-            "healthy": self.healthy() and kernel_lost == 0,
+            "leg_faults": {
+                leg: dict(faults) for leg, faults in sorted(self.pipeline.leg_faults.items())
+            },
+            "zenoh": zenoh_status(self.session, self.connect),
         }
+        found = problems(
+            status,
+            alive=self.alive(),
+            dropped_before=self._dropped_mark,
+            silent_s=now - self._last_frame_monotonic,
+            silence_s=self.silence_s,
+        )
+        self._dropped_mark = dict(status["dropped"])
+        kinds = [_NUMBER.sub("N", problem) for problem in found]  # "dropped.rx +N"
+        if kinds != self._reported_problems:
+            if found:
+                logger.warning("not healthy: %s", "; ".join(found))
+            else:
+                logger.info("healthy again")
+            self._reported_problems = kinds
+        status["healthy"] = not found
+        status["problems"] = found
+        return status
 
-    def _kernel_losses(self, total: int) -> int:
-        """Frames the kernel dropped since the previous status (``total`` now); logs
-        them (one line)."""
+    def _kernel_losses(self, total: int) -> None:
+        """Logs the frames the kernel dropped since the previous status (``total`` now)."""
         lost, self._kernel_dropped_mark = total - self._kernel_dropped_mark, total
         if lost:
             logger.warning(
@@ -273,14 +323,43 @@ class Service:
                 total,
                 self.reader.rcvbuf_bytes,
             )
-        return lost
+
+
+def problems(
+    status: JsonObject,
+    *,
+    alive: bool,
+    dropped_before: dict[str, int],
+    silent_s: float,
+    silence_s: float,
+) -> list[str]:
+    """What makes ``status`` unhealthy (see the module docstring); empty when healthy.
+
+    >>> problems({"dropped": {"rx": 5, "kernel": 2}, "recording": None,
+    ...           "zenoh": {"unreached": []}}, alive=True, dropped_before={"rx": 5},
+    ...          silent_s=0.1, silence_s=1.0)
+    ['dropped.kernel +2']
+    """
+    found = [] if alive else ["a service thread hangs or died"]
+    recording = status.get("recording")
+    if recording is not None and recording.get("failing"):
+        found.append("recording stopped (write error)")
+    for where, count in status["dropped"].items():
+        if count > dropped_before.get(where, 0):
+            found.append(f"dropped.{where} +{count - dropped_before.get(where, 0)}")
+    found += [f"zenoh connect {endpoint} not reached" for endpoint in status["zenoh"]["unreached"]]
+    if silent_s >= silence_s:
+        found.append(f"no frame for {silent_s:.1f} s")
+    return found
 
 
 def status_line(status: JsonObject) -> str:
-    """One line for systemd's STATUS=, e.g. ``bus up, 600 frames/s, 0 bad, 0 dropped``."""
+    """One line for systemd's STATUS=, e.g. ``bus up, 600 frames/s, 0 bad, 0 dropped,
+    healthy`` or ``..., NOT HEALTHY: recording stopped (write error)``."""
     frames = status["frames"]
     dropped = sum(status["dropped"].values())
+    health = "healthy" if status["healthy"] else "NOT HEALTHY: " + "; ".join(status["problems"])
     return (
         f"bus {status['bus']['state']}, {status['frames_per_s']:.0f} frames/s, "
-        f"{frames['bad']} bad, {dropped} dropped"
+        f"{frames['bad']} bad, {dropped} dropped, {health}"
     )

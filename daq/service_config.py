@@ -119,8 +119,9 @@ class RecordingSettings:
     #: Results waiting for the recorder thread; beyond, they are dropped and counted.
     queue_size: int = 20_000
     #: Also record the simulator bridge's ground truth (``<prefix>/sim/truth`` on
-    #: Zenoh) on the ``/sim/truth`` channel, whenever a bridge publishes it.
-    truth: bool = True
+    #: Zenoh) on the ``/sim/truth`` channel, whenever a bridge publishes it. Off by
+    #: default: on the machine nobody else may write into the recording.
+    truth: bool = False
     #: Also record the decoded signals of every frame (``/signals/<MESSAGE>``, JSON).
     #: Off: they are derivable from ``/can/raw`` (replay and report do), and writing
     #: them costs about as much as everything else the recorder does (bench/).

@@ -16,14 +16,14 @@ a :class:`TruthRecord` and hands it to ``submit`` (the recorder's non-blocking
 thread (:func:`truth_payload`).
 """
 
-import json
 import logging
-import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
 import zenoh
+
+from daq.payloads import finite_number, parse_json, unix_time_s
 
 logger = logging.getLogger(__name__)
 
@@ -39,24 +39,38 @@ class TruthRecord:
 
 
 def truth_payload(record: TruthRecord) -> dict[str, Any] | None:
-    """The sample as a dict, or None unless it is a JSON object with a finite
-    number ``t_unix_s`` and an object ``legs``.
+    """The sample as a dict, or None unless it is a JSON object with ``t_unix_s`` a
+    plausible Unix time (:func:`daq.payloads.unix_time_s`: seconds, not milliseconds)
+    and ``legs`` an object of objects whose values are finite numbers or null.
 
-    >>> truth_payload(TruthRecord(b'{"t_unix_s": 12.5, "legs": {}}'))
-    {'t_unix_s': 12.5, 'legs': {}}
-    >>> truth_payload(TruthRecord(b'{"t_unix_s": null, "legs": {}}')) is None
+    The payload comes from outside: only the known fields are kept, every number
+    checked, so that nothing in it can fail later (MCAP log time, JSON encoding).
+
+    >>> truth_payload(TruthRecord(b'{"t_unix_s": 1750000000.5, "legs": {}}'))
+    {'t_unix_s': 1750000000.5, 'legs': {}}
+    >>> truth_payload(TruthRecord(b'{"t_unix_s": 1750000000500, "legs": {}}')) is None
     True
     """
-    try:
-        sample = json.loads(record.payload)
-    except (UnicodeDecodeError, json.JSONDecodeError):
-        return None
+    sample = parse_json(record.payload)
     if not isinstance(sample, dict) or not isinstance(sample.get("legs"), dict):
         return None
-    t_s = sample.get("t_unix_s")
-    if isinstance(t_s, bool) or not isinstance(t_s, int | float) or not math.isfinite(t_s):
+    t_s = unix_time_s(sample.get("t_unix_s"))
+    if t_s is None:
         return None
-    return sample
+    legs: dict[str, dict[str, float | None]] = {}
+    for name, leg in sample["legs"].items():
+        if not isinstance(leg, dict):
+            return None
+        values = {str(field): finite_number(value) for field, value in leg.items()}
+        if any(value is None and leg[field] is not None for field, value in values.items()):
+            return None  # a number that is not finite, or not a number at all
+        legs[str(name)] = values
+    checked: dict[str, Any] = {"t_unix_s": t_s}
+    for field in ("t_cycle_s", "cycle"):
+        if field in sample:
+            checked[field] = finite_number(sample[field])
+    checked["legs"] = legs
+    return checked
 
 
 class TruthSubscriber:

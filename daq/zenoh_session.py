@@ -1,11 +1,20 @@
 """Building the Zenoh session's configuration from ``[zenoh]``; opening it (in __main__).
 
-Order, later winning: Zenoh's defaults, the JSON5 ``config_file``, then the
-explicit keys ``mode``, ``connect``, ``listen``, ``multicast_scouting``.
+Order, later winning: Zenoh's defaults, then either the JSON5 ``config_file`` or,
+without one, :data:`SAFE_DEFAULTS`, then the explicit keys ``mode``, ``connect``,
+``listen``, ``multicast_scouting``.
+
+Zenoh's own defaults suit a lab, not a machine: a peer listens on every interface
+(``tcp/[::]:0``) and announces itself by UDP multicast, so anyone on the network
+finds and reaches it. Without a ``config_file`` the service therefore listens on
+loopback only (:data:`DEFAULT_LISTEN`) and neither scouts by multicast nor gossips;
+reaching it from the network takes an explicit ``listen`` (and, for a locked-down
+surface, the access control of ``deploy/zenoh.json5``).
 """
 
 import json
 import re
+from typing import Any
 
 import zenoh
 
@@ -13,10 +22,27 @@ from daq.errors import ZenohError
 from daq.service_config import ZenohSettings
 from dbc.errors import ConfigError
 
+#: Where the service listens without a ``config_file`` and without ``listen``.
+DEFAULT_LISTEN = "tcp/127.0.0.1:7447"
+#: A put to a link that stays congested this long (µs) closes the link instead of
+#: stalling the publisher thread (below the watchdog's 2 s heartbeat limit).
+BLOCK_WAIT_BEFORE_CLOSE_US = 1_000_000
+#: Applied when there is no ``config_file`` (the explicit keys still win); a client
+#: listens nowhere, so it gets no listener.
+SAFE_DEFAULTS: dict[str, object] = {
+    "listen/endpoints": [DEFAULT_LISTEN],
+    "scouting/multicast/enabled": False,
+    "scouting/gossip/enabled": False,
+}
+
 
 def zenoh_config(settings: ZenohSettings, source: str = "") -> zenoh.Config:
     """The :class:`zenoh.Config` for ``settings``; a bad JSON5 file is a ConfigError."""
-    config = zenoh.Config()
+    overrides: dict[str, object] = {
+        "transport/link/tx/queue/congestion_control/block/wait_before_close": (
+            BLOCK_WAIT_BEFORE_CLOSE_US
+        )
+    }
     if settings.config_file is not None:
         try:
             config = zenoh.Config.from_file(str(settings.config_file))
@@ -24,7 +50,11 @@ def zenoh_config(settings: ZenohSettings, source: str = "") -> zenoh.Config:
             raise ConfigError(
                 settings.config_file, "", f"not a valid Zenoh config: {one_line(str(exc))}"
             ) from exc
-    overrides: dict[str, object] = {}
+    else:
+        config = zenoh.Config()
+        overrides.update(SAFE_DEFAULTS)
+        if settings.mode == "client":
+            del overrides["listen/endpoints"]
     if settings.mode is not None:
         overrides["mode"] = settings.mode
     if settings.connect:
@@ -69,3 +99,25 @@ def one_line(message: str) -> str:
     lines = [line.strip() for line in message.strip().splitlines()]
     text = " ".join(line for line in lines if line and line != "|")
     return re.sub(r"\s+at \S+\.rs:\d+\.?", "", text)
+
+
+def config_value(config: zenoh.Config, key: str) -> Any:
+    """The JSON value of ``key`` in ``config``, or None when unset."""
+    try:
+        return json.loads(config.get_json(key))
+    except (zenoh.ZError, ValueError):
+        return None
+
+
+def endpoints(value: Any, mode: str) -> list[str]:
+    """Endpoints as the config holds them: a list, or per mode (Zenoh's defaults)."""
+    if isinstance(value, dict):
+        value = value.get(mode, [])
+    return [str(e) for e in value] if isinstance(value, list) else []
+
+
+def connect_endpoints(settings: ZenohSettings, source: str = "") -> list[str]:
+    """The endpoints the session connects to: ``[zenoh] connect`` or the JSON5 file's."""
+    config = zenoh_config(settings, source)
+    mode = config_value(config, "mode") or "peer"
+    return endpoints(config_value(config, "connect/endpoints"), mode)

@@ -228,6 +228,13 @@ def read_toml(path: str | Path) -> dict[str, Any]:
         raise ConfigError(source, "", f"cannot read it: {exc.strerror or exc}") from exc
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(source, "", f"not valid TOML: {exc}") from exc
+    except UnicodeDecodeError as exc:  # TOML is UTF-8; e.g. a Latin-1 comment "46 °C"
+        raise ConfigError(
+            source,
+            "",
+            f"not UTF-8 (byte 0x{exc.object[exc.start]:02x} at offset {exc.start}); "
+            "save the file as UTF-8",
+        ) from exc
 
 
 def _dbc_path(root: TomlTable, config_dir: Path) -> Path:

@@ -24,8 +24,13 @@ work=$(mktemp -d /tmp/portal-daq-demo.XXXXXX)
 cp deploy/zenoh.json5 "$work/zenoh.json5"
 # Slow motion stretches the cycle times: scale the staleness limit with it.
 stale=$(awk -v s="$SPEED" 'BEGIN { printf "%.2f", (s < 1 ? 3 / s : 3) }')
+# Truth is recorded; the bridge publishes it through a Unix socket, the only link
+# zenoh.json5's access control accepts puts under portal/** from.
+socket="unixsock-stream/$work/zenoh.sock"
 sed -e 's/^channel = "can0"/channel = "vcan0"/' \
     -e 's#^directory = .*#directory = "recordings"#' \
+    -e 's/^truth = false/truth = true/' \
+    -e "s|^# listen = .*|listen = [\"tcp/127.0.0.1:7447\", \"$socket\"]|" \
     -e "s/^stale_after_cycles = .*/stale_after_cycles = $stale/" \
     deploy/portal-daq.example.toml > "$work/portal-daq.toml"
 endpoint=tcp/127.0.0.1:7447
@@ -39,7 +44,7 @@ trap 'kill $service 2>/dev/null || true' EXIT
     --duration "$cycle_s" &
 monitor=$!
 "$PY" -m sim_bridge --config deploy/machine.example.toml --channel vcan0 --speed "$SPEED" \
-    --cycles 1 --zenoh --mode peer --connect "$endpoint" --listen tcp/127.0.0.1:0 \
+    --cycles 1 --zenoh --mode peer --connect "$socket" --listen tcp/127.0.0.1:0 \
     --no-multicast-scouting \
     --truth-csv "$work/truth.csv" -q
 wait "$monitor" || true

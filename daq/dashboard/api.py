@@ -15,7 +15,7 @@ and whether it is stale::
                                "reasons"}}},
      "metrics": null | {"age_s", "t", "legs": {LEG: {"peak_pressure_Pa",
                 "near_constant_pressure_Pa", "time_above_limit_s"}}},
-     "viewer": {"dropped", "ignored"}}
+     "viewer": {"dropped", "missed", "ignored"}}
 
 ``/api/history?since=T&generation=G``: the plot's points after ``T`` (all of
 them, with ``"reset": true``, when ``G`` is not the history's generation)::
@@ -42,7 +42,7 @@ from daq.payloads import JsonObject
 
 
 def latest_document(
-    viewer: ViewerConfig, state: LiveState, now_s: float, *, dropped: int = 0
+    viewer: ViewerConfig, state: LiveState, now_s: float, *, dropped: int = 0, missed: int = 0
 ) -> JsonObject:
     status = state.status
     ground = state.ground
@@ -62,7 +62,7 @@ def latest_document(
         "status": None if status is None else _status(status, now_s, viewer.status_stale_s),
         "ground": None if ground is None else _ground(ground, now_s, viewer.ground_stale_s),
         "metrics": None if metrics is None else _metrics(metrics, now_s, viewer.status_stale_s),
-        "viewer": {"dropped": dropped, "ignored": state.ignored},
+        "viewer": {"dropped": dropped, "missed": missed, "ignored": state.ignored},
     }
 
 

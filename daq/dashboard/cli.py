@@ -1,4 +1,4 @@
-"""``portal-daq dashboard --config FILE [--http HOST:PORT] [--duration S] [--connect EP] ...``.
+"""``portal-daq dashboard --config FILE [--http HOST:PORT] [--allow-host NAME] [--duration S] ...``.
 
 ``portal-daq dashboard --fleet --connect ROUTER [--mode client] [--root portal]``
 serves the fleet page instead (:mod:`daq.dashboard.fleet`).
@@ -44,6 +44,15 @@ def dashboard_main(args: Sequence[str]) -> int:
         metavar="HOST:PORT",
         help=f"where to serve the page (port 0: any free one) [{DEFAULT_HTTP}]",
     )
+    parser.add_argument(
+        "--allow-host",
+        action="append",
+        default=[],
+        metavar="NAME",
+        help="a host name or address the browser may use in the URL, besides localhost, "
+        "127.0.0.1, ::1 and the --http address (repeatable); others are refused (403) "
+        "against DNS rebinding",
+    )
     options = parser.parse_args(args)
     setup_logging(options.log_level)
     try:
@@ -55,10 +64,14 @@ def dashboard_main(args: Sequence[str]) -> int:
         with StopSignal() as stop, open_viewer_session(viewer.zenoh) as session:
             dashboard: HubServer
             if isinstance(viewer, FleetViewer):
-                dashboard = FleetDashboard(session, viewer.settings, address)
+                dashboard = FleetDashboard(
+                    session, viewer.settings, address, allowed_hosts=options.allow_host
+                )
                 what = f"fleet {viewer.settings.prefix}"
             else:
-                dashboard = Dashboard(session, viewer.config, address)
+                dashboard = Dashboard(
+                    session, viewer.config, address, allowed_hosts=options.allow_host
+                )
                 what = viewer.config.prefix
             with dashboard:
                 sys.stdout.write(f"dashboard of {what} on {dashboard.url}\n")

@@ -9,7 +9,7 @@ service). Machines are discovered from their liveliness tokens; the feed is a
 """
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from urllib.parse import unquote
 
 import zenoh
@@ -44,10 +44,11 @@ class FleetDashboard(HubServer):
         settings: FleetSettings,
         address: tuple[str, int],
         *,
+        allowed_hosts: Iterable[str] = (),
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
         feed = LiveFeed(session, settings.prefix, clock=clock, liveliness=True)
-        super().__init__(feed, address, clock=clock)
+        super().__init__(feed, address, allowed_hosts=allowed_hosts, clock=clock)
         self.settings = settings
         self._fleet = FleetState(settings)
         self._histories: dict[str, PressureHistory] = {}

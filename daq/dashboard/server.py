@@ -7,6 +7,12 @@ requests that complete, unlike a Server-Sent Events stream, so headless
 browsers (``--virtual-time-budget``) and proxies handle it, and ``since``
 makes sure no snapshot is missed.
 
+DNS rebinding: a web page on another site can make a browser resolve its own name
+to this host and then read the dashboard through it. Every request whose ``Host``
+header does not name the dashboard (``localhost``, ``127.0.0.1``, ``::1``, the bound
+address unless it is a wildcard, and the names given in ``allowed_hosts``, e.g.
+``--allow-host pam-1.local``) is refused with 403 (:func:`host_allowed`).
+
 Threads: Zenoh's callbacks only enqueue (:class:`~daq.live.feed.LiveFeed`);
 the hub thread applies each payload to the state and the history under a
 lock; the HTTP threads (stdlib ``ThreadingHTTPServer``) read them under the
@@ -23,7 +29,7 @@ import math
 import socket
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from importlib import resources
 from typing import Any, Self, cast
@@ -44,6 +50,9 @@ logger = logging.getLogger(__name__)
 PAGE = "static/index.html"
 #: The hub thread checks for ``close`` this often while no payload comes.
 HUB_WAIT_S = 0.1
+#: Host names always accepted in the ``Host`` header.
+LOCAL_HOSTS = ("localhost", "127.0.0.1", "::1")
+_WILDCARDS = ("", "0.0.0.0", "::")
 
 
 #: (HTTP status, content type, body) of a GET.
@@ -62,9 +71,16 @@ class HubServer:
         feed: LiveFeed,
         address: tuple[str, int],
         *,
+        allowed_hosts: Iterable[str] = (),
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
         self.address = address
+        #: Host names accepted in a request's ``Host`` header (lower case).
+        self.allowed_hosts = frozenset(
+            name.lower()
+            for name in (*LOCAL_HOSTS, *allowed_hosts, address[0])
+            if name not in _WILDCARDS
+        )
         self.feed = feed
         self._clock = clock
         self._lock = threading.Lock()
@@ -178,9 +194,11 @@ class Dashboard(HubServer):
         viewer: ViewerConfig,
         address: tuple[str, int],
         *,
+        allowed_hosts: Iterable[str] = (),
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
-        super().__init__(LiveFeed(session, viewer.prefix, clock=clock), address, clock=clock)
+        feed = LiveFeed(session, viewer.prefix, clock=clock)
+        super().__init__(feed, address, allowed_hosts=allowed_hosts, clock=clock)
         self.viewer = viewer
         self._state = LiveState(viewer.prefix)
         self._history = PressureHistory(viewer.legs)
@@ -193,7 +211,11 @@ class Dashboard(HubServer):
     def latest(self) -> JsonObject:
         with self._lock:
             return latest_document(
-                self.viewer, self._state, self._clock(), dropped=self.feed.dropped
+                self.viewer,
+                self._state,
+                self._clock(),
+                dropped=self.feed.dropped,
+                missed=self.feed.missed,
             )
 
     def history(self, since_s: float | None, generation: int | None) -> JsonObject:
@@ -235,7 +257,11 @@ class _Handler(BaseHTTPRequestHandler):
     def do_GET(self) -> None:
         hub = cast(_Server, self.server).hub
         url = urlsplit(self.path)
-        self._send(*hub.respond(url.path, parse_qs(url.query)))
+        if not host_allowed(self.headers.get("Host"), hub.allowed_hosts):
+            error = "Host not allowed (see portal-daq dashboard --allow-host)"
+            self._send(*json_response({"error": error}, 403))
+        else:
+            self._send(*hub.respond(url.path, parse_qs(url.query)))
 
     def _send(self, code: int, content_type: str, body: bytes) -> None:
         self.send_response(code)
@@ -250,6 +276,24 @@ class _Handler(BaseHTTPRequestHandler):
 
     def log_message(self, fmt: str, *args: Any) -> None:
         logger.debug("%s %s", self.address_string(), fmt % args)
+
+
+def host_allowed(header: str | None, allowed: frozenset[str]) -> bool:
+    """Whether a ``Host`` header (``name``, ``name:port``, ``[v6]:port``) names an allowed host.
+
+    >>> allowed = frozenset({"localhost", "::1"})
+    >>> host_allowed("localhost:8080", allowed), host_allowed("[::1]:80", allowed)
+    (True, True)
+    >>> host_allowed("evil.example:8080", allowed), host_allowed(None, allowed)
+    (False, False)
+    """
+    if not header:
+        return False
+    try:
+        name = urlsplit(f"//{header.strip()}").hostname
+    except ValueError:
+        return False
+    return name is not None and name in allowed
 
 
 def _number(query: dict[str, list[str]], name: str, kind: Callable[[str], Any]) -> Any:

@@ -1,11 +1,15 @@
-"""The Zenoh edge of a viewer: subscribers whose callbacks only enqueue.
+"""The Zenoh edge of a viewer: advanced subscribers whose callbacks only enqueue.
 
-:class:`LiveFeed` subscribes to ``<prefix>/ground``, ``/status`` and
-``/metrics`` on the session passed in, and asks the service's cache once for
-their latest values (``get("<prefix>/*")``; late joiner). Callbacks run on
-Zenoh's threads and only put ``(key, payload, received_s)`` into a bounded
-queue (full: dropped and counted). The viewer's one consumer thread drains it
-into a :class:`~daq.live.state.LiveState` with :meth:`LiveFeed.drain`.
+:class:`LiveFeed` declares a :func:`zenoh.ext.declare_advanced_subscriber` on
+``<prefix>/ground``, ``/status`` and ``/metrics`` on the session passed in. With
+history, it gets the latest value of each key from the service's publisher cache
+when it joins, and again when the service (re)starts after it (late publisher
+detection). Its miss listener counts the samples it missed (:attr:`LiveFeed.missed`:
+lost on the way, or dropped by a congested link), from the service's sequence
+numbers and heartbeats. Callbacks run on Zenoh's threads and only put
+``(key, payload, received_s)`` into a bounded queue (full: dropped and counted).
+The viewer's one consumer thread drains it into a :class:`~daq.live.state.LiveState`
+with :meth:`LiveFeed.drain`.
 
 The prefix may hold a wildcard (``portal/*``: every machine, the fleet views).
 With ``liveliness=True`` the feed also follows the services' liveliness tokens
@@ -21,13 +25,16 @@ from collections.abc import Callable
 from typing import Any, NamedTuple
 
 import zenoh
+import zenoh.ext
 
 from daq.live.state import ALIVE, SUFFIXES, LiveState
 
 logger = logging.getLogger(__name__)
 
-#: How long the start-up query for the latest values may take.
-QUERY_TIMEOUT_S = 2.0
+#: The latest sample of each key when joining (and when the service starts later).
+HISTORY = zenoh.ext.HistoryConfig(detect_late_publishers=True, max_samples=1)
+#: Check sequence numbers against the publisher's heartbeats (a lost last sample too).
+RECOVERY = zenoh.ext.RecoveryConfig(periodic_queries=None, heartbeat=True)
 
 
 class Item(NamedTuple):
@@ -35,8 +42,6 @@ class Item(NamedTuple):
     payload: bytes
     #: ``clock()`` (monotonic seconds) when the callback ran.
     received_s: float
-    #: From the start-up query: older than anything a subscriber delivers.
-    queried: bool
     #: A liveliness change of the token ``key`` (no payload); None for data.
     alive: bool | None = None
 
@@ -58,11 +63,13 @@ class LiveFeed:
         self.liveliness = liveliness
         self._clock = clock
         self._queue: queue.Queue[Item] = queue.Queue(maxsize=queue_size)
-        self._subscribers: list[Any] = []
+        self._entities: list[Any] = []
         self._started = False
         self._closed = False
         #: Payloads lost because the queue was full (the consumer is too slow).
         self.dropped = 0
+        #: Samples the service published that never arrived here (miss listener).
+        self.missed = 0
 
     def __enter__(self) -> "LiveFeed":
         self.start()
@@ -76,28 +83,33 @@ class LiveFeed:
             return
         self._started = True
         for suffix in SUFFIXES:
-            self._subscribers.append(
-                self.session.declare_subscriber(f"{self.prefix}/{suffix}", self._on_sample)
+            subscriber = zenoh.ext.declare_advanced_subscriber(
+                self.session,
+                f"{self.prefix}/{suffix}",
+                self._on_sample,
+                history=HISTORY,
+                recovery=RECOVERY,
             )
+            self._entities.append(subscriber.sample_miss_listener(self._on_miss))
+            self._entities.append(subscriber)
         if self.liveliness:
-            self._subscribers.append(
+            self._entities.append(
                 self.session.liveliness().declare_subscriber(
                     f"{self.prefix}/{ALIVE}", self._on_token, history=True
                 )
             )
-        self.session.get(f"{self.prefix}/*", self._on_reply, timeout=QUERY_TIMEOUT_S)
 
     def close(self) -> None:
         """Undeclare the subscribers (the session stays open: its owner closes it). Idempotent."""
         if self._closed:
             return
         self._closed = True
-        for subscriber in self._subscribers:
+        for entity in self._entities:
             try:
-                subscriber.undeclare()
+                entity.undeclare()
             except zenoh.ZError as exc:  # e.g. the session was closed first
-                logger.debug("undeclaring %s: %s", subscriber, exc)
-        self._subscribers.clear()
+                logger.debug("undeclaring %s: %s", entity, exc)
+        self._entities.clear()
 
     def drain(self, state: LiveState) -> int:
         """Apply every queued payload to ``state``; returns how many were applied."""
@@ -117,17 +129,11 @@ class LiveFeed:
             return None
 
     def _on_sample(self, sample: zenoh.Sample) -> None:
-        self._enqueue(Item(str(sample.key_expr), sample.payload.to_bytes(), self._clock(), False))
+        self._enqueue(Item(str(sample.key_expr), sample.payload.to_bytes(), self._clock()))
 
     def _on_token(self, sample: zenoh.Sample) -> None:
         alive = sample.kind == zenoh.SampleKind.PUT
-        self._enqueue(Item(str(sample.key_expr), b"", self._clock(), False, alive))
-
-    def _on_reply(self, reply: zenoh.Reply) -> None:
-        sample = reply.ok
-        if sample is not None:
-            key = str(sample.key_expr)
-            self._enqueue(Item(key, sample.payload.to_bytes(), self._clock(), True))
+        self._enqueue(Item(str(sample.key_expr), b"", self._clock(), alive))
 
     def _enqueue(self, item: Item) -> None:
         try:
@@ -135,9 +141,10 @@ class LiveFeed:
         except queue.Full:
             self.dropped += 1
 
+    def _on_miss(self, miss: zenoh.ext.Miss) -> None:
+        self.missed += miss.nb
+
 
 def apply_item(state: LiveState, item: Item) -> int:
-    """Apply one item; a queried value never replaces one a subscriber delivered."""
-    if item.queried and state.holds(item.key):
-        return 0
+    """Apply one item to ``state``: 1 when it was usable, else 0 (and counted there)."""
     return int(state.apply(item.key, item.payload, item.received_s))

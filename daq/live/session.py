@@ -23,7 +23,7 @@ from typing import Any
 import zenoh
 
 from daq.service_config import ZenohSettings
-from daq.zenoh_session import open_config_session, zenoh_config
+from daq.zenoh_session import config_value, endpoints, open_config_session, zenoh_config
 from dbc.errors import ConfigError
 
 #: The viewer's own listener when none is given.
@@ -66,16 +66,16 @@ def viewer_zenoh_config(
 ) -> zenoh.Config:
     """The viewer's :class:`zenoh.Config` (see the module docstring)."""
     config = zenoh_config(settings, source)
-    service_mode = _get(config, "mode") or "peer"
-    service_listen = _endpoints(_get(config, "listen/endpoints"), service_mode)
-    service_connect = _endpoints(_get(config, "connect/endpoints"), service_mode)
+    service_mode = config_value(config, "mode") or "peer"
+    service_listen = endpoints(config_value(config, "listen/endpoints"), service_mode)
+    service_connect = endpoints(config_value(config, "connect/endpoints"), service_mode)
     mode = mode or service_mode
     overrides: dict[str, Any] = {
         "mode": mode,
         "connect/endpoints": list(connect) or viewer_connect(service_connect, service_listen),
         "listen/endpoints": list(listen) or ([] if mode == "client" else [VIEWER_LISTEN]),
     }
-    if _get(config, "connect/retry") is None:
+    if config_value(config, "connect/retry") is None:
         overrides["connect/retry"] = CONNECT_RETRY
     for key, value in overrides.items():
         try:
@@ -90,17 +90,3 @@ def open_viewer_session(config: zenoh.Config) -> zenoh.Session:
     return open_config_session(
         config, "check --connect/--listen/--mode and [zenoh]: is the service's address right?"
     )
-
-
-def _get(config: zenoh.Config, key: str) -> Any:
-    try:
-        return json.loads(config.get_json(key))
-    except (zenoh.ZError, ValueError):
-        return None
-
-
-def _endpoints(value: Any, mode: str) -> list[str]:
-    """Endpoints as the config holds them: a list, or per mode (Zenoh's defaults)."""
-    if isinstance(value, dict):
-        value = value.get(mode, [])
-    return [str(e) for e in value] if isinstance(value, list) else []

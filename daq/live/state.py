@@ -12,11 +12,14 @@ comparing the service's ``t`` with the viewer's wall clock, so a skewed clock
 on either side cannot make data look fresh or stale.
 """
 
-import json
-import math
+import logging
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, Generic, TypeVar
+
+from daq.payloads import finite_number, parse_json
+
+logger = logging.getLogger(__name__)
 
 T = TypeVar("T")
 
@@ -142,38 +145,37 @@ class LiveState:
         self.ground: Received[GroundReading] | None = None
         self.status: Received[StatusReading] | None = None
         self.metrics: Received[MetricsReading] | None = None
-        #: Payloads that were not JSON objects, or came on a key not viewed.
+        #: Payloads that were not JSON objects, could not be read, or came on a key
+        #: not viewed.
         self.ignored = 0
 
     def key(self, suffix: str) -> str:
         return f"{self.prefix}/{suffix}"
 
-    def holds(self, key: str) -> bool:
-        """Whether a value for ``key`` is held already."""
-        held = {
-            self.key(GROUND): self.ground,
-            self.key(STATUS): self.status,
-            self.key(METRICS): self.metrics,
-        }
-        return held.get(key) is not None
-
     def apply(self, key: str, payload: bytes, received_s: float) -> bool:
-        """Take one payload received on ``key``; False (and counted) when unusable."""
-        try:
-            data = json.loads(payload)
-        except (UnicodeDecodeError, json.JSONDecodeError):
-            data = None
+        """Take one payload received on ``key``; False (and counted) when unusable.
+
+        The payload comes from outside: it is checked field by field (types,
+        finite numbers, plausible times), and anything else that goes wrong while
+        reading it is counted in :attr:`ignored` too, never raised.
+        """
+        data = parse_json(payload)
         if not isinstance(data, dict):
             self.ignored += 1
             return False
-        if key == self.key(GROUND):
-            self.ground = Received(parse_ground(data), received_s)
-        elif key == self.key(STATUS):
-            self.status = Received(parse_status(data), received_s)
-        elif key == self.key(METRICS):
-            self.metrics = Received(parse_metrics(data), received_s)
-        else:
+        try:
+            if key == self.key(GROUND):
+                self.ground = Received(parse_ground(data), received_s)
+            elif key == self.key(STATUS):
+                self.status = Received(parse_status(data), received_s)
+            elif key == self.key(METRICS):
+                self.metrics = Received(parse_metrics(data), received_s)
+            else:
+                self.ignored += 1
+                return False
+        except Exception:  # noqa: BLE001 -- one odd payload must not stop a viewer
             self.ignored += 1
+            logger.debug("unusable payload on %s", key, exc_info=True)
             return False
         return True
 
@@ -234,7 +236,7 @@ def parse_stability(data: Any) -> StabilityReading | None:
 def _point(value: Any) -> tuple[float, float] | None:
     if not isinstance(value, list) or len(value) != 2:
         return None
-    x, y = _float(value[0]), _float(value[1])
+    x, y = finite_number(value[0]), finite_number(value[1])
     return None if x is None or y is None else (x, y)
 
 
@@ -277,13 +279,7 @@ def parse_metrics(data: Mapping[str, Any]) -> MetricsReading:
 
 
 def _number(data: Mapping[str, Any], name: str) -> float | None:
-    return _float(data.get(name))
-
-
-def _float(value: Any) -> float | None:
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        return None
-    return float(value) if math.isfinite(value) else None
+    return finite_number(data.get(name))
 
 
 def _count(data: Mapping[str, Any], name: str) -> int:

@@ -97,9 +97,14 @@ def header_rows(content: ReportContent) -> list[tuple[str, str]]:
         ("leg estimates", f"{counts.estimates} ({source})"),
         ("invalid estimates by reason", _counts(counts.invalid)),
         ("bus state changes", str(counts.bus_events)),
+        ("recording gaps (write errors)", _gaps(counts.recording_gaps, counts.recording_lost_s)),
         ("simulation truth samples", str(counts.truth_samples)),
         ("cycles", str(len(content.cycles))),
     ]
+
+
+def _gaps(count: int, lost_s: float) -> str:
+    return f"{count} ({lost_s:.1f} s not recorded)" if count else "0"
 
 
 def metrics_rows(content: ReportContent) -> list[list[str]]:

@@ -20,7 +20,7 @@ import numpy as np
 import numpy.typing as npt
 
 from daq.frames import RawFrame
-from daq.mcap_file import BUS_TOPIC, RAW_TOPIC, TRUTH_TOPIC
+from daq.mcap_file import BUS_TOPIC, RAW_TOPIC, RECORDING_TOPIC, TRUTH_TOPIC
 from daq.payloads import leg_ground
 from daq.payloads import signals as signals_payload
 from daq.pipeline import FrameResult
@@ -200,6 +200,10 @@ class RecordingCounts:
     #: events tell: by the kernel (socket receive buffer full) and by its queue.
     kernel_dropped: int = 0
     rx_dropped: int = 0
+    #: Gaps in the recording (``/daq/recording``: recording stopped on a write error)
+    #: and the seconds they lost.
+    recording_gaps: int = 0
+    recording_lost_s: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -242,6 +246,7 @@ class RecordingCollector:
         self._invalid: Counter[str] = Counter()
         self._bus_events = 0
         self._dropped: Counter[str] = Counter()
+        self._gaps: list[float] = []
         self._first_s = float("inf")
         self._last_s = float("-inf")
 
@@ -299,6 +304,9 @@ class RecordingCollector:
             lost = {key: event.get(key, 0) for key in ("kernel_dropped", "rx_dropped")}
             self._dropped.update(lost)
             self._bus_events += not any(lost.values())  # a loss keeps the state
+        elif topic == RECORDING_TOPIC:
+            lost_s = _number(json.loads(data).get("lost_s"))
+            self._gaps.append(lost_s if lost_s == lost_s else 0.0)
 
     def _add_signals(self, message: str, payload: Mapping[str, Any]) -> None:
         self._messages[message] += 1
@@ -357,6 +365,8 @@ class RecordingCollector:
                 truth_samples=len(self._truth),
                 kernel_dropped=self._dropped["kernel_dropped"],
                 rx_dropped=self._dropped["rx_dropped"],
+                recording_gaps=len(self._gaps),
+                recording_lost_s=sum(self._gaps),
             ),
             recomputed=recomputed,
             complete=complete,

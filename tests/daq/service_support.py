@@ -17,7 +17,9 @@ from typing import Any
 
 import can
 import zenoh
+import zenoh.ext
 
+from daq.live.feed import HISTORY, RECOVERY
 from daq.service import Service
 from dbc.encoding import FrameEncoder
 from dbc.machine import MachineConfig
@@ -58,6 +60,7 @@ def service_toml(
     chunk_size: int = 1024 * 1024,
     max_duration_s: float = 3600.0,
     receive_buffer_bytes: int | None = None,
+    truth: bool | None = None,
     extra: str = "",
 ) -> str:
     """A full service config: the example machine plus service tables for a test."""
@@ -87,6 +90,8 @@ max_bytes = {max(chunk_size, 1024 * 1024)}
 max_duration_s = {max_duration_s}
 flush_period_s = 0.2
 """
+        if truth is not None:
+            text += f"truth = {str(truth).lower()}\n"
     return text + extra + "\n" + EXAMPLE_CONFIG.read_text()
 
 
@@ -111,10 +116,25 @@ def peer_config(*, listen: str | None = None, connect: str | None = None) -> zen
 class Collector:
     """A subscriber on ``key`` that keeps every (key, JSON payload, encoding) it gets."""
 
-    def __init__(self, session: zenoh.Session, key: str) -> None:
+    def __init__(self, session: zenoh.Session, key: str, *, advanced: bool = False) -> None:
+        """``advanced``: a zenoh.ext advanced subscriber with history (the latest sample
+        of each key when it joins) whose miss listener counts :attr:`missed`."""
         self.samples: list[tuple[str, Any, str]] = []
+        self.missed = 0
         self._changed = threading.Condition()
-        self._subscriber = session.declare_subscriber(key, self._on_sample)
+        self._subscriber: Any
+        if advanced:
+            self._subscriber = zenoh.ext.declare_advanced_subscriber(
+                session, key, self._on_sample, history=HISTORY, recovery=RECOVERY
+            )
+            self._listener = self._subscriber.sample_miss_listener(self._on_miss)
+        else:
+            self._subscriber = session.declare_subscriber(key, self._on_sample)
+
+    def _on_miss(self, miss: zenoh.ext.Miss) -> None:
+        with self._changed:
+            self.missed += miss.nb
+            self._changed.notify_all()
 
     def _on_sample(self, sample: zenoh.Sample) -> None:
         payload = json.loads(sample.payload.to_bytes())

@@ -73,6 +73,30 @@ def test_missing_config_exits_2() -> None:
     assert_one_line_error(run_cli("--config", "/nonexistent.toml"), 2, "no such file")
 
 
+def test_config_not_utf8_exits_2_naming_the_file(tmp_path: Path) -> None:
+    path = tmp_path / "latin1.toml"
+    text = "# Hydraulik\u00f6l 46 \u00b0C\n" + EXAMPLE_CONFIG.read_text()
+    path.write_bytes(text.encode("latin-1", errors="replace"))
+    assert_one_line_error(run_cli("--config", str(path)), 2, f"{path}: not UTF-8 (byte 0xf6")
+
+
+def test_zenoh_config_not_utf8_exits_2_naming_the_file(tmp_path: Path) -> None:
+    zenoh_file = tmp_path / "zenoh.json5"
+    zenoh_file.write_bytes('// Hydraulik\u00f6l\n{ mode: "peer" }\n'.encode("latin-1"))
+    path = write_service_config(tmp_path, port=free_port())
+    path.write_text(path.read_text().replace("[zenoh]\n", '[zenoh]\nconfig_file = "zenoh.json5"\n'))
+    result = run_cli("--config", str(path))
+    assert result.returncode == 2, result.stderr
+    last = result.stderr.strip().splitlines()[-1]  # after the start-up log lines
+    assert last.startswith(f"portal-daq: {zenoh_file}: not a valid Zenoh config: ")
+    assert "UTF-8" in last and ".rs:" not in last and "Traceback" not in result.stderr
+
+
+def test_unreadable_config_exits_2_naming_the_file(tmp_path: Path) -> None:
+    # A directory: unreadable as a file even for root (chmod 000 is not, for root).
+    assert_one_line_error(run_cli("--config", str(tmp_path)), 2, f"{tmp_path}: cannot read it")
+
+
 def test_taken_zenoh_port_exits_1_with_a_hint(tmp_path: Path) -> None:
     port = free_port()
     with zenoh.open(peer_config(listen=f"tcp/127.0.0.1:{port}")):

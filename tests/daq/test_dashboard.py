@@ -3,10 +3,12 @@ in-process against a synthetic service on real Zenoh, read with urllib."""
 
 from __future__ import annotations
 
+import http.client
 import json
 import re
 import time
 import urllib.error
+import urllib.parse
 import urllib.request
 from collections.abc import Callable, Iterator
 from typing import Any
@@ -205,7 +207,8 @@ def test_server_serves_latest_history_and_the_page(
 
 
 def test_late_joiner_gets_the_services_cache() -> None:
-    """A dashboard started after the service's last status has it at once (Zenoh get)."""
+    """A dashboard started after the service's last status has it at once (the history
+    of zenoh.ext's advanced subscriber, from the publisher's cache)."""
     port = free_port()
     with synthetic_service(port, PREFIX, start=False) as service:
         service.announce()
@@ -217,6 +220,33 @@ def test_late_joiner_gets_the_services_cache() -> None:
             latest = wait_for_json(board.url + "api/latest", lambda d: d["status"] is not None)
     assert latest["status"]["bus"]["state"] == "up"
     assert latest["waiting_for"] == f"{PREFIX}/ground"
+
+
+def request_with_host(url: str, host: str | None) -> int:
+    """The status of GET ``url`` sent with the ``Host`` header ``host`` (None: none)."""
+    parts = urllib.parse.urlsplit(url)
+    connection = http.client.HTTPConnection(parts.hostname or "", parts.port, timeout=5)
+    try:
+        connection.putrequest("GET", "/api/latest", skip_host=True)
+        if host is not None:
+            connection.putheader("Host", host)
+        connection.endheaders()
+        return connection.getresponse().status
+    finally:
+        connection.close()
+
+
+def test_host_header_is_checked_against_dns_rebinding() -> None:
+    with zenoh.open(peer_config()) as session:
+        address = ("127.0.0.1", 0)
+        with Dashboard(session, VIEWER, address, allowed_hosts=["PAM-1.local"]) as board:
+            port = int(board.url.rsplit(":", 1)[1].strip("/"))
+            for host in (f"127.0.0.1:{port}", f"localhost:{port}", "[::1]", f"pam-1.local:{port}"):
+                assert request_with_host(board.url, host) == 200, host
+            for host in (f"attacker.example:{port}", "127.0.0.1.attacker.example", "", None):
+                assert request_with_host(board.url, host) == 403, host
+            status, _, body = get(board.url.replace("127.0.0.1", "localhost") + "api/latest")
+            assert status == 200 and json.loads(body)["viewer"]["missed"] == 0
 
 
 def test_taken_port_is_a_portal_daq_error() -> None:

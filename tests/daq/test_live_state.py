@@ -10,7 +10,6 @@ import pytest
 
 from daq import payloads
 from daq.frames import RawFrame
-from daq.live.feed import Item, apply_item
 from daq.live.session import reachable, viewer_connect, viewer_zenoh_config
 from daq.live.state import LiveState, Received
 from daq.live.viewer import viewer_config
@@ -19,7 +18,7 @@ from daq.service_config import ZenohSettings, load_service_config
 from dbc.encoding import FrameEncoder
 from dbc.errors import ConfigError
 from estimator.equations import foot_force_N
-from tests.daq.live_support import ground_payload, leg_payload, status_payload
+from tests.daq.live_support import status_payload
 from tests.daq.service_support import leg_signals, write_service_config
 from tests.helpers import LEGS, ROOT, example_machine
 
@@ -108,19 +107,6 @@ def test_other_keys_are_ignored() -> None:
 def test_age_never_negative() -> None:
     received = Received("x", received_s=10.0)
     assert received.age_s(12.5) == 2.5 and received.age_s(9.0) == 0.0
-
-
-def test_a_queried_value_never_replaces_a_subscribed_one() -> None:
-    state = LiveState(PREFIX)
-    legs = {"SB1_F1": leg_payload("SB1_F1", 2.0, 1e5)}
-    newer = json.dumps(ground_payload(2.0, legs)).encode()
-    older = json.dumps(ground_payload(1.0, legs)).encode()
-    assert apply_item(state, Item(f"{PREFIX}/ground", newer, 5.0, queried=False)) == 1
-    assert apply_item(state, Item(f"{PREFIX}/ground", older, 5.1, queried=True)) == 0
-    assert state.ground is not None and state.ground.value.t_s == 2.0
-    # ... but fills a key nothing was received on yet.
-    status = json.dumps(status_payload(1.0)).encode()
-    assert apply_item(state, Item(f"{PREFIX}/status", status, 5.2, queried=True)) == 1
 
 
 def test_reachable_endpoints() -> None:

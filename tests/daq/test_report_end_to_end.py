@@ -83,6 +83,7 @@ directory = "{recordings}"
 max_bytes = 1073741824
 flush_period_s = 0.5
 queue_size = 500000
+truth = true
 """,
     )
     path = tmp_path / "portal-daq.toml"

@@ -92,12 +92,13 @@ def bridge_session(config: ServiceConfig) -> Iterator[zenoh.Session]:
         session.close()
 
 
-def service_config(tmp_path: Path, extra: str = "") -> ServiceConfig:
+def service_config(tmp_path: Path, extra: str = "", truth: bool | None = True) -> ServiceConfig:
     path = write_service_config(
         tmp_path,
         channel=f"test-{uuid.uuid4().hex}",
         port=free_port(),
         recording=tmp_path / "rec",
+        truth=truth,
         extra=extra,
     )
     return load_service_config(path)
@@ -139,7 +140,7 @@ def test_truth_published_by_the_bridge_is_recorded_at_its_frame_time(tmp_path: P
 
 
 def test_truth_recording_can_be_switched_off(tmp_path: Path) -> None:
-    config = service_config(tmp_path, extra="truth = false\n")
+    config = service_config(tmp_path, extra="truth = false\n", truth=None)
     assert config.recording.truth is False
     with live_service(config) as service:
         assert service.truth is None
@@ -150,7 +151,7 @@ def test_truth_recording_can_be_switched_off(tmp_path: Path) -> None:
 
 def test_truth_switch_must_be_a_boolean(tmp_path: Path) -> None:
     with pytest.raises(ConfigError, match=r"recording\.truth"):
-        service_config(tmp_path, extra='truth = "yes"\n')
+        service_config(tmp_path, extra='truth = "yes"\n', truth=None)
 
 
 def test_the_callback_only_enqueues_and_a_full_queue_drops(tmp_path: Path) -> None:
@@ -185,8 +186,15 @@ def test_the_callback_only_enqueues_and_a_full_queue_drops(tmp_path: Path) -> No
 @pytest.mark.parametrize(
     ("payload", "valid"),
     [
-        (b'{"t_unix_s": 12.5, "legs": {}}', True),
-        (b'{"t_unix_s": 12, "t_cycle_s": 0.0, "cycle": 0, "legs": {"A": {}}}', True),
+        (b'{"t_unix_s": 1750000000.5, "legs": {}}', True),
+        (b'{"t_unix_s": 1750000000, "t_cycle_s": 0.0, "cycle": 0, "legs": {"A": {}}}', True),
+        (b'{"t_unix_s": 1750000000500, "legs": {}}', False),  # milliseconds
+        (b'{"t_unix_s": 12.5, "legs": {}}', False),  # not a plausible Unix time
+        (b'{"t_unix_s": 1750000000, "legs": {"A": {"force_true_N": "1"}}}', False),
+        (b'{"t_unix_s": 1750000000, "legs": {"A": {"force_true_N": 1e999}}}', False),
+        (b'{"t_unix_s": 1750000000, "legs": {"A": {"force_true_N": 1' + b"0" * 400 + b"}}}", False),
+        (b'{"t_unix_s": 1' + b"0" * 400 + b', "legs": {}}', False),
+        (b"[" * 100_000, False),
         (b'{"t_unix_s": null, "legs": {}}', False),
         (b'{"t_unix_s": true, "legs": {}}', False),
         (b'{"t_unix_s": "12.5", "legs": {}}', False),

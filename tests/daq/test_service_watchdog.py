@@ -15,6 +15,7 @@ import uuid
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from typing import Any
 
 import pytest
 import zenoh
@@ -93,9 +94,15 @@ def test_kernel_drops_show_on_status_and_make_only_that_period_unhealthy(
         lost = service.status()
         after = service.status()
     assert before["bus"]["rcvbuf_bytes"] == 8192
-    assert (before["dropped"]["kernel"], before["healthy"]) == (0, True)
+    # Only the drops matter here: "no frame for ..." may join in on a slow machine.
+    assert (before["dropped"]["kernel"], dropped_problems(before)) == (0, [])
     assert (lost["dropped"]["kernel"], lost["frames"]["dropped"], lost["healthy"]) == (7, 7, False)
-    assert (after["dropped"]["kernel"], after["healthy"]) == (7, True)
+    assert dropped_problems(lost) == ["dropped.kernel +7"]
+    assert (after["dropped"]["kernel"], dropped_problems(after)) == (7, [])
+
+
+def dropped_problems(status: dict[str, Any]) -> list[str]:
+    return [problem for problem in status["problems"] if problem.startswith("dropped")]
 
 
 def notifications(sock: socket.socket, timeout_s: float = WAIT_S) -> Iterator[str]:

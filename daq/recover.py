@@ -1,0 +1,128 @@
+"""Completing a recording cut short by a crash: ``portal-daq recover CUT.mcap [-o OUT.mcap]``.
+
+A file whose writer was killed has no summary and no indexes: mcap's default
+``make_reader()`` reads nothing of it, Foxglove wants an index. As the mcap
+command-line tool's ``recover`` does, the file is read from the start record by
+record (chunks decompressed, CRCs checked) up to the first record that is
+incomplete or corrupt, and everything read (header profile, schemas, channels,
+messages in file order, attachments, metadata) is written again through a new
+writer, which adds the chunk and message indexes, the statistics and the summary.
+Nothing after the cut can be had back; what was lost is reported.
+
+The recorder runs :func:`recover_file` on the newest file of its machine when it
+starts and finds that file cut short (:func:`is_cut_short`), in place.
+"""
+
+import logging
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import IO, Any, cast
+
+from mcap.records import Attachment, Channel, Footer, Header, Message, Metadata, Schema
+from mcap.writer import Writer
+
+from daq.errors import RecordingError
+from daq.mcap_file import COMPRESSION
+from daq.mcap_reading import RecordsToTheCut
+
+logger = logging.getLogger(__name__)
+
+#: Every MCAP file ends with these bytes (after the footer).
+MAGIC = b"\x89MCAP0\r\n"
+
+
+@dataclass(frozen=True, slots=True)
+class Recovered:
+    """What :func:`recover` wrote, and why reading stopped (None: the file was whole)."""
+
+    messages: int
+    attachments: int
+    metadata: int
+    #: The record that could not be read, e.g. ``EndOfFile``; None if the footer was read.
+    stopped_by: str | None
+
+
+def is_cut_short(path: Path) -> bool:
+    """The file does not end with the MCAP magic: its writer did not finish it."""
+    try:
+        with open(path, "rb") as file:
+            if file.seek(0, os.SEEK_END) < 2 * len(MAGIC):
+                return True
+            file.seek(-len(MAGIC), os.SEEK_END)
+            return file.read() != MAGIC
+    except OSError as exc:
+        raise RecordingError(path, f"cannot read it: {exc.strerror or exc}") from exc
+
+
+def recover(
+    source: IO[bytes], target: IO[bytes], *, compression: str = "zstd", chunk_size: int = 1 << 20
+) -> Recovered:
+    """Copy every readable record of ``source`` into a complete MCAP on ``target``."""
+    writer = Writer(
+        cast(IO[Any], target), chunk_size=chunk_size, compression=COMPRESSION[compression]
+    )
+    schemas: dict[int, int] = {0: 0}  # schema id 0: no schema
+    channels: dict[int, int] = {}
+    messages = attachments = metadata = 0
+    footer = False
+    started = False
+    records = RecordsToTheCut(source)
+    for record in records:
+        if isinstance(record, Header):
+            writer.start(profile=record.profile, library=record.library)
+            started = True
+            continue
+        if not started:  # no readable header: start one anyway
+            writer.start()
+            started = True
+        if isinstance(record, Schema):
+            schemas[record.id] = writer.register_schema(record.name, record.encoding, record.data)
+        elif isinstance(record, Channel) and record.schema_id in schemas:
+            channels[record.id] = writer.register_channel(
+                record.topic, record.message_encoding, schemas[record.schema_id], record.metadata
+            )
+        elif isinstance(record, Message) and record.channel_id in channels:
+            writer.add_message(
+                channels[record.channel_id],
+                log_time=record.log_time,
+                data=record.data,
+                publish_time=record.publish_time,
+                sequence=record.sequence,
+            )
+            messages += 1
+        elif isinstance(record, Attachment):
+            writer.add_attachment(
+                record.create_time, record.log_time, record.name, record.media_type, record.data
+            )
+            attachments += 1
+        elif isinstance(record, Metadata):
+            writer.add_metadata(record.name, record.metadata)
+            metadata += 1
+        elif isinstance(record, Footer):
+            footer = True
+    if not started:
+        writer.start()
+    writer.finish()  # type: ignore[no-untyped-call]
+    stopped_by = records.stopped_by or (None if footer else "no footer")
+    return Recovered(messages, attachments, metadata, stopped_by)
+
+
+def recover_file(path: Path, out: Path | None = None, *, compression: str = "zstd") -> Recovered:
+    """Recover ``path`` into ``out``, or in place (through a temporary file beside it).
+
+    Raises :class:`RecordingError` when a file cannot be read or written.
+    """
+    target = out if out is not None else path.with_name(path.name + ".recovering")
+    try:
+        with open(path, "rb") as source, open(target, "wb") as sink:
+            result = recover(source, sink, compression=compression)
+            sink.flush()
+            os.fsync(sink.fileno())
+        if out is None:
+            os.replace(target, path)
+    except OSError as exc:
+        if out is None:
+            target.unlink(missing_ok=True)
+        raise RecordingError(exc.filename or path, f"cannot recover: {exc.strerror}") from exc
+    return result

@@ -1,0 +1,110 @@
+"""`healthy` means it: drops anywhere, a failing recorder, an unreached endpoint, silence."""
+
+from __future__ import annotations
+
+import time
+import uuid
+from pathlib import Path
+
+import zenoh
+
+from daq.service import problems, status_line
+from daq.service_config import load_service_config
+from daq.zenoh_links import unreached
+from tests.daq.service_support import (
+    Collector,
+    free_port,
+    leg_messages,
+    peer_config,
+    subscriber_session,
+    write_service_config,
+)
+from tests.daq.test_service_live import encoder_for, live_service, sender, zenoh_port
+
+
+def status(**changes: object) -> dict:  # type: ignore[type-arg]
+    base = {
+        "dropped": {"rx": 0, "publish": 0, "record": 0},
+        "recording": {"failing": False},
+        "zenoh": {"unreached": []},
+    }
+    return base | changes
+
+
+def test_healthy_when_nothing_is_wrong() -> None:
+    assert problems(status(), alive=True, dropped_before={}, silent_s=0.0, silence_s=1.0) == []
+
+
+def test_any_drop_in_the_period_is_a_problem_whatever_its_key() -> None:
+    now = status(dropped={"rx": 3, "publish": 0, "record": 7, "kernel": 2})
+    before = {"rx": 3, "publish": 0, "record": 5}
+    found = problems(now, alive=True, dropped_before=before, silent_s=0.0, silence_s=1.0)
+    assert found == ["dropped.record +2", "dropped.kernel +2"]
+
+
+def test_failing_recorder_hung_thread_unreached_endpoint_and_silence() -> None:
+    now = status(recording={"failing": True}, zenoh={"unreached": ["tcp/10.0.0.9:7447"]})
+    found = problems(now, alive=False, dropped_before={}, silent_s=2.5, silence_s=1.0)
+    assert found == [
+        "a service thread hangs or died",
+        "recording stopped (write error)",
+        "zenoh connect tcp/10.0.0.9:7447 not reached",
+        "no frame for 2.5 s",
+    ]
+
+
+def test_status_line_says_the_same() -> None:
+    line = status_line(
+        {
+            "bus": {"state": "up"},
+            "frames_per_s": 600.4,
+            "frames": {"bad": 3},
+            "dropped": {"rx": 1, "kernel": 4},
+            "healthy": False,
+            "problems": ["dropped.kernel +4"],
+        }
+    )
+    assert line == "bus up, 600 frames/s, 3 bad, 5 dropped, NOT HEALTHY: dropped.kernel +4"
+
+
+def test_endpoint_names_resolve_and_unresolvable_ones_are_unreached() -> None:
+    links = {"tcp/127.0.0.1:7447"}
+    assert unreached(["tcp/localhost:7447", "tcp/127.0.0.1:7447#iface=lo"], links) == []
+    assert unreached(["tcp/no-such-host.invalid:7447"], links) == ["tcp/no-such-host.invalid:7447"]
+
+
+def test_unreached_connect_endpoint_is_reported_until_it_comes_up(tmp_path: Path) -> None:
+    peer_port = free_port()
+    endpoint = f"tcp/127.0.0.1:{peer_port}"
+    path = write_service_config(
+        tmp_path,
+        channel=f"test-{uuid.uuid4().hex}",
+        port=free_port(),
+        recording=tmp_path / "rec",
+        status_period_s=0.2,
+    )
+    path.write_text(
+        path.read_text().replace(
+            "multicast_scouting = false", f'multicast_scouting = false\nconnect = ["{endpoint}"]', 1
+        )
+    )
+    config = load_service_config(path)
+    prefix = config.zenoh.key_prefix
+    with live_service(config) as service, subscriber_session(zenoh_port(config)) as session:
+        collector = Collector(session, f"{prefix}/status")
+        down = collector.wait_for(f"{prefix}/status")
+        assert down["zenoh"]["connect"] == [endpoint]
+        assert down["zenoh"]["unreached"] == [endpoint] and down["healthy"] is False
+        assert f"zenoh connect {endpoint} not reached" in down["problems"]
+        assert len(down["zenoh"]["peers"]) == 1  # the subscriber, not the endpoint
+        with zenoh.open(peer_config(listen=endpoint)), sender(config) as bus:
+            up = None
+            deadline = time.monotonic() + 30
+            while up is None or up["zenoh"]["unreached"]:
+                assert time.monotonic() < deadline
+                for message in leg_messages(encoder_for(config), 1, time.time()):
+                    bus.send(message)
+                up = collector.wait_for(f"{prefix}/status")
+            assert len(up["zenoh"]["peers"]) == 2
+            assert not [p for p in up["problems"] if p.startswith("zenoh")]
+        assert service.connect == [endpoint]

@@ -1,0 +1,120 @@
+"""Crash-cut recordings: SIGKILL the service; `recover` and the restart complete the file."""
+
+from __future__ import annotations
+
+import json
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import zenoh
+from mcap.exceptions import McapError
+from mcap.reader import make_reader
+
+from daq.mcap_reading import RecordedMessage, RecordingStream
+from daq.recover import is_cut_short
+from tests.daq.service_support import WAIT_S, free_port, peer_config, write_service_config
+from tests.helpers import ROOT
+
+SAMPLES = 200
+
+
+def truth(i: int) -> bytes:
+    sample = {"t_unix_s": 1_750_000_000.0 + 0.01 * i, "legs": {"SB1_F1": {"force_true_N": i}}}
+    return json.dumps(sample).encode()
+
+
+def truth_in(path: Path) -> list[int]:
+    with open(path, "rb") as file:
+        return [
+            json.loads(record.data)["legs"]["SB1_F1"]["force_true_N"]
+            for record in RecordingStream(file)
+            if isinstance(record, RecordedMessage) and record.topic == "/sim/truth"
+        ]
+
+
+def start_service(config: Path) -> subprocess.Popen[str]:
+    return subprocess.Popen(
+        [sys.executable, "-m", "daq", "--config", str(config)],
+        cwd=ROOT,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+
+
+def test_sigkilled_recording_is_recovered_by_the_cli_and_at_restart(tmp_path: Path) -> None:
+    port = free_port()
+    rec = tmp_path / "rec"
+    config = write_service_config(
+        tmp_path, channel="recover-test", port=port, recording=rec, truth=True
+    )
+    process = start_service(config)
+    try:
+        with zenoh.open(peer_config(connect=f"tcp/127.0.0.1:{port}")) as session:
+            deadline = time.monotonic() + WAIT_S
+            while not list(rec.glob("*.mcap")) or not session.info.peers_zid():
+                assert time.monotonic() < deadline and process.poll() is None
+                time.sleep(0.05)
+            (cut,) = rec.glob("*.mcap")
+            publisher = session.declare_publisher(
+                "portal/pam-proto-1/sim/truth", congestion_control=zenoh.CongestionControl.BLOCK
+            )
+            for i in range(SAMPLES):
+                publisher.put(truth(i))
+            # Wait until all of them are on disk (the chunk is written every 0.2 s).
+            while truth_in(cut) != list(range(SAMPLES)):
+                assert time.monotonic() < deadline, truth_in(cut)
+                time.sleep(0.05)
+        process.send_signal(signal.SIGKILL)
+        process.wait(timeout=WAIT_S)
+    finally:
+        if process.poll() is None:
+            process.kill()
+        process.communicate()
+    assert is_cut_short(cut)
+    with open(cut, "rb") as file, pytest.raises(McapError):
+        list(make_reader(file).iter_messages())
+
+    out = tmp_path / "recovered.mcap"
+    result = subprocess.run(
+        [sys.executable, "-m", "daq", "recover", str(cut), "-o", str(out)],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert result.returncode == 3, result.stderr  # the end was cut: reported as a loss
+    assert "stopped at the cut" in result.stderr and "Traceback" not in result.stderr
+    with open(out, "rb") as file:
+        reader = make_reader(file)
+        assert reader.get_summary() is not None
+        forces = [
+            json.loads(message.data)["legs"]["SB1_F1"]["force_true_N"]
+            for _, channel, message in reader.iter_messages(topics=["/sim/truth"])
+        ]
+        names = {attachment.name for attachment in reader.iter_attachments()}
+    assert forces == list(range(SAMPLES))
+    assert names == {"portal-daq.toml", "portal_sensors.dbc"}
+    assert not is_cut_short(out) and is_cut_short(cut)
+
+    # The service completes the cut file in place when it starts again.
+    process = start_service(config)
+    try:
+        deadline = time.monotonic() + WAIT_S
+        while len(list(rec.glob("*.mcap"))) < 2:
+            assert time.monotonic() < deadline and process.poll() is None
+            time.sleep(0.05)
+        process.send_signal(signal.SIGTERM)
+        assert process.wait(timeout=WAIT_S) == 0
+    finally:
+        if process.poll() is None:
+            process.kill()
+        stderr = process.communicate()[1]
+    assert not is_cut_short(cut) and f"recovered {cut}" in stderr
+    with open(cut, "rb") as file:
+        reader = make_reader(file)
+        messages = list(reader.iter_messages(topics=["/sim/truth"]))
+        assert len(messages) == SAMPLES and len(list(reader.iter_attachments())) == 2

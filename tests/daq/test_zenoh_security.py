@@ -1,0 +1,115 @@
+"""The Zenoh surface: the shipped access control refuses foreign puts; safe defaults."""
+
+from __future__ import annotations
+
+import json
+import time
+import uuid
+from pathlib import Path
+
+import zenoh
+from mcap.reader import make_reader
+
+from daq.service_config import ZenohSettings, load_service_config
+from daq.zenoh_session import config_value, zenoh_config
+from tests.daq.service_support import (
+    WAIT_S,
+    Collector,
+    free_port,
+    peer_config,
+    write_service_config,
+)
+from tests.daq.test_service_live import live_service
+from tests.helpers import ROOT
+
+FAKE = b'{"t_unix_s": 1750000000.0, "legs": {"SB1_F1": {"force_true_N": 666.0}}}'
+REAL = b'{"t_unix_s": 1750000000.5, "legs": {"SB1_F1": {"force_true_N": 5.0}}}'
+
+
+def connected(session: zenoh.Session) -> None:
+    deadline = time.monotonic() + WAIT_S
+    while not session.info.peers_zid():
+        assert time.monotonic() < deadline, "not connected"
+        time.sleep(0.05)
+
+
+def test_foreign_puts_are_refused_and_the_local_socket_may_put_truth(tmp_path: Path) -> None:
+    port = free_port()
+    tcp = f"tcp/127.0.0.1:{port}"
+    unix = f"unixsock-stream/{tmp_path / 'zenoh.sock'}"
+    path = write_service_config(
+        tmp_path,
+        channel=f"test-{uuid.uuid4().hex}",
+        port=port,
+        recording=tmp_path / "rec",
+        truth=True,
+    )
+    text = path.read_text().replace(
+        f'listen = ["{tcp}"]',
+        f'config_file = "{ROOT / "deploy" / "zenoh.json5"}"\nlisten = ["{tcp}", "{unix}"]',
+        1,
+    )
+    path.write_text(text)
+    config = load_service_config(path)
+    prefix = config.zenoh.key_prefix
+    with (
+        live_service(config) as service,
+        zenoh.open(peer_config(connect=tcp)) as foreign,
+        zenoh.open(peer_config(connect=unix)) as simulator,
+    ):
+        seen = Collector(service.session, f"{prefix}/**")  # what reaches the service
+        connected(foreign)
+        connected(simulator)
+        seen.wait_until(lambda: bool(seen.of(f"{prefix}/status")))
+        # Subscribing and querying (history) are allowed to anyone.
+        status = Collector(foreign, f"{prefix}/status", advanced=True)
+        status.wait_until(lambda: bool(status.of(f"{prefix}/status")))
+        for _ in range(5):
+            foreign.put(f"{prefix}/sim/truth", FAKE)
+            foreign.put(f"{prefix}/status", b'{"healthy": true}')
+            foreign.delete(f"{prefix}/ground")
+        simulator.put(f"{prefix}/sim/truth", REAL, congestion_control=zenoh.CongestionControl.BLOCK)
+        recorder = service.truth
+        assert recorder is not None
+        deadline = time.monotonic() + WAIT_S
+        while recorder.received < 1:
+            assert time.monotonic() < deadline
+            time.sleep(0.05)
+        # The simulator's put came after the foreign ones on another link: give those
+        # as long again to arrive, if they were let through.
+        seen.wait_until(lambda: bool(seen.of(f"{prefix}/sim/truth")))
+        status.wait_until(lambda: len(status.of(f"{prefix}/status")) >= 3)
+        assert recorder.received == 1
+        assert [payload for key, payload, _ in seen.samples if key.endswith("sim/truth")] == [
+            json.loads(REAL)
+        ]
+        statuses = [payload for key, payload, _ in seen.samples if key.endswith("status")]
+        assert statuses and {"healthy": True} not in statuses
+        assert service.recorder is not None
+        recording = service.recorder.paths[0]
+    with open(recording, "rb") as file:
+        messages = list(make_reader(file).iter_messages(topics=["/sim/truth"]))
+    assert [json.loads(m.data) for _, _, m in messages] == [json.loads(REAL)]
+
+
+def test_without_a_config_file_the_service_listens_on_loopback_and_does_not_scout() -> None:
+    config = zenoh_config(ZenohSettings())
+    assert config_value(config, "listen/endpoints") == ["tcp/127.0.0.1:7447"]
+    assert config_value(config, "scouting/multicast/enabled") is False
+    assert config_value(config, "scouting/gossip/enabled") is False
+    wait_us = "transport/link/tx/queue/congestion_control/block/wait_before_close"
+    assert config_value(config, wait_us) == 1_000_000
+    explicit = zenoh_config(ZenohSettings(listen=("tcp/10.0.0.2:7447",), multicast_scouting=True))
+    assert config_value(explicit, "listen/endpoints") == ["tcp/10.0.0.2:7447"]
+    assert config_value(explicit, "scouting/multicast/enabled") is True
+    client = zenoh_config(ZenohSettings(mode="client", connect=("tcp/10.0.0.1:7447",)))
+    assert config_value(client, "listen/endpoints") != ["tcp/127.0.0.1:7447"]
+
+
+def test_production_example_is_locked_down() -> None:
+    config = load_service_config(ROOT / "deploy" / "portal-daq.example.toml")
+    assert config.recording.truth is False
+    zenoh_cfg = zenoh_config(config.zenoh, config.source)
+    assert config_value(zenoh_cfg, "listen/endpoints") == ["tcp/127.0.0.1:7447"]
+    assert config_value(zenoh_cfg, "scouting/multicast/enabled") is False
+    assert config_value(zenoh_cfg, "access_control/enabled") is True
