@@ -9,7 +9,7 @@ import threading
 import time
 import uuid
 from collections import deque
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from typing import Any
 
 import can
@@ -70,18 +70,25 @@ def names(items: Iterable[RawFrame | BusEvent]) -> list[Any]:
     return named
 
 
+def opener(*buses: ScriptedBus | OSError) -> Callable[[], FrameSource]:
+    """A bus factory giving ``buses`` in turn (an exception is raised, as at open)."""
+    waiting = deque(buses)
+
+    def open_bus() -> FrameSource:
+        bus = waiting.popleft()
+        if isinstance(bus, BaseException):
+            raise bus
+        return PythonCanSource(bus)
+
+    return open_bus
+
+
 def test_down_keeps_the_socket_away_reopens_and_both_reset_counters() -> None:
     enetdown = can.CanOperationError("Network is down", errno.ENETDOWN)
     enodev = can.CanOperationError("No such device", errno.ENODEV)
     first = ScriptedBus([message(1), enetdown, None, message(2), enodev])
     second = ScriptedBus([message(3)])
-    buses: deque[Any] = deque([first, OSError(errno.ENODEV, "No such device"), second])
-
-    def open_bus() -> FrameSource:
-        bus = buses.popleft()
-        if isinstance(bus, BaseException):
-            raise bus
-        return PythonCanSource(bus)
+    open_bus = opener(first, OSError(errno.ENODEV, "No such device"), second)
 
     inbox: queue.Queue[RawFrame | BusEvent] = queue.Queue()
     with BusReader(open_bus, inbox, channel="can0") as reader:
@@ -106,13 +113,7 @@ def test_polled_without_a_thread_the_same_states_in_place_and_frames_in_batches(
     enodev = can.CanOperationError("No such device", errno.ENODEV)
     first = ScriptedBus([message(1), message(2), message(3), enetdown, None, message(4), enodev])
     second = ScriptedBus([message(5)])
-    buses: deque[Any] = deque([first, OSError(errno.ENODEV, "No such device"), second])
-
-    def open_bus() -> FrameSource:
-        bus = buses.popleft()
-        if isinstance(bus, BaseException):
-            raise bus
-        return PythonCanSource(bus)
+    open_bus = opener(first, OSError(errno.ENODEV, "No such device"), second)
 
     with BusReader(open_bus, None, channel="can0", threaded=False) as reader:
         assert not reader.alive  # no thread of its own

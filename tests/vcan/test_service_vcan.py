@@ -115,6 +115,11 @@ def port_of(config: ServiceConfig) -> int:
     return int(config.zenoh.listen[0].rsplit(":", 1)[1])
 
 
+def connected(collector: Collector, prefix: str) -> None:
+    """Wait until ``collector`` heard the service's status (it is connected)."""
+    collector.wait_for(f"{prefix}/status", timeout=WAIT_S)
+
+
 @contextmanager
 def watched_service(
     config: ServiceConfig, tmp_path: Path
@@ -126,7 +131,7 @@ def watched_service(
         subscriber_session(port_of(config)) as session,
     ):
         collector = Collector(session, f"{prefix}/**")
-        collector.wait_for(f"{prefix}/status", timeout=WAIT_S)
+        connected(collector, prefix)
         yield process, collector
 
 
