@@ -16,10 +16,10 @@ from pathlib import Path
 import pytest
 
 from daq.service_config import load_service_config
-from tests.daq.service_support import Collector, free_port, subscriber_session
+from tests.daq.service_support import free_port
 from tests.examples_support import EXAMPLE_CONFIGS, SentFrames, example_id, machine_part
 from tests.vcan.bridge_support import frames_sent, run_bridge_recorded
-from tests.vcan.test_service_vcan import WAIT_S, connected, service_process
+from tests.vcan.test_service_vcan import WAIT_S, watched_service
 
 pytestmark = pytest.mark.vcan
 
@@ -84,12 +84,7 @@ def test_the_example_end_to_end_publishes_eq_4_of_the_frames_sent(
     config = load_service_config(config_path)
     prefix = config.zenoh.key_prefix
     log = tmp_path / "candump.log"
-    with (
-        service_process(config_path, tmp_path),
-        subscriber_session(port) as session,
-    ):
-        collector = Collector(session, f"{prefix}/**")
-        connected(collector, prefix)
+    with watched_service(config, tmp_path) as (_, collector):
         bridge = run_bridge_recorded(
             log,
             ["--config", str(config_path), "--channel", CHANNEL, "--speed", str(SPEED),
