@@ -5,8 +5,8 @@ never blocks: it queues (key, payload) into a bounded queue, or drops and counts
 The publisher thread serialises to JSON (NaN as ``null``; a payload may come
 encoded already) and puts with encoding ``application/json``; any exception while
 publishing one message is counted (:attr:`ZenohPublisher.errors`) and the message
-skipped. With ``threaded=False`` (the service's event loop) ``submit`` puts at once,
-in the caller's thread.
+skipped. The service's event loop hands its messages over the same way, so a slow link
+never stalls acquisition and nothing is lost uncounted.
 
 Every key gets a :func:`zenoh.ext.declare_advanced_publisher` that keeps its latest
 sample (:data:`CACHE`), numbers its samples and sends a heartbeat when it published
@@ -21,12 +21,10 @@ silently for a slow link; a put to a congested link waits, the bounded queue in 
 takes up the slack and beyond it messages are dropped and counted (``dropped.publish``
 on the status topic). Zenoh closes a link that stays blocked longer than
 ``wait_before_close`` (:data:`daq.zenoh_session.BLOCK_WAIT_BEFORE_CLOSE_US`, shorter
-than the watchdog's heartbeat limit). In the event loop (``threaded=False``):
-``DROP``, because a blocked put would stall the acquisition itself (measured: a slow
-subscriber behind a router held the loop for seconds); Zenoh counts nothing it drops,
-so those losses show where they can be seen, in each advanced subscriber's miss
-listener (the live views' ``missed``). A liveliness token ``<prefix>/alive`` lives as
-long as the publisher.
+than the watchdog's heartbeat limit). Putting in the acquisition thread itself was
+measured and left: with ``BLOCK`` a slow subscriber behind a router held it for
+seconds, and with ``DROP`` Zenoh drops without a count. A liveliness token
+``<prefix>/alive`` lives as long as the publisher.
 """
 
 import logging
@@ -44,7 +42,6 @@ logger = logging.getLogger(__name__)
 #: On close, queued messages are still published for at most this long.
 DRAIN_S = 0.3
 JSON = zenoh.Encoding.APPLICATION_JSON
-BLOCK, DROP = zenoh.CongestionControl.BLOCK, zenoh.CongestionControl.DROP
 #: Late joiners get the latest sample of every key.
 CACHE = zenoh.ext.CacheConfig(max_samples=1)
 #: Sequence numbers on every sample, and a heartbeat after new samples (at most every
@@ -68,10 +65,8 @@ class ZenohPublisher(Worker):
         prefix: str,
         *,
         queue_size: int = 10_000,
-        threaded: bool = True,
     ) -> None:
         super().__init__()
-        self.threaded = threaded
         self.session = session
         self.prefix = prefix
         self._queue: queue.Queue[tuple[str, JsonObject | bytes]] = queue.Queue(maxsize=queue_size)
@@ -97,10 +92,7 @@ class ZenohPublisher(Worker):
 
     def submit(self, suffix: str, payload: JsonObject | bytes) -> None:
         """Queue ``payload`` (or its JSON, already encoded) for ``<prefix>/<suffix>``; never
-        blocks (full: dropped, counted). Without a thread of its own: put at once."""
-        if not self.threaded:
-            self._put(suffix, payload)
-            return
+        blocks (full: dropped, counted)."""
         try:
             self._queue.put_nowait((suffix, payload))
         except queue.Full:
@@ -146,7 +138,7 @@ class ZenohPublisher(Worker):
                     self.session,
                     key,
                     encoding=JSON,
-                    congestion_control=BLOCK if self.threaded else DROP,
+                    congestion_control=zenoh.CongestionControl.BLOCK,
                     cache=CACHE,
                     sample_miss_detection=MISS_DETECTION,
                     publisher_detection=True,

@@ -4,13 +4,14 @@ Everything that touches the outside is passed in: a factory that opens the CAN
 bus, the Zenoh session, the recorder and the systemd notifier (built in
 ``daq.__main__``; in tests a python-can ``virtual`` bus, a loopback Zenoh
 session and a temporary directory). Data path, as an event loop (``[service]
-event_loop = true``, the default): one thread polls the bus, processes what came
-in one go, publishes; the recorder is handed a batch every 50 ms::
+event_loop = true``, the default): one thread polls the bus and processes what came
+in one go; the publisher (which may wait on a congested link) is handed what to put
+through its bounded queue, the recorder a batch every 50 ms::
 
-    bus --recv until none--> Consumer (BusReader.poll, Pipeline, ZenohPublisher.submit)
+    bus --recv until none--> Consumer (BusReader.poll, Pipeline) --queue--> ZenohPublisher
                                  \\--queue--> Recorder (MCAP)
 
-With ``event_loop = false`` reader and publisher have threads of their own::
+With ``event_loop = false`` the reader has a thread of its own too::
 
     bus --recv--> BusReader --queue--> Consumer (Pipeline) --queue--> ZenohPublisher
                                                          \\--queue--> Recorder (MCAP)
@@ -87,10 +88,7 @@ class Service:
         self.inbox: queue.Queue[RawFrame | BusEvent] = queue.Queue(maxsize=config.bus.queue_size)
         self.pipeline = Pipeline.from_config(config.machine, config.database)
         self.publisher = ZenohPublisher(
-            session,
-            config.zenoh.key_prefix,
-            queue_size=config.publish.queue_size,
-            threaded=not event_loop,
+            session, config.zenoh.key_prefix, queue_size=config.publish.queue_size
         )
         self.recorder = recorder
         #: Records the simulator bridge's truth, if any is published (``[recording] truth``).
@@ -217,8 +215,8 @@ class Service:
             "consumer": consumer,
             "publisher": (self.publisher.alive, self.publisher.heartbeat),
         }
-        if self.event_loop:  # reader and publisher run in the consumer's thread
-            parts["reader"] = parts["publisher"] = consumer
+        if self.event_loop:  # the reader runs in the consumer's thread
+            parts["reader"] = consumer
         return {name: now - beat if alive else None for name, (alive, beat) in parts.items()}
 
     def alive(self) -> bool:
