@@ -164,11 +164,15 @@ def by_id(document: dict[str, Any]) -> dict[str, dict[str, Any]]:
 
 
 def all_live(document: dict[str, Any]) -> bool:
-    """Every machine live with its six feet down and valid (a loaded CI may take a moment:
-    a bridge falling behind makes legs stale for a while)."""
+    """Every machine live with its six feet down and valid, and a status from after its bus
+    opened (a loaded CI may take a moment: a bridge falling behind makes legs stale for a
+    while; the first status may be sent before the bus is open)."""
     machines = by_id(document)
     return set(machines) == set(MACHINES) and all(
-        m["state"] == "live" and m["legs_in_contact"] == 6 and m["stability_margin_m"] is not None
+        m["state"] == "live"
+        and m["bus_state"] == "up"
+        and m["legs_in_contact"] == 6
+        and m["stability_margin_m"] is not None
         for m in machines.values()
     )
 
