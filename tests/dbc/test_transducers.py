@@ -521,3 +521,39 @@ def test_one_dbc_message_per_sender_of_a_pgn() -> None:
     assert estimate.valid and estimate.p_rod_Pa == pytest.approx(10e5)
     stray = send(0x30, 50.0, 1.002)
     assert stray.estimates == () and pipeline.bad["unmapped_source"] == 1
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "key", "reason"),
+    [
+        (
+            "source_address = 0x21,",
+            "source_address = 254,",
+            "legs.J1.piston.source_address",
+            "0..253",
+        ),
+        (
+            "source_address = 0x21,",
+            'source_address = "0x21",',
+            "legs.J1.piston.source_address",
+            "integer",
+        ),
+        (
+            'status = "Status" }',
+            'status = "LEG_HUB.Status" }',
+            "legs.J1.piston.status",
+            "own message",
+        ),
+        ('status = "Status" }', "status_ok = 0 }", "legs.J1.piston.status_ok", "without a status"),
+        (
+            'source_address = 0x21, status = "Status" }',
+            "sa = 1 }",
+            "legs.J1.piston.sa",
+            "unknown key",
+        ),
+    ],
+)
+def test_bad_chamber_keys_are_refused(old: str, new: str, key: str, reason: str) -> None:
+    assert old in BASE
+    error = refused(BASE.replace(old, new, 1))
+    assert error.key == key and reason in str(error)
