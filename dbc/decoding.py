@@ -140,7 +140,7 @@ class _MessageCodec:
             # The counter of a corrupted frame is not trusted: judge the next good frame
             # as a first one, so one bad CRC costs exactly one sample.
             if counter is not None:
-                counter.resync()
+                counter.reset()
             return DecodedFrame(message.name, t_s, signals, (CRC_FAULT,), 0, source_address)
         if counter is None or counter_value is None:
             return DecodedFrame(message.name, t_s, signals, source_address=source_address)

@@ -207,7 +207,7 @@ class CounterCheck:
     sender, the sample is invalid); 1..``max_delta`` is fine, ``delta - 1`` frames
     were lost on the way (counted, the data of this frame is good); a larger jump
     is ``counter`` (invalid; the sender restarted or many frames were lost). The
-    first frame, and the first after :meth:`reset` or :meth:`resync` (a frame
+    first frame, and the first after :meth:`reset` (also called after a frame
     whose CRC failed: its counter is not trusted), is accepted as it comes; the
     next frame is always judged against the value just seen.
 
@@ -228,8 +228,6 @@ class CounterCheck:
     def reset(self) -> None:
         """Forget the last value (after a gap in reception)."""
         self._last = None
-
-    resync = reset
 
     def update(self, counter: int) -> CounterResult:
         last, self._last = self._last, counter
