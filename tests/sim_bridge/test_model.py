@@ -188,7 +188,7 @@ def test_the_second_step_lifts_sb1_while_sb2_stands(walk: SimulationResult) -> N
     # Mirror of the first step: three feet at 180..190 kPa, ~230 kPa on the foot under
     # the bridge (now SB2_F1) at the end, a fold-stop peak over 310 kPa.
     kPa = pressure_kPa(walk)
-    assert np.all((kPa[window(walk, 57.5, 63.0), 3:].mean(axis=0) >= 162))
+    assert np.all(kPa[window(walk, 57.5, 63.0), 3:].mean(axis=0) >= 162)
     late = kPa[window(walk, 85.0, 88.0)].mean(axis=0)
     assert 195 <= late[LEGS.index("SB2_F1")] <= 253 and late.argmax() == LEGS.index("SB2_F1")
     assert kPa[window(walk, 67.5, 69.5)].max() > 310
