@@ -77,11 +77,12 @@ def load_source(source: SourceOptions, config: MachineConfig) -> SimulationResul
         noise = ImpulsiveNoise() if source.seed is None else ImpulsiveNoise(seed=source.seed)
     started_s = time.monotonic()
     try:
-        result = simulate(params, rtol=source.rtol, noise=noise)
+        result = simulate(params, rtol=source.rtol, noise=noise, steps=source.steps)
     except RuntimeError as exc:  # the solver gave up
         raise ConfigError("--rtol", "", f"{exc}; try a smaller --rtol") from exc
     logger.info(
-        "cycle: model at rtol %g%s, %d samples of %g s, simulated in %.1f s",
+        "cycle: model, %d step(s) at rtol %g%s, %d samples of %g s, simulated in %.1f s",
+        source.steps,
         source.rtol,
         " with impulsive noise" if noise else "",
         len(result),

@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
 
+from sim_bridge.cycle import MAX_STEPS
 from sim_bridge.faults import FaultConfig, FaultWindow
 
 #: The example machine configuration, shipped inside the ``dbc`` package next to its DBC
@@ -41,6 +42,9 @@ class SourceOptions:
     #: Seed of the noise and of the random faults; None: the noise's default, a fresh one
     #: for the faults.
     seed: int | None = None
+    #: Steps the model plays as one cycle: 1 (SB2 lifted) or 2 (then SB1 lifted: a full
+    #: walking cycle, each base lifted once).
+    steps: int = 1
 
 
 @dataclass(frozen=True)
@@ -124,6 +128,13 @@ def _rtol(text: str) -> float:
     return value
 
 
+def _steps(text: str) -> int:
+    value = _non_negative_int(text)
+    if not 1 <= value <= MAX_STEPS:
+        raise argparse.ArgumentTypeError(f"must be 1..{MAX_STEPS}, got {text!r}")
+    return value
+
+
 def _window(targeted: bool) -> Callable[[str], FaultWindow]:
     def parse(text: str) -> FaultWindow:
         try:
@@ -152,6 +163,10 @@ def _add_source_arguments(parser: argparse.ArgumentParser) -> None:
     group.add_argument(
         "--seed", type=_non_negative_int, help="seed of --noise, --drop and --bad-crc"
     )
+    group.add_argument(
+        "--steps", type=_steps, default=1,
+        help="model steps per cycle: 1 (SB2 lifted) or 2 (then SB1: a full walking cycle) [1]",
+    )  # fmt: skip
     group.add_argument("--input", type=Path, help="external export (.csv or .mat) instead")
     group.add_argument("--mapping", type=Path, help="TOML mapping of --input's columns")
 
@@ -159,7 +174,11 @@ def _add_source_arguments(parser: argparse.ArgumentParser) -> None:
 def _source(parser: argparse.ArgumentParser, args: argparse.Namespace) -> SourceOptions:
     if (args.input is None) != (args.mapping is None):
         parser.error("--input and --mapping go together")
-    return SourceOptions(args.config, args.rtol, args.noise, args.input, args.mapping, args.seed)
+    if args.input is not None and args.steps != 1:
+        parser.error("--steps is the model's: an --input export is played as it is")
+    return SourceOptions(
+        args.config, args.rtol, args.noise, args.input, args.mapping, args.seed, args.steps
+    )
 
 
 def run_parser() -> argparse.ArgumentParser:

@@ -1,7 +1,11 @@
 """The movement cycle of section 2.1 as actuator set-points over time (Figure 2).
 
-Pure functions of the cycle time ``t_s`` (scalars or numpy arrays). Every motion is a
-cosine-smoothed ramp between two set-points, so velocities start and end at zero:
+Pure functions of the time ``t_s`` since the step started (scalars or numpy arrays). Every
+motion is a cosine-smoothed ramp between two set-points, so velocities start and end at
+zero. The schedule is written for the first step, SB1 standing and SB2 lifted; the next
+step is the same schedule with the roles swapped (SB2 stands, the bridge turns about its
+axis and SB1 is lifted; see sim_bridge.model), so "SB1" below means the standing base and
+"SB2" the lifted one:
 
 - move carriage:  t = 2..7 s, over SB2 -> over SB1; then on to the counterweight
   position behind SB1 while SB2 is lifted (t = 7.5..10.5 s); back over SB1 once SB2's
@@ -23,8 +27,11 @@ from sim_bridge.params import ModelParams
 
 FloatArray = npt.NDArray[np.float64]
 
-#: Length of one simulated cycle (the step takes 44 s; one idle second follows).
+#: Length of one simulated step (the step takes 44 s; one idle second follows).
 CYCLE_END_S = 45.0
+#: Steps the model can simulate: the step above and the next, with the bases' roles
+#: swapped; after the two, each base has been lifted once (a full walking cycle).
+MAX_STEPS = 2
 #: SB2's feet are pressed onto the ground (the set-down preload) over this time, s.
 SET_DOWN_PRELOAD_S = (42.5, 44.0)
 #: The carriage comes back over SB1 once SB2's feet are down, over this time, s.
@@ -80,13 +87,14 @@ def inclination_rate_rad_s(t_s: npt.ArrayLike, p: ModelParams) -> FloatArray:
     )
 
 
-def sb2_stroke_m(t_s: npt.ArrayLike, p: ModelParams) -> FloatArray:
-    """Stroke of SB2's legs: retracted in the air (t = 14..18 s), extended again (38..43.5 s)."""
+def lifted_stroke_m(t_s: npt.ArrayLike, p: ModelParams) -> FloatArray:
+    """Stroke of the lifted base's legs: retracted in the air (t = 14..18 s), extended
+    again (38..43.5 s)."""
     travel = p.stroke_extended_m - p.stroke_retracted_m
     return p.stroke_extended_m - travel * (ramp(t_s, 14.0, 18.0) - ramp(t_s, 38.0, 43.5))
 
 
-def sb2_stroke_rate_m_s(t_s: npt.ArrayLike, p: ModelParams) -> FloatArray:
+def lifted_stroke_rate_m_s(t_s: npt.ArrayLike, p: ModelParams) -> FloatArray:
     travel = p.stroke_extended_m - p.stroke_retracted_m
     return -travel * (ramp_rate(t_s, 14.0, 18.0) - ramp_rate(t_s, 38.0, 43.5))
 
@@ -98,7 +106,8 @@ def fold_command_rad(t_s: npt.ArrayLike, p: ModelParams) -> FloatArray:
 
 
 def rotation_rad(t_s: npt.ArrayLike) -> FloatArray:
-    """Bridge direction seen from SB1: pi (between F2 and F3) turning to 0 (over F1)."""
+    """Bridge direction seen from the standing base: pi (between its F2 and F3) turning to
+    0 (over its F1)."""
     return np.pi * (1.0 - ramp(t_s, 23.0, 32.0))
 
 

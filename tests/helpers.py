@@ -1,5 +1,6 @@
 """Shared test helpers: the example machine, its DBC, and frame building."""
 
+from collections.abc import Mapping
 from pathlib import Path
 
 from daq.can_batch import recorded_frames
@@ -17,6 +18,16 @@ LEGS = ("SB1_F1", "SB1_F2", "SB1_F3", "SB2_F1", "SB2_F2", "SB2_F3")
 def example_machine():  # type: ignore[no-untyped-def]
     """(MachineConfig, cantools Database) of deploy/machine.example.toml."""
     return load_machine_config(EXAMPLE_CONFIG)
+
+
+def with_leg_keys(config_text: str, keys: Mapping[str, Mapping[str, float]]) -> str:
+    """``config_text`` (a machine config) with ``keys`` added to each ``[legs.<LEG>]`` table."""
+    for leg, values in keys.items():
+        header = f"[legs.{leg}]\n"
+        assert header in config_text, header
+        body = "".join(f"{key} = {value!r}\n" for key, value in values.items())
+        config_text = config_text.replace(header, header + body)
+    return config_text
 
 
 def recorded_raw_frames(path: Path) -> list[RawFrame]:

@@ -1,10 +1,8 @@
 """The calibration's outputs: the TOML snippet loads into the machine config; the page.
 
-Set ``PORTAL_CALIBRATION_PNG=docs/calibration.png`` to keep the picture (the README's).
+(The README's picture comes from the simulated walking cycle: test_calibrate_command.py.)
 """
 
-import os
-import shutil
 import tomllib
 from pathlib import Path
 
@@ -14,7 +12,7 @@ from daq.calibrate.output import summary_lines, toml_snippet, write_page
 from dbc.machine import load_machine_config
 from estimator.calibration import fit_calibration
 from tests.estimator.test_calibration import LEGS, W_TERM_N, WEIGHT_N, instants
-from tests.helpers import EXAMPLE_CONFIG, ROOT
+from tests.helpers import EXAMPLE_CONFIG, with_leg_keys
 
 
 def test_snippet_and_page(tmp_path: Path) -> None:
@@ -27,12 +25,8 @@ def test_snippet_and_page(tmp_path: Path) -> None:
     snippet = toml_snippet(fit, lines)
     tables = tomllib.loads(snippet)["legs"]
     assert set(tables) == set(LEGS)
-    config = EXAMPLE_CONFIG.read_text()
-    for leg, keys in tables.items():
-        assert set(keys) == {"force_gain", "force_offset_N"}
-        body = "".join(f"{key} = {value!r}\n" for key, value in keys.items())
-        config = config.replace(f"[legs.{leg}]\n", f"[legs.{leg}]\n{body}")
-    (tmp_path / "calibrated.toml").write_text(config)
+    assert all(set(keys) == {"force_gain", "force_offset_N"} for keys in tables.values())
+    (tmp_path / "calibrated.toml").write_text(with_leg_keys(EXAMPLE_CONFIG.read_text(), tables))
     calibrated = load_machine_config(tmp_path / "calibrated.toml")[0]
     gains = [calibrated.legs[leg].geometry.force_gain for leg in LEGS]
     assert np.allclose(gains, fit.gain, atol=1e-5)
@@ -43,5 +37,3 @@ def test_snippet_and_page(tmp_path: Path) -> None:
     assert text.count("<tr>") == 1 + len(LEGS)
     picture = tmp_path / "page" / "calibration.png"
     assert picture.stat().st_size > 10_000
-    if os.environ.get("PORTAL_CALIBRATION_PNG"):
-        shutil.copyfile(picture, ROOT / os.environ["PORTAL_CALIBRATION_PNG"])

@@ -130,6 +130,9 @@ def test_a_bad_mapping_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture
         ["--mode", "client"],
         ["--truth-every", "0"],
         ["--rtol", "1"],
+        ["--steps", "3"],
+        ["--steps", "0"],
+        ["--steps", "2", "--input", "x.csv", "--mapping", "m.toml"],
         ["plot"],
     ],
 )
@@ -145,9 +148,13 @@ def test_options_parse_as_documented() -> None:
         ["--speed", "10", "--cycles", "0", "--drop", "0.01", "--bad-crc", "0.001",
          "--freeze-counter", "LEG_SB1_F1@10:2", "--silent", "SB2_F3@12:1",
          "--stuck", "SB1_F2@5:3", "--out-of-range", "SB1_F3@20:0.5", "--pause", "30:1",
-         "--seed", "7", "--zenoh", "--mode", "client", "--connect", "tcp/10.0.0.1:7447"]
+         "--seed", "7", "--zenoh", "--mode", "client", "--connect", "tcp/10.0.0.1:7447",
+         "--steps", "2"]
     )  # fmt: skip
     assert isinstance(options, BridgeOptions)
+    default, _ = parse_args([])
+    assert options.source.steps == 2 and isinstance(default, BridgeOptions)
+    assert default.source.steps == 1
     assert (options.speed, options.cycles, options.interface, options.channel) == (
         10.0, 0, "socketcan", "vcan0",
     )  # fmt: skip

@@ -156,3 +156,69 @@ def test_impulsive_noise_is_seeded_and_removed_by_the_median() -> None:
     filtered = running_median(raw, window)
     assert np.all((filtered >= low - 1e-6) & (filtered <= high + 1e-6) | ~judged)
     assert not np.all((raw >= low - 1e-6) & (raw <= high + 1e-6))
+
+
+@pytest.fixture(scope="module")
+def walk() -> SimulationResult:
+    """Both steps of a walking cycle: SB2 lifted (0..45 s), then SB1 (45..90 s)."""
+    return simulate(rtol=1e-3, steps=2)
+
+
+def test_the_first_of_two_steps_is_the_one_step_cycle(
+    walk: SimulationResult, result: SimulationResult
+) -> None:
+    assert walk.t_s[-1] == pytest.approx(90.0)
+    # Within the solver's tolerance (rtol 1e-3 against 1e-5: the fold stop differs most).
+    deviation = np.abs(walk.force_true_N[walk.t_s <= 45.0] - result.force_true_N)
+    assert deviation.max() < 2_500.0 and np.percentile(deviation, 99) < 500.0
+    # The second step starts where the first ends: no jump in any force at t = 45 s.
+    at = int(np.searchsorted(walk.t_s, 45.0))
+    assert np.max(np.abs(np.diff(walk.force_true_N[at - 5 : at + 5], axis=0))) < 50.0
+
+
+def test_the_second_step_lifts_sb1_while_sb2_stands(walk: SimulationResult) -> None:
+    """The same movement with the bases' roles swapped: the carriage moves over SB2, SB1
+    is lifted and folded up, the bridge turns about SB2's axis and ends over SB2_F1."""
+    mg = ModelParams().mass_kg * G_M_S2
+    lifted = window(walk, 57.5, 88.0)
+    assert np.all(walk.force_true_N[lifted][:, :3] == 0.0), "SB1's feet are in the air"
+    assert np.all(walk.force_true_N[lifted][:, 3:] > 15_000.0), "SB2 stands on all three"
+    still = window(walk, 57.5, 62.0) | window(walk, 72.0, 76.0)
+    assert walk.force_true_N[still].sum(axis=1) == pytest.approx(mg, rel=2e-3)
+    # Mirror of the first step: three feet at 180..190 kPa, ~230 kPa on the foot under
+    # the bridge (now SB2_F1) at the end, a fold-stop peak over 310 kPa.
+    kPa = pressure_kPa(walk)
+    assert np.all(kPa[window(walk, 57.5, 63.0), 3:].mean(axis=0) >= 162)
+    late = kPa[window(walk, 85.0, 88.0)].mean(axis=0)
+    assert 195 <= late[LEGS.index("SB2_F1")] <= 253 and late.argmax() == LEGS.index("SB2_F1")
+    assert kPa[window(walk, 67.5, 69.5)].max() > 310
+    # At the end all six feet are down again, SB2 (under the carriage) carrying the most.
+    end = walk.force_true_N[-1]
+    assert end.sum() == pytest.approx(mg, rel=2e-3)
+    assert np.all(end > 15_000.0) and 0.5 <= end[3:].sum() / end.sum() <= 0.75, end
+
+
+def test_signals_of_the_second_step(walk: SimulationResult) -> None:
+    def at(t: float) -> int:
+        return int(np.searchsorted(walk.t_s, t))
+
+    assert [walk.phase[at(t)] for t in (46, 49, 60, 72, 85)] == [0, 1, 2, 3, 4]
+    assert walk.rotation_deg[at(65.0)] == pytest.approx(180.0)
+    assert walk.rotation_deg[at(78.0)] == pytest.approx(0.0, abs=1e-9)
+    # The carriage starts over SB1 (+, towards SB1) and goes behind SB2 (-).
+    assert walk.carriage_m[at(45.5)] == pytest.approx(1.5)
+    assert walk.carriage_m[at(60.0)] == pytest.approx(-5.08)
+    assert walk.stroke_m[at(65.0)] == pytest.approx([0.3, 0.3, 0.3, 1.0, 1.0, 1.0])
+    # SB2's inclination joint lifts: continuous from the first step's set-down, and
+    # level again after the second's.
+    assert walk.inclination_deg[at(60.0), 1] == pytest.approx(3.0, abs=0.05)
+    assert walk.inclination_deg[at(60.0), 0] == -walk.inclination_deg[at(60.0), 1]
+    assert np.max(np.abs(np.diff(walk.inclination_deg[at(44.0) : at(46.0)], axis=0))) < 1e-3
+    assert walk.inclination_deg[-1] == pytest.approx([0.0, 0.0], abs=1e-9)
+    assert not walk.slipping.any()
+
+
+@pytest.mark.parametrize("steps", [0, 3])
+def test_steps_beyond_the_walking_cycle_are_refused(steps: int) -> None:
+    with pytest.raises(ValueError, match="steps must be 1..2"):
+        simulate(steps=steps)
