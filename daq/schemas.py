@@ -43,6 +43,14 @@ LEG_GROUND = _object(
     },
 )
 
+LEG_GROUND_BATCH = {
+    "$schema": "https://json-schema.org/draft/2020-12/schema",
+    "title": "portal.LegGroundBatch",
+    "description": "one leg's estimates of one batch of frames, in the order processed",
+    "type": "array",
+    "items": LEG_GROUND,
+}
+
 BUS_EVENT = _object(
     "portal.BusEvent",
     {

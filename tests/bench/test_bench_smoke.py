@@ -51,7 +51,8 @@ def test_the_service_checked_and_recorded_everything(results: dict) -> None:
         assert offered["frames"] == frames
         assert recording["raw_frames"] == frames
         assert recording["messages"]["can"] < frames  # batches
-        assert recording["messages"]["leg"] == offered["leg_frames"]
+        assert recording["leg_estimates"] == offered["leg_frames"]
+        assert recording["messages"]["leg"] < offered["leg_frames"]  # a batch per leg
     # As deployed: signals neither recorded nor published with every frame; the
     # comparison variant: the earlier defaults, every frame's signals.
     assert "signals" not in results["pipeline"]["recording"]["messages"]

@@ -1,7 +1,6 @@
 """MCAP recording: rotation by size and time, the files of one run, reading back a file
 cut short by a crash."""
 
-import json
 import logging
 import time
 from pathlib import Path
@@ -13,7 +12,7 @@ from daq.can_batch import recorded_frames
 from daq.errors import RecordingError
 from daq.frames import BusEvent, RawFrame
 from daq.mcap_file import CountingFile, McapFile, RecordBatch
-from daq.mcap_reading import RecordedMessage, RecordingStream
+from daq.mcap_reading import RecordedMessage, RecordingStream, json_items
 from daq.pipeline import Pipeline
 from daq.recorder import Recorder, file_name
 from daq.recording_run import read_run_file, run_files
@@ -81,9 +80,10 @@ def test_one_batch_spanning_several_files_is_split_by_frame_time(tmp_path: Path)
     assert [len(raw_times(path)) for path in recorder.paths] == [10, 10, 10, 5]
     with open(recorder.paths[1], "rb") as file:
         leg_times = [
-            json.loads(r.data)["t"]
+            estimate["t"]
             for r in RecordingStream(file)
             if isinstance(r, RecordedMessage) and r.topic.startswith("/leg/")
+            for estimate in json_items(r.data)
         ]
     assert leg_times == raw_times(recorder.paths[1])  # the estimates went with their frames
 
