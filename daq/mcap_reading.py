@@ -42,11 +42,12 @@ class RecordedMetadata:
 
 
 def json_items(data: bytes) -> list[Any]:
-    """The JSON payloads of one recorded message: each element of an array (a batch of
-    a leg's estimates), else the one value (every other topic, and leg estimates in
-    files written before batches)."""
+    """The JSON payloads of one recorded message: each of a leg's batch of estimates
+    (``{"leg": ..., "estimates": [...]}``), else the one value (every other topic, and
+    leg estimates in files written before batches)."""
     value = json.loads(data)
-    return value if isinstance(value, list) else [value]
+    estimates = value.get("estimates") if isinstance(value, dict) else None
+    return estimates if isinstance(estimates, list) else [value]
 
 
 class RecordsToTheCut:

@@ -43,13 +43,17 @@ LEG_GROUND = _object(
     },
 )
 
-LEG_GROUND_BATCH = {
-    "$schema": "https://json-schema.org/draft/2020-12/schema",
-    "title": "portal.LegGroundBatch",
-    "description": "one leg's estimates of one batch of frames, in the order processed",
-    "type": "array",
-    "items": LEG_GROUND,
-}
+LEG_GROUND_BATCH = _object(
+    "portal.LegGroundBatch",
+    {
+        "leg": {"type": "string"},
+        "estimates": {
+            "type": "array",
+            "items": LEG_GROUND,
+            "description": "the leg's estimates of one batch of frames, in the order processed",
+        },
+    },
+)
 
 BUS_EVENT = _object(
     "portal.BusEvent",
