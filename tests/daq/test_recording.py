@@ -1,6 +1,7 @@
 """MCAP recording: rotation by size and time, the files of one run, reading back a file
 cut short by a crash."""
 
+import json
 import logging
 import time
 from pathlib import Path
@@ -166,3 +167,12 @@ def test_a_file_cut_short_reads_back_to_its_last_complete_chunk(tmp_path: Path) 
         except Exception:  # noqa: BLE001 -- the cut end
             pass
     assert count >= 50
+
+
+def test_leg_messages_of_this_and_earlier_releases_read_alike() -> None:
+    one = {"leg": "SB1_F1", "t": 1.5, "force_N": 1000.0}
+    two = {"leg": "SB1_F1", "t": 1.6, "force_N": None}
+    batch = json.dumps({"leg": "SB1_F1", "estimates": [one, two]}).encode()
+    assert json_items(batch) == [one, two]
+    assert json_items(json.dumps(one).encode()) == [one]  # one estimate per message, before
+    assert json_items(b'{"t":2.0,"legs":{}}') == [{"t": 2.0, "legs": {}}]  # other topics
