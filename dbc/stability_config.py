@@ -4,7 +4,7 @@ Read by :func:`dbc.machine.parse_machine_config`; optional (no table: no stabili
 margin). Example (``deploy/machine.example.toml``)::
 
     [stability]
-    rotation = "BRIDGE_MOTION.Bridge_RotationAngle"   # deg; 0 = bridge along SB1's x axis
+    rotation = "BRIDGE_MOTION.Bridge_RotationAngle"   # deg about the standing base; 0: its x
     fold = "BRIDGE_POSE.Bridge_FoldAngle"             # deg; 0 = unfolded
     bridge_length_m = 6.0
     hinge_m = 3.0
