@@ -8,6 +8,7 @@ replayed estimates of one recording are identical.
 from collections import Counter, defaultdict
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from functools import partial
 
 from cantools.database.can import Database
 
@@ -136,8 +137,8 @@ class Pipeline:
 
     def snapshot(self, now_s: float) -> MachineSnapshot:
         """Every leg judged at ``now_s``, the weight check and the stability margin."""
-        feet_m = self.pose.feet_m(now_s) if self.pose is not None else None
-        return self.estimator.snapshot(now_s, feet_m)
+        place_feet = partial(self.pose.feet_m, now_s) if self.pose is not None else None
+        return self.estimator.snapshot(now_s, place_feet)
 
     def metrics(self) -> Mapping[str, SoilMetrics]:
         return self.estimator.metrics()

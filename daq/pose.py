@@ -4,6 +4,8 @@ Pure: fed the decoded frames by :class:`daq.pipeline.Pipeline`. Keeps the latest
 rotation and fold angle of frames whose CRC and counter were fine; the pose is unknown
 before both arrived and once either is older than ``stale_after_cycles`` cycle times of
 its message (judged on frame time), so the margin is never computed from an old pose.
+Which base stands (the plan frame) follows the legs' contact at each snapshot
+(:class:`estimator.stance.StanceTracker`).
 """
 
 import math
@@ -13,28 +15,35 @@ from dbc.decoding import DecodedFrame
 from dbc.machine import SignalRef
 from dbc.stability_config import StabilityConfig
 from estimator.kinematics import Point
+from estimator.leg import LegEstimate
+from estimator.stance import BridgePose, StanceTracker
 
 
 class PoseTracker:
-    """Latest bridge angles -> every foot's plan position."""
+    """Latest bridge angles and the legs' contact -> every foot's plan position."""
 
     def __init__(self, config: StabilityConfig, max_age_s: Mapping[str, float]) -> None:
         """``max_age_s``: per message name, how old its latest frame may be."""
         self.config = config
-        self._refs = {"rotation": config.rotation, "fold": config.fold}
+        # Message name -> the (name, signal) pairs it carries: one look-up per frame.
+        self._by_message: dict[str, list[tuple[str, str]]] = {}
+        for name, ref in (("rotation", config.rotation), ("fold", config.fold)):
+            self._by_message.setdefault(ref.message, []).append((name, ref.signal))
         self._max_age_s = dict(max_age_s)
         #: name -> (frame time, angle in degrees)
         self._latest: dict[str, tuple[float, float]] = {}
+        #: Which base stands, and the pose held while both bases are down.
+        self.stance = StanceTracker(config.layout)
 
     def observe(self, frame: DecodedFrame) -> None:
         """Take the angles a decoded frame carries, if it is trusted."""
-        if not (frame.crc_ok and frame.counter_ok):
+        refs = self._by_message.get(frame.message)
+        if refs is None or not (frame.crc_ok and frame.counter_ok):
             return
-        for name, ref in self._refs.items():
-            if ref.message == frame.message:
-                value = frame.signals.get(ref.signal)
-                if isinstance(value, int | float) and math.isfinite(value):
-                    self._latest[name] = (frame.t_s, float(value))
+        for name, signal in refs:
+            value = frame.signals.get(signal)
+            if isinstance(value, int | float) and math.isfinite(value):
+                self._latest[name] = (frame.t_s, float(value))
 
     def _angle_rad(self, name: str, ref: SignalRef, now_s: float) -> float | None:
         latest = self._latest.get(name)
@@ -42,10 +51,11 @@ class PoseTracker:
             return None
         return math.radians(latest[1])
 
-    def feet_m(self, now_s: float) -> dict[str, Point] | None:
-        """Every foot's position at ``now_s``; None while the pose is unknown or old."""
+    def feet_m(self, now_s: float, legs: Mapping[str, LegEstimate]) -> dict[str, Point] | None:
+        """Every foot's position at ``now_s``, in the frame of the base that stands as
+        the legs' estimates ``legs`` tell; None while the pose is unknown or old."""
         rotation = self._angle_rad("rotation", self.config.rotation, now_s)
         fold = self._angle_rad("fold", self.config.fold, now_s)
-        if rotation is None or fold is None:
-            return None
-        return self.config.layout.feet_m(rotation, fold)
+        pose = None if rotation is None or fold is None else BridgePose(rotation, fold)
+        self.stance.observe(legs, pose)
+        return None if pose is None else self.stance.feet_m(pose)

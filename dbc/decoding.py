@@ -131,11 +131,12 @@ class _MessageCodec:
             else self._decode_reference(arbitration_id, data)
         )
         if self.protection is None:
-            return DecodedFrame(message.name, t_s, signals, source_address=source_address)
-        counter_value = (
-            int(signals[self.counter_signal]) if self.counter_signal is not None else None
-        )
-        counter = self._counter(source_address)
+            return DecodedFrame(message.name, t_s, signals, (), 0, source_address)
+        counter_value = None
+        counter = None
+        if self.counter_signal is not None:
+            counter_value = int(signals[self.counter_signal])
+            counter = self._counters.get(source_address) or self._counter(source_address)
         if self.crc is not None and not self.crc.matches(data, counter_value):
             # The counter of a corrupted frame is not trusted: judge the next good frame
             # as a first one, so one bad CRC costs exactly one sample.
@@ -143,7 +144,7 @@ class _MessageCodec:
                 counter.reset()
             return DecodedFrame(message.name, t_s, signals, (CRC_FAULT,), 0, source_address)
         if counter is None or counter_value is None:
-            return DecodedFrame(message.name, t_s, signals, source_address=source_address)
+            return DecodedFrame(message.name, t_s, signals, (), 0, source_address)
         result = counter.update(counter_value)
         faults = (result.fault,) if result.fault is not None else ()
         return DecodedFrame(message.name, t_s, signals, faults, result.lost, source_address)

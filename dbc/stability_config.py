@@ -4,12 +4,12 @@ Read by :func:`dbc.machine.parse_machine_config`; optional (no table: no stabili
 margin). Example (``deploy/machine.example.toml``)::
 
     [stability]
-    rotation = "BRIDGE_MOTION.Bridge_RotationAngle"   # deg; 0 = bridge along SB1's x axis
+    rotation = "BRIDGE_MOTION.Bridge_RotationAngle"   # deg about the standing base; 0: its x
     fold = "BRIDGE_POSE.Bridge_FoldAngle"             # deg; 0 = unfolded
     bridge_length_m = 6.0
     hinge_m = 3.0
     warning_margin_m = 0.3
-    [stability.bases.SB1]                             # the first base is the standing one
+    [stability.bases.SB1]                             # the first base stands at start
     axis_m = [0.07, 0.0]
     feet_m = { SB1_F1 = [1.6, 0.0], SB1_F2 = [-0.8, 1.3856], SB1_F3 = [-0.8, -1.3856] }
     [stability.bases.SB2]
@@ -79,7 +79,7 @@ def parse_stability(
     bases_table = table.table("bases")
     bases = [_base(name, base) for name, base in bases_table.subtables()]
     if len(bases) != 2:
-        raise bases_table.error("", f"needs two bases (standing, far), got {len(bases)}")
+        raise bases_table.error("", f"needs two bases, got {len(bases)}")
     placed = [leg for base in bases for leg in base.feet_m]
     missing = sorted(set(legs) - set(placed))
     unknown = sorted(set(placed) - set(legs))
@@ -89,8 +89,7 @@ def parse_stability(
         )
     layout = table.build(
         MachineLayout,
-        standing=bases[0],
-        far=bases[1],
+        bases=(bases[0], bases[1]),
         bridge_length_m=table.number("bridge_length_m"),
         hinge_m=table.number("hinge_m"),
     )

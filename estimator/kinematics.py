@@ -1,16 +1,20 @@
 """Plan positions of all six feet in one frame, from the bridge's rotation and fold angles.
 
-Pure computation, the simulator's kinematics (``sim_bridge/model.py``) in general form.
-The plan frame is the *standing* base's own frame (the first base of the config, SB1):
-the bridge turns about that base's rotation axis (``axis_m`` in its frame) by the
-rotation angle psi (0: along the frame's x axis) and folds about a hinge ``hinge_m``
-from that axis; the *far* base (SB2) hangs at the bridge's end, its own frame turned
-with the bridge (x along the bridge, away from the standing base):
+Pure computation, the simulator's kinematics (``sim_bridge/model.py``) in general form,
+for either base standing. The plan frame is the *standing* base's own frame: the bridge
+turns about that base's rotation axis (``axis_m`` in its frame) by the rotation angle
+psi (the bridge's direction seen from the standing base, in its frame) and folds about
+a hinge ``hinge_m`` from the *first* base's axis (``length - hinge`` from the second's).
+The *far* base hangs at the bridge's end; its frame is fixed to the bridge by its own
+joint, locked while it hangs at the angle theta it had when it last stood (the bridge's
+direction seen from it, towards the standing base; pi: its x axis along the bridge,
+away from the standing base):
 
     u         = (cos psi, sin psi)
     far axis  = axis + (hinge + (length - hinge) cos fold) u
-    far foot  = far axis + R(psi) (foot - far base's axis_m)
+    far foot  = far axis + R(psi + pi - theta) (foot - far base's axis_m)
 
+Which base stands, and theta, follow the walking cycle (:mod:`estimator.stance`).
 The bridge's inclination (a few degrees) moves the feet horizontally by less than
 0.2 % of the bridge length and is left out, as in the simulator.
 """
@@ -27,7 +31,7 @@ Point = tuple[float, float]
 
 @dataclass(frozen=True)
 class BaseLayout:
-    """One standing base: its feet and the bridge's rotation axis, in the base's frame."""
+    """One base: its feet and the bridge's rotation axis, in the base's frame."""
 
     name: str
     #: Where the bridge's rotation axis meets this base, m.
@@ -40,13 +44,11 @@ class BaseLayout:
 class MachineLayout:
     """Both bases and the bridge between them."""
 
-    #: The base whose frame is the plan frame; the bridge rotates about its axis.
-    standing: BaseLayout
-    #: The base at the bridge's far end.
-    far: BaseLayout
+    #: The two bases; the first stands when the service starts.
+    bases: tuple[BaseLayout, BaseLayout]
     #: Distance between the two bases' axes with the bridge unfolded.
     bridge_length_m: float
-    #: Distance from the standing base's axis to the fold hinge, along the bridge.
+    #: Distance from the first base's axis to the fold hinge, along the bridge.
     hinge_m: float
 
     def __post_init__(self) -> None:
@@ -56,19 +58,30 @@ class MachineLayout:
             raise ValueError(
                 f"hinge_m must lie on the bridge, 0..{self.bridge_length_m}, got {self.hinge_m}"
             )
-        shared = set(self.standing.feet_m) & set(self.far.feet_m)
+        shared = set(self.bases[0].feet_m) & set(self.bases[1].feet_m)
         if shared:
             raise ValueError(f"feet_m of both bases name the legs {sorted(shared)}")
 
-    def feet_m(self, rotation_rad: float, fold_rad: float) -> dict[str, Point]:
-        """Every foot's position in the plan frame."""
+    def feet_m(
+        self,
+        rotation_rad: float,
+        fold_rad: float,
+        standing: int = 0,
+        far_bridge_rad: float = math.pi,
+    ) -> dict[str, Point]:
+        """Every foot's position in the frame of the base ``standing`` (0 or 1), the
+        other hanging with its joint at ``far_bridge_rad`` (theta above)."""
+        base, far = self.bases[standing], self.bases[1 - standing]
         ux, uy = math.cos(rotation_rad), math.sin(rotation_rad)
-        ax, ay = self.standing.axis_m
-        reach_m = self.hinge_m + (self.bridge_length_m - self.hinge_m) * math.cos(fold_rad)
+        hinge_m = self.hinge_m if standing == 0 else self.bridge_length_m - self.hinge_m
+        reach_m = hinge_m + (self.bridge_length_m - hinge_m) * math.cos(fold_rad)
+        ax, ay = base.axis_m
         fx, fy = ax + reach_m * ux, ay + reach_m * uy
-        far_ax, far_ay = self.far.axis_m
-        feet = dict(self.standing.feet_m)
-        for leg, (x, y) in self.far.feet_m.items():
+        turn_rad = rotation_rad + math.pi - far_bridge_rad
+        cos_turn, sin_turn = math.cos(turn_rad), math.sin(turn_rad)
+        far_ax, far_ay = far.axis_m
+        feet = dict(base.feet_m)
+        for leg, (x, y) in far.feet_m.items():
             dx, dy = x - far_ax, y - far_ay
-            feet[leg] = (fx + ux * dx - uy * dy, fy + uy * dx + ux * dy)
+            feet[leg] = (fx + cos_turn * dx - sin_turn * dy, fy + sin_turn * dx + cos_turn * dy)
         return feet

@@ -10,7 +10,7 @@ same.
 """
 
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
 from estimator.geometry import LegGeometry
@@ -70,13 +70,19 @@ class MachineEstimator:
 
     def update(self, leg: str, sample: LegSample) -> LegEstimate:
         """Feed one sample of ``leg`` (observing its frame time); returns its new estimate."""
-        self.observe(sample.t_s)
+        if sample.t_s != self.latest_t_s:  # the same frame time (usual) would add nothing
+            self.observe(sample.t_s)
         self._heard_at_s[leg] = self.bus_time_s
         return self.legs[leg].update(sample)
 
-    def snapshot(self, now_s: float, feet_m: Mapping[str, Point] | None = None) -> MachineSnapshot:
+    def snapshot(
+        self,
+        now_s: float,
+        place_feet: Callable[[Mapping[str, LegEstimate]], Mapping[str, Point] | None] | None = None,
+    ) -> MachineSnapshot:
         """All legs judged at ``now_s`` (stale legs marked), plus the weight check, and
-        with the feet's plan positions ``feet_m`` the stability margin.
+        with ``place_feet`` (the legs' estimates -> the feet's plan positions, None when
+        unknown) the stability margin.
 
         ``now_s`` is a time on the frames' clock; the legs are judged at the bus time
         of the latest frame plus how far ``now_s`` lies past that frame (nothing when
@@ -87,6 +93,7 @@ class MachineEstimator:
         estimates = {
             name: leg.snapshot(judged_s - self._heard_at_s[name]) for name, leg in self.legs.items()
         }
+        feet_m = place_feet(estimates) if place_feet is not None else None
         return MachineSnapshot(
             t_s=now_s,
             legs=estimates,

@@ -20,7 +20,7 @@ def load(tmp_path: Path, text: str):  # type: ignore[no-untyped-def]
 def test_example_layout_and_non_default_values(tmp_path: Path) -> None:
     stability = load_machine_config(EXAMPLE_CONFIG)[0].stability
     assert stability is not None
-    assert (stability.layout.standing.name, stability.layout.far.name) == ("SB1", "SB2")
+    assert [base.name for base in stability.layout.bases] == ["SB1", "SB2"]
     assert str(stability.rotation) == "BRIDGE_MOTION.Bridge_RotationAngle"
     assert stability.warning_margin_m == 0.3
     text = EXAMPLE.replace("warning_margin_m = 0.3", "warning_margin_m = 0.5").replace(
@@ -28,8 +28,11 @@ def test_example_layout_and_non_default_values(tmp_path: Path) -> None:
     )
     changed = load(tmp_path, text).stability
     assert changed.warning_margin_m == 0.5 and changed.layout.hinge_m == 2.0
-    # Folded by 90 deg the far base's axis sits at the hinge: 0.07 + 2.0 along x.
+    # Folded by 90 deg the far base's axis sits at the hinge: 0.07 + 2.0 along x; with
+    # SB2 standing (its axis at 0), 6.0 - 2.0 from SB2's axis, and SB1 turned round.
     assert changed.layout.feet_m(0.0, 1.5707963267948966)["SB2_F1"] == pytest.approx((3.67, 0))
+    sb2 = changed.layout.feet_m(0.0, 1.5707963267948966, standing=1, far_bridge_rad=0.0)
+    assert sb2["SB1_F1"] == pytest.approx((4.0 + 0.07 - 1.6, 0))
 
 
 def test_without_the_table_there_is_no_margin(tmp_path: Path) -> None:

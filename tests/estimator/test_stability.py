@@ -69,13 +69,30 @@ def test_undefined_with_two_feet_an_invalid_leg_or_feet_on_a_line() -> None:
     assert result.feet_m["D"] == (9.0, 9.0)
 
 
-@pytest.mark.parametrize(("t_s", "fold_deg"), [(0.0, 0.0), (20.0, 30.0), (28.0, 45.0), (40, 10)])
+@pytest.mark.parametrize(
+    ("t_s", "fold_deg"),
+    [(0.0, 0.0), (20.0, 30.0), (28.0, 45.0), (40, 10), (45.0, 0.0), (65.0, 30.0), (73.0, 45.0)],
+)
 def test_the_configured_layout_places_the_feet_as_the_simulator(
     t_s: float, fold_deg: float
 ) -> None:
+    """In either step: the first (SB1 standing) in SB1's frame, which is the simulator's
+    plan; the second (SB2 standing, SB1's joint locked at its last rotation) in SB2's,
+    which lies in the simulator's plan shifted, not turned (SB2's F1 ends away from SB1)."""
     config = load_machine_config(EXAMPLE_CONFIG)[0]
     assert config.stability is not None
-    rotation_rad = float(cycle.rotation_rad(t_s))
-    feet = config.stability.layout.feet_m(rotation_rad, math.radians(fold_deg))
+    step = int(t_s // cycle.CYCLE_END_S)
+    rotation_rad = float(cycle.rotation_rad(t_s - step * cycle.CYCLE_END_S))
+    sb1_joint_rad = float(cycle.rotation_rad(cycle.CYCLE_END_S))  # 0: over SB1_F1
+    feet = config.stability.layout.feet_m(
+        rotation_rad,
+        math.radians(fold_deg),
+        standing=step,
+        far_bridge_rad=sb1_joint_rad if step else math.pi,
+    )
     reference, _ = plan_view(t_s, math.radians(fold_deg))
-    assert np.allclose([feet[leg] for leg in LEGS], reference, atol=1e-5)
+    placed = np.array([feet[leg] for leg in LEGS])
+    origin = 3 * step  # the standing base's F1
+    assert np.allclose(placed - placed[origin], reference - reference[origin], atol=1e-5)
+    if step == 0:
+        assert np.allclose(placed, reference, atol=1e-5)
