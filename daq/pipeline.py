@@ -21,11 +21,13 @@ from dbc.samples import LegSampler
 from estimator.leg import LegEstimate
 from estimator.machine import MachineEstimator, MachineSnapshot
 from estimator.metrics import SoilMetrics
+from estimator.records import fast_init
 
 #: Frames of a leg message from a J1939 source address no chamber is mapped to.
 UNMAPPED_SOURCE = "unmapped_source"
 
 
+@fast_init
 @dataclass(frozen=True, slots=True)
 class FrameResult:
     """What one frame gave: its decoding (or the error) and the leg estimates it updated."""
