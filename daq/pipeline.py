@@ -108,14 +108,16 @@ class Pipeline:
         except FrameError as error:
             self.bad[error.kind] += 1
             return FrameResult(frame, None, error)
-        for fault in decoded.faults:
-            self.bad[fault] += 1
-        self.frames_lost += decoded.frames_lost
+        if decoded.faults:
+            self.bad.update(decoded.faults)
+        if decoded.frames_lost:
+            self.frames_lost += decoded.frames_lost
         if self.pose is not None:
             self.pose.observe(decoded)
         samples = self.sampler.samples(decoded)
-        if samples is None:
-            self.bad[UNMAPPED_SOURCE] += 1
+        if not samples:  # a frame of no leg's message (None: of none of its senders)
+            if samples is None:
+                self.bad[UNMAPPED_SOURCE] += 1
             return FrameResult(frame, decoded, None)
         update = self.estimator.update
         estimates = tuple([update(leg, sample) for leg, sample in samples])
