@@ -25,7 +25,10 @@ class PoseTracker:
     def __init__(self, config: StabilityConfig, max_age_s: Mapping[str, float]) -> None:
         """``max_age_s``: per message name, how old its latest frame may be."""
         self.config = config
-        self._refs = {"rotation": config.rotation, "fold": config.fold}
+        # Message name -> the (name, signal) pairs it carries: one look-up per frame.
+        self._by_message: dict[str, list[tuple[str, str]]] = {}
+        for name, ref in (("rotation", config.rotation), ("fold", config.fold)):
+            self._by_message.setdefault(ref.message, []).append((name, ref.signal))
         self._max_age_s = dict(max_age_s)
         #: name -> (frame time, angle in degrees)
         self._latest: dict[str, tuple[float, float]] = {}
@@ -34,13 +37,13 @@ class PoseTracker:
 
     def observe(self, frame: DecodedFrame) -> None:
         """Take the angles a decoded frame carries, if it is trusted."""
-        if not (frame.crc_ok and frame.counter_ok):
+        refs = self._by_message.get(frame.message)
+        if refs is None or not (frame.crc_ok and frame.counter_ok):
             return
-        for name, ref in self._refs.items():
-            if ref.message == frame.message:
-                value = frame.signals.get(ref.signal)
-                if isinstance(value, int | float) and math.isfinite(value):
-                    self._latest[name] = (frame.t_s, float(value))
+        for name, signal in refs:
+            value = frame.signals.get(signal)
+            if isinstance(value, int | float) and math.isfinite(value):
+                self._latest[name] = (frame.t_s, float(value))
 
     def _angle_rad(self, name: str, ref: SignalRef, now_s: float) -> float | None:
         latest = self._latest.get(name)

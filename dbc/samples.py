@@ -80,37 +80,40 @@ class LegSampler:
         None when the frame's message carries chambers but none from its source
         address: a J1939 frame of a known PGN from an unmapped transducer.
         """
-        paired = self._paired.get(frame.message)
-        routes = self._routes.get(frame.message)
-        if paired is None and routes is None:
+        paired = self._paired.get(frame.message, ())
+        routes = self._routes.get(frame.message, ())
+        if not paired and not routes:
             return []
         source_address = frame.source_address
         signals = frame.signals
+        t_s, faults = frame.t_s, frame.faults
         samples = [
             (
                 leg.leg,
                 LegSample(
-                    frame.t_s,
+                    t_s,
                     float(signals[leg.piston]),
                     float(signals[leg.rod]),
-                    _with_status(frame.faults, leg.statuses, signals),
+                    _with_status(faults, leg.statuses, signals) if leg.statuses else faults,
                 ),
             )
-            for leg in paired or ()
+            for leg in paired
             if leg.source_address is None or leg.source_address == source_address
         ]
+        if not routes:  # the usual case: both chambers in the frame, no state
+            return samples or None
         matched = [
             route
-            for route in routes or ()
+            for route in routes
             if route.signal.source_address is None or route.signal.source_address == source_address
         ]
         if not samples and not matched:
             return None
         for route in matched:
             status = route.signal.status
-            faults = _with_status(frame.faults, (status,) if status else (), signals)
+            chamber_faults = _with_status(faults, (status,) if status else (), signals)
             self._latest[(route.leg.name, route.chamber)] = _Reading(
-                frame.t_s, float(signals[route.signal.signal]), faults
+                t_s, float(signals[route.signal.signal]), chamber_faults
             )
         return samples + [self._sample(route.leg) for route in matched if route.triggers]
 
@@ -140,7 +143,10 @@ def _with_status(
 ) -> tuple[str, ...]:
     """The frame's faults and those of its status signals."""
     for status in statuses:
-        fault = status.fault(signals[status.signal])
+        value = signals[status.signal]
+        if value in status.ok:  # the usual case, without a call
+            continue
+        fault = status.fault(value)
         if fault is not None and fault not in faults:
             faults = (*faults, fault)
     return faults

@@ -7,12 +7,14 @@ from estimator.equations import contact_pressure_Pa, foot_force_N
 from estimator.filters import make_filter
 from estimator.geometry import LegGeometry
 from estimator.metrics import SoilMetrics, SoilMetricsTracker
+from estimator.records import fast_init
 from estimator.settings import EstimatorSettings
 from estimator.validity import STALE, sample_faults
 
 NAN = float("nan")
 
 
+@fast_init
 @dataclass(frozen=True, slots=True)
 class LegSample:
     """One leg sample: both chamber pressures and what the CAN layer's checks found."""
@@ -28,6 +30,7 @@ class LegSample:
     faults: tuple[str, ...] = ()
 
 
+@fast_init
 @dataclass(frozen=True, slots=True)
 class LegEstimate:
     """The estimator's answer for one leg after a sample (or a staleness check)."""
@@ -101,14 +104,15 @@ class LegEstimator:
 
     def update(self, sample: LegSample) -> LegEstimate:
         """Take one received sample and return the leg's new estimate."""
+        t_s, p_piston_Pa, p_rod_Pa = sample.t_s, sample.p_piston_Pa, sample.p_rod_Pa
         reasons = sample_faults(
-            p_piston_Pa=sample.p_piston_Pa,
-            p_rod_Pa=sample.p_rod_Pa,
+            p_piston_Pa=p_piston_Pa,
+            p_rod_Pa=p_rod_Pa,
             faults=sample.faults,
             settings=self.settings,
         )
-        force_raw_N = foot_force_N(sample.p_piston_Pa, sample.p_rod_Pa, self.leg)
-        if sample.t_s - self._last_valid_t_s > self.stale_after_s:  # after an outage
+        force_raw_N = foot_force_N(p_piston_Pa, p_rod_Pa, self.leg)
+        if t_s - self._last_valid_t_s > self.stale_after_s:  # after an outage
             self._filter.clear()
             self._contact.reset()
             self._last_valid_t_s = NAN
@@ -118,23 +122,25 @@ class LegEstimator:
         else:
             force_N = self._filter.push(force_raw_N)
             contact = self._contact.update(force_N)
-            self._last_valid_t_s = sample.t_s
+            self._last_valid_t_s = t_s
         pressure_Pa = contact_pressure_Pa(force_N, self.leg.A_foot_m2)
         if not reasons:
-            self._metrics.add(sample.t_s, pressure_Pa)
-        self._last = LegEstimate(
-            leg=self.name,
-            t_s=sample.t_s,
-            force_N=force_N,
-            force_raw_N=force_raw_N,
-            pressure_Pa=pressure_Pa,
-            p_piston_Pa=sample.p_piston_Pa,
-            p_rod_Pa=sample.p_rod_Pa,
-            contact=contact,
-            valid=not reasons,
-            reasons=reasons,
+            self._metrics.add(t_s, pressure_Pa)
+        # Positional, in the fields' order (leg, t_s, force_N, force_raw_N, pressure_Pa,
+        # p_piston_Pa, p_rod_Pa, contact, valid, reasons): keywords cost more per frame.
+        self._last = estimate = LegEstimate(
+            self.name,
+            t_s,
+            force_N,
+            force_raw_N,
+            pressure_Pa,
+            p_piston_Pa,
+            p_rod_Pa,
+            contact,
+            not reasons,
+            reasons,
         )
-        return self._last
+        return estimate
 
     def snapshot(self, age_s: float) -> LegEstimate:
         """The latest estimate, judged ``age_s`` after its sample: stale if that is longer

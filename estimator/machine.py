@@ -70,7 +70,8 @@ class MachineEstimator:
 
     def update(self, leg: str, sample: LegSample) -> LegEstimate:
         """Feed one sample of ``leg`` (observing its frame time); returns its new estimate."""
-        self.observe(sample.t_s)
+        if sample.t_s != self.latest_t_s:  # the same frame time (usual) would add nothing
+            self.observe(sample.t_s)
         self._heard_at_s[leg] = self.bus_time_s
         return self.legs[leg].update(sample)
 

@@ -38,6 +38,18 @@ def test_many_equal_values_are_removed_one_at_a_time(values: list[float], window
     assert len(median) == min(len(values), window)
 
 
+@pytest.mark.parametrize("window", [199, 201, 203, 401])
+def test_windows_around_the_sorted_list_switch_equal_brute_force(window: int) -> None:
+    # Up to 201 values a plain sorted list, above a SortedList: both exact.
+    rng = np.random.default_rng(window)
+    values = [float(v) for v in rng.integers(-20, 20, size=3 * window)]
+    median = RunningMedian(window)
+    streamed = [median.push(v) for v in values]
+    assert streamed == brute_force(values, window)
+    assert np.array_equal(np.array(streamed), running_median(values, window))
+    assert len(median) == window
+
+
 def test_warm_up_uses_the_samples_so_far() -> None:
     median = RunningMedian(5)
     assert [median.push(v) for v in (10.0, 20.0, 0.0, 40.0, 50.0, 60.0)] == [
