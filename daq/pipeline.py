@@ -21,11 +21,13 @@ from dbc.samples import LegSampler
 from estimator.leg import LegEstimate
 from estimator.machine import MachineEstimator, MachineSnapshot
 from estimator.metrics import SoilMetrics
+from estimator.records import fast_init
 
 #: Frames of a leg message from a J1939 source address no chamber is mapped to.
 UNMAPPED_SOURCE = "unmapped_source"
 
 
+@fast_init
 @dataclass(frozen=True, slots=True)
 class FrameResult:
     """What one frame gave: its decoding (or the error) and the leg estimates it updated."""
@@ -106,14 +108,16 @@ class Pipeline:
         except FrameError as error:
             self.bad[error.kind] += 1
             return FrameResult(frame, None, error)
-        for fault in decoded.faults:
-            self.bad[fault] += 1
-        self.frames_lost += decoded.frames_lost
+        if decoded.faults:
+            self.bad.update(decoded.faults)
+        if decoded.frames_lost:
+            self.frames_lost += decoded.frames_lost
         if self.pose is not None:
             self.pose.observe(decoded)
         samples = self.sampler.samples(decoded)
-        if samples is None:
-            self.bad[UNMAPPED_SOURCE] += 1
+        if not samples:  # a frame of no leg's message (None: of none of its senders)
+            if samples is None:
+                self.bad[UNMAPPED_SOURCE] += 1
             return FrameResult(frame, decoded, None)
         update = self.estimator.update
         estimates = tuple([update(leg, sample) for leg, sample in samples])

@@ -34,6 +34,7 @@ from dbc.protection import (
     CrcCheck,
     Protection,
 )
+from estimator.records import fast_init
 
 #: A decoded signal: its physical value (Pa for pressures), or its value-table name.
 SignalValue = float | int | str
@@ -58,6 +59,7 @@ class ReceiveFilter(NamedTuple):
     extended: bool
 
 
+@fast_init
 @dataclass(frozen=True, slots=True)
 class DecodedFrame:
     """One frame, decoded and checked."""
@@ -105,6 +107,9 @@ class _MessageCodec:
         compiled: bool,
     ) -> None:
         self.message = message
+        # cantools' properties, read once: the per-frame path reads plain attributes.
+        self.name: str = message.name
+        self.length: int = message.length
         self.to_si = dict(to_si)
         self.compiled = CompiledMessage.compile(message, to_si) if compiled else None
         self.protection = protection
@@ -119,11 +124,10 @@ class _MessageCodec:
     def decode(
         self, arbitration_id: int, data: bytes, t_s: float, source_address: int | None
     ) -> DecodedFrame:
-        message = self.message
-        if len(data) != message.length:
+        name = self.name
+        if len(data) != self.length:
             raise FrameLengthError(
-                arbitration_id,
-                f"{message.name} has DLC {len(data)}, the DBC says {message.length}",
+                arbitration_id, f"{name} has DLC {len(data)}, the DBC says {self.length}"
             )
         signals = (
             self.compiled.decode(data)
@@ -131,7 +135,7 @@ class _MessageCodec:
             else self._decode_reference(arbitration_id, data)
         )
         if self.protection is None:
-            return DecodedFrame(message.name, t_s, signals, (), 0, source_address)
+            return DecodedFrame(name, t_s, signals, (), 0, source_address)
         counter_value = None
         counter = None
         if self.counter_signal is not None:
@@ -142,12 +146,12 @@ class _MessageCodec:
             # as a first one, so one bad CRC costs exactly one sample.
             if counter is not None:
                 counter.reset()
-            return DecodedFrame(message.name, t_s, signals, (CRC_FAULT,), 0, source_address)
+            return DecodedFrame(name, t_s, signals, (CRC_FAULT,), 0, source_address)
         if counter is None or counter_value is None:
-            return DecodedFrame(message.name, t_s, signals, (), 0, source_address)
+            return DecodedFrame(name, t_s, signals, (), 0, source_address)
         result = counter.update(counter_value)
         faults = (result.fault,) if result.fault is not None else ()
-        return DecodedFrame(message.name, t_s, signals, faults, result.lost, source_address)
+        return DecodedFrame(name, t_s, signals, faults, result.lost, source_address)
 
     def _counter(self, source_address: int | None) -> CounterCheck | None:
         if self.protection is None or self.protection.counter is None:

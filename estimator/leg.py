@@ -7,12 +7,14 @@ from estimator.equations import contact_pressure_Pa, foot_force_N
 from estimator.filters import make_filter
 from estimator.geometry import LegGeometry
 from estimator.metrics import SoilMetrics, SoilMetricsTracker
+from estimator.records import fast_init
 from estimator.settings import EstimatorSettings
 from estimator.validity import STALE, sample_faults
 
 NAN = float("nan")
 
 
+@fast_init
 @dataclass(frozen=True, slots=True)
 class LegSample:
     """One leg sample: both chamber pressures and what the CAN layer's checks found."""
@@ -28,6 +30,7 @@ class LegSample:
     faults: tuple[str, ...] = ()
 
 
+@fast_init
 @dataclass(frozen=True, slots=True)
 class LegEstimate:
     """The estimator's answer for one leg after a sample (or a staleness check)."""
