@@ -7,7 +7,8 @@ base's axis, not which base that is; the feet say it:
 - **One base lifted** (all its legs valid, none in contact): the other base stands, and
   the plan is its frame with the pose as read. When that is the other base than before,
   the base that stood becomes the far one, its joint locked at the rotation it last had
-  (the bridge's direction seen from it), so the feet keep their places on the ground.
+  (the bridge's direction seen from it: the held pose's), so the feet keep their places
+  on the ground. (Had no pose been read while both were down, the joint stays as it was.)
 - **Feet of both bases on the ground** (all legs valid, no base lifted): the bridge can
   neither turn nor fold, so the pose is *held* at its value when this began, and the
   standing base stays the one that stood last. The rotation signal is not used meanwhile:
