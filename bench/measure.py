@@ -21,7 +21,10 @@ the sender could only send late, because it shares the CPU, was "on the wire"
 since then, as a kernel time stamp would say).
 """
 
-from collections.abc import Sequence
+import sys
+import threading
+from collections.abc import Collection, Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Any, Protocol
 
@@ -56,6 +59,18 @@ class Plan:
     #: Frames offered at ``nominal_rate_hz`` (0: left out).
     nominal_frames: int = 0
     nominal_rate_hz: float = 0.0
+    #: Rounds as fast as taken (the systems take turns; each one's fastest counts).
+    rounds: int = 1
+
+    @property
+    def frames(self) -> int:
+        """Frames each system is offered in all."""
+        return (
+            self.warmup
+            + self.rounds * self.throughput_frames
+            + (2 if self.hog_cpu is not None else 1) * self.paced_frames
+            + self.nominal_frames
+        )
 
 
 def measure(
@@ -67,12 +82,13 @@ def measure(
     rate_hz: float | None,
     window: int,
     timeout_s: float = 30.0,
+    others: Collection[int] = (),
 ) -> dict[str, Any]:
     """Offer ``frames`` (paced at ``rate_hz``, or as fast as taken), wait until every
     estimate arrived, and report frames/s, latency and CPU time per frame."""
     base = target.processed()
     expected_legs = sum(1 for frame in frames if frame.arbitration_id in leg_ids)
-    cpu_before = thread_cpu_ns()
+    cpu_before = thread_cpu_ns(others)
     foreign = ForeignLoad(("self", probe.pid))
     if rate_hz is None:
 
@@ -83,7 +99,7 @@ def measure(
     else:
         sent = send_paced(target.send, frames, rate_hz)
     done_s = target.wait_processed(base + len(frames), timeout_s)
-    cpu_per_frame = cpu_us_per_frame(cpu_before, thread_cpu_ns(), len(frames))
+    cpu_per_frame = cpu_us_per_frame(cpu_before, thread_cpu_ns(others), len(frames))
     foreign_pct = foreign.percent()
     received = probe.collect(expected_legs, timeout_s)
     pairs = np.array(received["leg_samples"], dtype=np.float64).reshape(-1, 2)
@@ -115,41 +131,106 @@ def measure(
     return result
 
 
-def run_system(
-    target: Target,
+@contextmanager
+def switch_interval(seconds: float) -> Iterator[None]:
+    """The GIL switch interval ``seconds`` meanwhile (each system runs with its own)."""
+    before = sys.getswitchinterval()
+    sys.setswitchinterval(seconds)
+    try:
+        yield
+    finally:
+        sys.setswitchinterval(before)
+
+
+@dataclass(frozen=True)
+class System:
+    """A system under test, the GIL switch interval it runs with, and its own Python
+    threads (native IDs; left out of the others' CPU time while they are measured)."""
+
+    target: Target
+    switch_interval_s: float
+    threads: frozenset[int]
+
+
+def own_threads(before: Collection[int]) -> frozenset[int]:
+    """Native IDs of the Python threads that were not in ``before``."""
+    return frozenset(
+        thread.native_id
+        for thread in threading.enumerate()
+        if thread.native_id is not None and thread.native_id not in before
+    )
+
+
+def run_systems(
+    systems: Mapping[str, System],
     probe: ProbeProcess,
     frames: Sequence[can.Message],
     leg_ids: set[int],
     plan: Plan,
-) -> dict[str, Any]:
-    """Warm-up, throughput, paced: on consecutive slices of ``frames`` (the rolling
-    counters run on, so every frame passes its checks)."""
+) -> dict[str, dict[str, Any]]:
+    """Every system (by name) on the same consecutive slices of ``frames`` (the rolling
+    counters run on, so every frame passes its checks), taking turns: the warm-up, then
+    :attr:`Plan.rounds` rounds as fast as taken, then paced, paced with a CPU hog,
+    nominal, each system after the other, so that a neighbour's burst of load on a
+    shared machine hits them alike. Of the rounds as fast as taken, each system's
+    fastest is its ``throughput`` (all in ``throughput_rounds``)."""
+    at = 0
 
-    def run(chunk: Sequence[can.Message], rate_hz: float | None) -> dict[str, Any]:
-        return measure(target, probe, chunk, leg_ids, rate_hz=rate_hz, window=plan.window)
+    def take(count: int) -> Sequence[can.Message]:
+        nonlocal at
+        at += count
+        return frames[at - count : at]
 
-    warmup = run(frames[: plan.warmup], None)
-    at = plan.warmup
-    throughput = run(frames[at : at + plan.throughput_frames], None)
-    at += plan.throughput_frames
-    paced = run(frames[at : at + plan.paced_frames], plan.rate_hz)
-    at += plan.paced_frames
-    results = {"throughput": throughput, "paced": paced}
+    def turns(chunk: Sequence[can.Message], rate_hz: float | None) -> dict[str, dict[str, Any]]:
+        results = {}
+        for name, system in systems.items():
+            others = set().union(*(s.threads for n, s in systems.items() if n != name))
+            with switch_interval(system.switch_interval_s):
+                results[name] = measure(
+                    system.target,
+                    probe,
+                    chunk,
+                    leg_ids,
+                    rate_hz=rate_hz,
+                    window=plan.window,
+                    others=others,
+                )
+        return results
+
+    measured: dict[str, list[dict[str, Any]]] = {name: [] for name in systems}
+    results: dict[str, dict[str, Any]] = {name: {} for name in systems}
+
+    def keep(mode: str, by_system: dict[str, dict[str, Any]]) -> None:
+        for name, result in by_system.items():
+            result["mode"] = mode
+            results[name][mode] = result
+            measured[name].append(result)
+
+    for name, result in turns(take(plan.warmup), None).items():
+        measured[name].append(result)
+    rounds = [turns(take(plan.throughput_frames), None) for _ in range(plan.rounds)]
+    for name in systems:
+        mine = [by_system[name] for by_system in rounds]
+        measured[name] += mine
+        results[name]["throughput"] = max(mine, key=lambda result: result["frames_per_s"])
+        results[name]["throughput_rounds"] = [
+            {
+                "frames_per_s": result["frames_per_s"],
+                "cpu_us_per_frame": result["cpu_us_per_frame"]["total"],
+                "other_processes_cpu_pct": result["other_processes_cpu_pct"],
+            }
+            for result in mine
+        ]
+    keep("paced", turns(take(plan.paced_frames), plan.rate_hz))
     if plan.hog_cpu is not None:
         with CpuHog(plan.hog_cpu):
-            results["paced_hog"] = run(frames[at : at + plan.paced_frames], plan.rate_hz)
-            results["paced_hog"]["mode"] = "paced_hog"
-        at += plan.paced_frames
+            keep("paced_hog", turns(take(plan.paced_frames), plan.rate_hz))
     if plan.nominal_frames:
-        nominal = frames[at : at + plan.nominal_frames]
-        results["nominal"] = run(nominal, plan.nominal_rate_hz)
-        results["nominal"]["mode"] = "nominal"
-    measured = (warmup, *results.values())
-    return {
-        **results,
-        "offered": {
-            "frames": sum(result["frames"] for result in measured),
-            "leg_frames": sum(result["leg_estimates_expected"] for result in measured),
-        },
-        "counters": target.counters(),
-    }
+        keep("nominal", turns(take(plan.nominal_frames), plan.nominal_rate_hz))
+    for name, system in systems.items():
+        results[name]["offered"] = {
+            "frames": sum(result["frames"] for result in measured[name]),
+            "leg_frames": sum(result["leg_estimates_expected"] for result in measured[name]),
+        }
+        results[name]["counters"] = system.target.counters()
+    return results

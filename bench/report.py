@@ -69,7 +69,7 @@ def recorded_everything(pipeline: dict[str, Any]) -> bool:
     offered, recording = pipeline["offered"], pipeline["recording"]
     return (
         recording["raw_frames"] == offered["frames"]
-        and recording["messages"].get("leg") == offered["leg_frames"]
+        and recording["leg_estimates"] == offered["leg_frames"]
     )
 
 

@@ -12,9 +12,11 @@ Writes ``bench/results.json`` and prints a markdown table.
    CPU.
 3. One Zenoh session (peer, ``tcp/127.0.0.1:<free port>``, multicast scouting off)
    carries what the service and the baseline publish; the probe connects to it.
-4. Systems, one after the other, each with a warm-up, a throughput and a paced
+4. Systems, all running at once and taking turns (:func:`bench.measure.run_systems`):
+   a warm-up, five rounds as fast as taken (each system's fastest counts), a paced
    measurement, the paced one again while a CPU hog spins on the other CPU, and one
-   at the DBC's nominal rate (:mod:`bench.measure`): the service as configured by
+   at the DBC's nominal rate; the CPU time of the systems not measured (their Python
+   threads, idle meanwhile) is left out. The systems: the service as configured by
    default (``pipeline``, as deployed: one thread receives, processes and publishes,
    raw frames recorded in batches, signals published at most 10 Hz per message and
    not recorded, 1 ms GIL switch interval); with reader and publisher in threads of
@@ -30,16 +32,17 @@ import json
 import os
 import sys
 import tempfile
+import threading
 import time
 from collections import Counter
 from collections.abc import Sequence
-from dataclasses import replace
+from contextlib import ExitStack
 from pathlib import Path
 from typing import Any
 
 from bench.frames import EXAMPLE_CONFIG, simulated_frames
 from bench.machine import free_port, machine_info, pin_to_one_cpu, unpin
-from bench.measure import Plan, run_system
+from bench.measure import Plan, System, own_threads, run_systems
 from bench.probe import ProbeProcess
 from bench.report import markdown_table, targets_met
 from bench.subscriber import peer_config
@@ -59,14 +62,14 @@ COMPARED = {
 }
 #: Seconds of frames at the DBC's nominal rate.
 NOMINAL_S = 5.0
-PIPELINE_PREFIX = "bench/pipeline"
+PIPELINE_PREFIX = "bench/{name}"
 BASELINE_PREFIX = "bench/baseline"
 
 
 def run_benchmark(
     *,
     throughput_frames: int = 30_000,
-    baseline_throughput_frames: int | None = None,
+    rounds: int = 5,
     paced_s: float = 10.0,
     nominal_s: float = NOMINAL_S,
     rate_hz: float = SATURATED_RATE_HZ,
@@ -81,7 +84,6 @@ def run_benchmark(
     ``pin=False`` leaves the CPU affinity alone (e.g. in tests); ``tuned=False`` leaves
     out the tuned variant of the service.
     """
-    baseline_throughput_frames = baseline_throughput_frames or throughput_frames
     paced_frames = max(1, round(paced_s * rate_hz))
     nominal_hz = nominal_rate_hz()
     nominal_frames = max(1, round(nominal_s * nominal_hz))
@@ -90,33 +92,23 @@ def run_benchmark(
     hog_cpu = probe_cpu if pin else next(iter(allowed))
     started = time.monotonic()
     try:
-        count = (
-            warmup
-            + max(throughput_frames, baseline_throughput_frames)
-            + 2 * paced_frames
-            + nominal_frames
+        plan = Plan(
+            warmup,
+            throughput_frames,
+            paced_frames,
+            rate_hz,
+            window,
+            hog_cpu=hog_cpu,
+            nominal_frames=nominal_frames,
+            nominal_rate_hz=nominal_hz,
+            rounds=rounds,
         )
-        frames = simulated_frames(count, rtol=rtol)
+        frames = simulated_frames(plan.frames, rtol=rtol)
         generated_s = time.monotonic() - started
         gc.collect()
         gc.freeze()  # the frames are the benchmark's, not the service's garbage
         try:
-            results = _run_systems(
-                frames,
-                Plan(
-                    warmup,
-                    throughput_frames,
-                    paced_frames,
-                    rate_hz,
-                    window,
-                    hog_cpu=hog_cpu,
-                    nominal_frames=nominal_frames,
-                    nominal_rate_hz=nominal_hz,
-                ),
-                baseline_throughput_frames=baseline_throughput_frames,
-                probe_cpu=probe_cpu,
-                tuned=tuned,
-            )
+            results = _run_systems(frames, plan, probe_cpu=probe_cpu, tuned=tuned)
         finally:
             gc.unfreeze()
     finally:
@@ -145,6 +137,7 @@ def run_benchmark(
             "nominal_rate_hz": nominal_hz,
             "hog_cpu": hog_cpu,
             "window": window,
+            "throughput_rounds": rounds,
             "frames_generated": len(frames),
             "generation_s": round(generated_s, 2),
             "frame_mix": results.pop("frame_mix"),
@@ -172,52 +165,43 @@ def _run_systems(
     frames: Sequence[Any],
     plan: Plan,
     *,
-    baseline_throughput_frames: int,
     probe_cpu: int | None,
     tuned: bool,
 ) -> dict[str, Any]:
     endpoint = f"tcp/127.0.0.1:{free_port()}"
-    default_switch_s = sys.getswitchinterval()
-    # As deployed: the config's defaults and the CLI's GIL switch interval.
+    # As deployed: the config's defaults and the CLI's GIL switch interval; the baseline
+    # as Python starts.
     variants: list[tuple[str, dict[str, str]]] = [("pipeline", {})]
     if tuned:
         variants += COMPARED.items()
-    results: dict[str, Any] = {}
-    with tempfile.TemporaryDirectory(prefix="portal-bench-") as tmp:
+    with tempfile.TemporaryDirectory(prefix="portal-bench-") as tmp, ExitStack() as stack:
         import zenoh  # only now: its runtime threads inherit the CPU mask
 
-        with (
-            zenoh.open(peer_config(listen=endpoint)) as session,
-            ProbeProcess(session, endpoint, probe_cpu) as probe,
-        ):
-            for name, tables in variants:
-                workdir = Path(tmp) / name
-                workdir.mkdir()
-                config = service_config(workdir, PIPELINE_PREFIX, tables)
-                leg_ids = {
-                    config.database.get_message_by_name(leg.message).frame_id
-                    for leg in config.machine.legs.values()
-                }
-                service = ServiceUnderTest(config, session)
-                sys.setswitchinterval(GIL_SWITCH_INTERVAL_S)
-                try:
-                    with service:
-                        result = run_system(service, probe, frames, leg_ids, plan)
-                finally:
-                    sys.setswitchinterval(default_switch_s)
-                result["settings"] = tables
-                result["recording"] = service.recording()
-                results[name] = result
-            with NaiveBaseline(
-                config.machine, config.database, session, BASELINE_PREFIX
-            ) as baseline:
-                results["baseline"] = run_system(
-                    baseline,
-                    probe,
-                    frames,
-                    leg_ids,
-                    replace(plan, throughput_frames=baseline_throughput_frames),
-                )
+        session = stack.enter_context(zenoh.open(peer_config(listen=endpoint)))
+        probe = stack.enter_context(ProbeProcess(session, endpoint, probe_cpu))
+        services: dict[str, ServiceUnderTest] = {}
+        systems: dict[str, System] = {}
+        for name, tables in variants:
+            workdir = Path(tmp) / name
+            workdir.mkdir()
+            config = service_config(workdir, PIPELINE_PREFIX.format(name=name), tables)
+            before = {thread.native_id for thread in threading.enumerate()}
+            services[name] = stack.enter_context(ServiceUnderTest(config, session))
+            systems[name] = System(services[name], GIL_SWITCH_INTERVAL_S, own_threads(before))
+        before = {thread.native_id for thread in threading.enumerate()}
+        baseline = stack.enter_context(
+            NaiveBaseline(config.machine, config.database, session, BASELINE_PREFIX)
+        )
+        systems["baseline"] = System(baseline, sys.getswitchinterval(), own_threads(before))
+        leg_ids = {
+            config.database.get_message_by_name(leg.message).frame_id
+            for leg in config.machine.legs.values()
+        }
+        results: dict[str, Any] = run_systems(systems, probe, frames, leg_ids, plan)
+        stack.close()  # the services finish their files
+        for name, tables in variants:
+            results[name]["settings"] = tables
+            results[name]["recording"] = services[name].recording()
     names = {message.frame_id: message.name for message in config.database.messages}
     results["frame_mix"] = dict(Counter(names[frame.arbitration_id] for frame in frames))
     return results
@@ -232,7 +216,9 @@ def nominal_rate_hz() -> float:
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--throughput-frames", type=int, default=30_000)
-    parser.add_argument("--baseline-throughput-frames", type=int, default=None)
+    parser.add_argument(
+        "--rounds", type=int, default=5, help="rounds as fast as taken, systems taking turns"
+    )
     parser.add_argument("--paced-s", type=float, default=10.0, help="seconds of paced frames")
     parser.add_argument(
         "--nominal-s", type=float, default=NOMINAL_S, help="seconds at the DBC's rate"
@@ -248,7 +234,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     results = run_benchmark(
         throughput_frames=args.throughput_frames,
-        baseline_throughput_frames=args.baseline_throughput_frames,
+        rounds=args.rounds,
         paced_s=args.paced_s,
         nominal_s=args.nominal_s,
         rate_hz=args.rate,

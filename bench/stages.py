@@ -47,6 +47,9 @@ class _Collect:
     def submit(self, *item: Any) -> None:
         self.items.append(item)
 
+    def submit_batch(self, items: Sequence[Any]) -> None:
+        self.items += items
+
 
 #: ROS 2 ``can_msgs/msg/Frame`` in CDR (little endian): encapsulation header, then
 #: ``std_msgs/Header`` (int32 sec, uint32 nanosec, string frame_id), uint32 id,

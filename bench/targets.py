@@ -28,6 +28,7 @@ from mcap.reader import make_reader
 from bench.frames import EXAMPLE_CONFIG
 from daq.can_batch import recorded_frames
 from daq.mcap_file import RAW_TOPIC
+from daq.mcap_reading import json_items
 from daq.recorder import Recorder
 from daq.runner import bus_factory, recording_attachments
 from daq.service import Service
@@ -144,11 +145,11 @@ class ServiceUnderTest:
 
     def recording(self) -> dict[str, Any]:
         """Files written, their size, messages per kind of topic (from the MCAP
-        summaries) and the raw frames in them (call after the service closed: the files
-        are finished then)."""
+        summaries), the raw frames and the leg estimates in them (call after the service
+        closed: the files are finished then)."""
         paths = [path for path in self.recorder.paths if path.exists()]
         messages: Counter[str] = Counter()
-        frames = 0
+        frames = estimates = 0
         for path in paths:
             with open(path, "rb") as file:
                 reader = make_reader(file)
@@ -158,15 +159,19 @@ class ServiceUnderTest:
                 for channel_id, count in summary.statistics.channel_message_counts.items():
                     topic = summary.channels[channel_id].topic
                     messages[topic.split("/")[1]] += count  # can, signals, leg, daq
-                for _, channel, message in reader.iter_messages(topics=[RAW_TOPIC]):
-                    frames += sum(
-                        1 for _ in recorded_frames(channel.message_encoding, message.data)
-                    )
+                for _, channel, message in reader.iter_messages():
+                    if channel.topic == RAW_TOPIC:
+                        frames += sum(
+                            1 for _ in recorded_frames(channel.message_encoding, message.data)
+                        )
+                    elif channel.topic.startswith("/leg/"):
+                        estimates += len(json_items(message.data))
         return {
             "files": len(paths),
             "bytes": sum(path.stat().st_size for path in paths),
             "messages": dict(messages),
             "raw_frames": frames,
+            "leg_estimates": estimates,
         }
 
 

@@ -5,7 +5,7 @@ It takes frames and bus events from the reader's queue, everything queued in one
 :class:`~daq.pipeline.Pipeline`, and hands the results on through bounded queues
 (``submit`` never blocks): to the recorder one :class:`~daq.mcap_file.RecordBatch`
 per run of frames (a bus event between frames is handed on in its place), to the
-publisher each leg estimate (JSON encoded once, the same bytes the recorder writes)
+publisher, as one batch, each leg estimate (JSON encoded once, the same bytes the recorder writes)
 and the decoded signals of each message at most ``[publish] signals_max_rate_hz``
 (by frame time). It owns the estimator, so it also builds the timed messages: the
 all-legs ground message at ``ground_rate_hz`` and the soil metrics every
@@ -49,6 +49,8 @@ LAG_TOLERANCE_S = 0.5
 
 class Publisher(Protocol):
     def submit(self, suffix: str, payload: payloads.JsonObject | bytes) -> None: ...
+
+    def submit_batch(self, messages: Sequence[tuple[str, payloads.JsonObject | bytes]]) -> None: ...
 
 
 class Recording(Protocol):
@@ -180,17 +182,17 @@ class Consumer(Worker):
         publisher = self._publisher
         signals = publisher is not None and self._settings.signals
         estimates: list[tuple[str, float, bytes]] = []
+        messages: list[tuple[str, payloads.JsonObject | bytes]] = []
         for result in results:  # each frame's messages in its place: signals not last
             if result.estimates:
                 encoded = encoded_estimates(result)
                 estimates += encoded
-                if publisher is not None:
-                    for leg, _, data in encoded:
-                        publisher.submit(f"leg/{leg}/ground", data)
+                messages += [(f"leg/{leg}/ground", data) for leg, _, data in encoded]
             if signals and result.decoded is not None and self._signals_due(result.decoded):
-                assert publisher is not None  # signals is False without one
                 message = result.decoded.message
-                publisher.submit(f"signals/{message}", payloads.signals(result.decoded))
+                messages.append((f"signals/{message}", payloads.signals(result.decoded)))
+        if publisher is not None:
+            publisher.submit_batch(messages)
         if self._recorder is None:
             return
         decoded = decoded_frames(results) if self._record_signals else ()

@@ -12,7 +12,11 @@ consumer processed). Topics: ``/can/raw`` in the binary layout of
 ``/signals/<MESSAGE>``   the decoded signals of each good frame, only with
                          ``[recording] signals = true`` (replay and report
                          derive them from ``/can/raw`` otherwise)
-``/leg/<LEG>/ground``    each leg estimate (the bytes published on Zenoh)
+``/leg/<LEG>/ground``    the leg's estimates of one batch: ``{"leg": LEG,
+                         "estimates": [...]}``, the objects published on
+                         Zenoh (files before batches:
+                         one object per message; :func:`daq.mcap_reading.json_items`
+                         reads both)
 ``/ground``              all legs, weight check and stability margin, at the
                          publish rate (:data:`GROUND_TOPIC`)
 ``/daq/bus``             bus state changes (:data:`BUS_TOPIC`)
@@ -33,6 +37,7 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import IO, Any, cast
 
+import orjson
 from cantools.database.can import Database
 from mcap.writer import CompressionType, Writer
 
@@ -230,12 +235,19 @@ class McapFile:
             t_ns = _ns(frames[0].t_s)
             channel = self._channels.get(RAW_TOPIC) or self._raw_channel()
             self._add(channel, t_ns, can_batch.encode(frames))
+        # One message per leg and batch: mcap's add_message costs more than encoding an
+        # estimate, and the batch is only the published bytes joined.
+        by_leg: dict[str, list[tuple[float, bytes]]] = {}
         for leg, t_s, data in batch.estimates:
+            by_leg.setdefault(leg, []).append((t_s, data))
+        for leg, estimates in by_leg.items():
             topic = LEG_TOPIC.format(leg=leg)
             channel = self._channels.get(topic) or self._json_channel(
-                topic, "portal.LegGround", schemas.LEG_GROUND
+                topic, "portal.LegGroundBatch", schemas.LEG_GROUND_BATCH
             )
-            self._add(channel, _ns(t_s), data)
+            joined = b",".join(data for _, data in estimates)
+            payload = b'{"leg":' + orjson.dumps(leg) + b',"estimates":[' + joined + b"]}"
+            self._add(channel, _ns(estimates[0][0]), payload)
         for decoded in batch.decoded:
             topic = SIGNALS_TOPIC.format(message=decoded.message)
             channel = self._channels.get(topic) or self._json_channel(

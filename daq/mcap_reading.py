@@ -8,10 +8,11 @@ comes back. File order is the order the recorder wrote, i.e. the order the
 frames went through the pipeline (which replay relies on).
 """
 
+import json
 import logging
 from collections.abc import Iterator
 from dataclasses import dataclass
-from typing import IO
+from typing import IO, Any
 
 from mcap.records import Attachment, Channel, Footer, McapRecord, Message, Metadata
 from mcap.stream_reader import StreamReader
@@ -38,6 +39,15 @@ class RecordedAttachment:
 class RecordedMetadata:
     name: str
     metadata: dict[str, str]
+
+
+def json_items(data: bytes) -> list[Any]:
+    """The JSON payloads of one recorded message: each of a leg's batch of estimates
+    (``{"leg": ..., "estimates": [...]}``), else the one value (every other topic, and
+    leg estimates in files written before batches)."""
+    value = json.loads(data)
+    estimates = value.get("estimates") if isinstance(value, dict) else None
+    return estimates if isinstance(estimates, list) else [value]
 
 
 class RecordsToTheCut:

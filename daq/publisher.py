@@ -1,7 +1,8 @@
 """Publishing on Zenoh from a thread of its own, through zenoh.ext advanced publishers.
 
 The session is passed in (opened in ``daq.__main__``). :meth:`ZenohPublisher.submit`
-never blocks: it queues (key, payload) into a bounded queue, or drops and counts.
+and :meth:`~ZenohPublisher.submit_batch` never block: they queue (key, payload) pairs,
+a batch as one item, into a queue bounded in messages, or drop and count.
 The publisher thread serialises to JSON (NaN as ``null``; a payload may come
 encoded already) and puts with encoding ``application/json``; any exception while
 publishing one message is counted (:attr:`ZenohPublisher.errors`) and the message
@@ -30,6 +31,7 @@ seconds, and with ``DROP`` Zenoh drops without a count. A liveliness token
 import logging
 import queue
 import time
+from collections.abc import Sequence
 
 import zenoh
 import zenoh.ext
@@ -39,6 +41,8 @@ from daq.payloads import JsonObject, json_bytes
 
 logger = logging.getLogger(__name__)
 
+Message = tuple[str, JsonObject | bytes]
+
 #: On close, queued messages are still published for at most this long.
 DRAIN_S = 0.3
 JSON = zenoh.Encoding.APPLICATION_JSON
@@ -47,6 +51,27 @@ CACHE = zenoh.ext.CacheConfig(max_samples=1)
 #: Sequence numbers on every sample, and a heartbeat after new samples (at most every
 #: second) so that a subscriber also notices when the last sample of a burst is lost.
 MISS_DETECTION = zenoh.ext.MissDetectionConfig(heartbeat=None, sporadic_heartbeat=1.0)
+
+
+class MessageQueue(queue.Queue[Sequence[Message]]):
+    """A queue of batches of messages, sized and bounded in messages: a batch is taken
+    while fewer than ``maxsize`` messages wait (one hand-off per batch, not per message)."""
+
+    def _init(self, maxsize: int) -> None:
+        super()._init(maxsize)
+        self._messages = 0
+
+    def _qsize(self) -> int:
+        return self._messages
+
+    def _put(self, batch: Sequence[Message]) -> None:
+        self.queue.append(batch)
+        self._messages += len(batch)
+
+    def _get(self) -> Sequence[Message]:
+        batch: Sequence[Message] = self.queue.popleft()
+        self._messages -= len(batch)
+        return batch
 
 
 class ZenohPublisher(Worker):
@@ -69,7 +94,7 @@ class ZenohPublisher(Worker):
         super().__init__()
         self.session = session
         self.prefix = prefix
-        self._queue: queue.Queue[tuple[str, JsonObject | bytes]] = queue.Queue(maxsize=queue_size)
+        self._queue = MessageQueue(maxsize=queue_size)
         self._publishers: dict[str, zenoh.ext.AdvancedPublisher] = {}
         self._token: zenoh.LivelinessToken | None = None
         self._closed = False
@@ -93,10 +118,17 @@ class ZenohPublisher(Worker):
     def submit(self, suffix: str, payload: JsonObject | bytes) -> None:
         """Queue ``payload`` (or its JSON, already encoded) for ``<prefix>/<suffix>``; never
         blocks (full: dropped, counted)."""
+        self.submit_batch(((suffix, payload),))
+
+    def submit_batch(self, messages: Sequence[Message]) -> None:
+        """Queue (suffix, payload) pairs as one item, published in their order; never
+        blocks (full: all dropped, counted)."""
+        if not messages:
+            return
         try:
-            self._queue.put_nowait((suffix, payload))
+            self._queue.put_nowait(messages)
         except queue.Full:
-            self.dropped += 1
+            self.dropped += len(messages)
 
     def _after_stop(self) -> None:
         """Undeclare everything (once); the thread published what was queued (:data:`DRAIN_S`)."""
@@ -121,12 +153,13 @@ class ZenohPublisher(Worker):
                 if time.monotonic() > deadline:
                     break
             try:
-                suffix, payload = self._queue.get(timeout=0.1 if deadline is None else 0)
+                messages = self._queue.get(timeout=0.1 if deadline is None else 0)
             except queue.Empty:
                 if deadline is not None:
                     break
                 continue
-            self._put(suffix, payload)
+            for suffix, payload in messages:
+                self._put(suffix, payload)
 
     def _put(self, suffix: str, payload: JsonObject | bytes) -> None:
         key = self.key(suffix)

@@ -43,6 +43,18 @@ LEG_GROUND = _object(
     },
 )
 
+LEG_GROUND_BATCH = _object(
+    "portal.LegGroundBatch",
+    {
+        "leg": {"type": "string"},
+        "estimates": {
+            "type": "array",
+            "items": LEG_GROUND,
+            "description": "the leg's estimates of one batch of frames, in the order processed",
+        },
+    },
+)
+
 BUS_EVENT = _object(
     "portal.BusEvent",
     {

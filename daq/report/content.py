@@ -59,6 +59,11 @@ class TimeAxis:
         """One time; NaN stays NaN."""
         return float(self(np.array([t_s]))[0])
 
+    def before(self, t_s: float) -> float:
+        """The time just before ``t_s``, e.g. a cycle's end (the next cycle starts at its
+        end); the float just below, as Unix seconds resolve only ~0.2 us."""
+        return self.at(math.nextafter(t_s, -math.inf))
+
     @property
     def in_cycle(self) -> bool:
         return self.clock is not None

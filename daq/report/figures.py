@@ -83,7 +83,7 @@ def _set_time_axis(axes: Axes, content: ReportContent) -> None:
     axes.set_xlabel(content.time.label)
     end = content.time.at(content.recording.end_t_s)
     if content.time.in_cycle:  # the longest cycle's end
-        end = max(content.time.at(c.end_s - 1e-9) for c in content.cycles)
+        end = max(content.time.before(c.end_s) for c in content.cycles)
     axes.set_xlim(min(0.0, content.time.at(content.recording.start_t_s)), max(end, 1e-3))
 
 
@@ -93,7 +93,7 @@ def _phases(axes: Axes, content: ReportContent, labels: bool) -> None:
     on wall time, dotted lines mark the cycle starts."""
     time = content.time
     longest = max(content.cycles, key=lambda c: c.duration_s)
-    width_s = max(time.at(longest.end_s - 1e-9) - time.at(longest.start_s), 1e-9)
+    width_s = max(time.before(longest.end_s) - time.at(longest.start_s), 1e-9)
     transform = axes.get_xaxis_transform()
     for cycle in content.cycles if time.in_cycle else content.cycles[:1]:
         spans = [

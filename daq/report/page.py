@@ -160,7 +160,7 @@ def cycle_rows(content: ReportContent) -> list[list[str]]:
             c.label,
             _time(c.start_s),
             _number(c.duration_s, digits=2),
-            _number(time.at(c.end_s - 1e-9) - time.at(c.start_s), digits=2),
+            _number(time.before(c.end_s) - time.at(c.start_s), digits=2),
         ]
         for c in content.cycles
     ]

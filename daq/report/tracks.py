@@ -21,6 +21,7 @@ import numpy.typing as npt
 
 from daq.frames import RawFrame
 from daq.mcap_file import BUS_TOPIC, RAW_TOPIC, RECORDING_TOPIC, TRUTH_TOPIC
+from daq.mcap_reading import json_items
 from daq.payloads import leg_ground
 from daq.payloads import signals as signals_payload
 from daq.pipeline import FrameResult
@@ -296,7 +297,8 @@ class RecordingCollector:
         elif topic.startswith(SIGNALS_PREFIX):
             self._add_signals(topic.removeprefix(SIGNALS_PREFIX), json.loads(data))
         elif topic.startswith(LEG_PREFIX) and topic.endswith(LEG_SUFFIX):
-            self.add_estimate(json.loads(data))
+            for estimate in json_items(data):
+                self.add_estimate(estimate)
         elif topic == TRUTH_TOPIC:
             self._truth.append(TruthTrack.row(json.loads(data)))
         elif topic == BUS_TOPIC:

@@ -23,7 +23,7 @@ from daq.service_config import load_service_config
 from sim_bridge.__main__ import cli
 from sim_bridge.emitter import Emitter
 from tests.daq.service_support import WAIT_S, free_port, write_service_config
-from tests.daq.test_service_live import live_service, recorded
+from tests.daq.test_service_live import live_estimates, live_service
 from tests.helpers import EXAMPLE_CONFIG, LEGS
 from tests.sim_bridge.synthetic import make_playout, make_result
 
@@ -55,12 +55,14 @@ def test_the_frames_log_replays_to_the_live_estimates_bit_for_bit(tmp_path: Path
         assert service.pipeline.frames == sent
         recorder = service.recorder
         assert recorder is not None
-    live = [p for topic, p in recorded(recorder.paths[0]) if topic.startswith("/leg/")]
+    live = live_estimates(recorder.paths[:1])
     assert len(live) == 6 * stats.sent["LEG_SB1_F1"] == 6 * 200
 
     out = io.StringIO()
     assert replay(log, out, Path(config.source)) == len(live)
-    rows = list(csv.DictReader(io.StringIO(out.getvalue())))
+    rows = sorted(
+        csv.DictReader(io.StringIO(out.getvalue())), key=lambda row: (float(row["t"]), row["leg"])
+    )
     for row, estimate in zip(rows, live, strict=True):
         assert row["leg"] == estimate["leg"]
         assert [float(row[k]) for k in KEYS] == [estimate[k] for k in KEYS]  # bit for bit

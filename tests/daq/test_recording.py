@@ -13,7 +13,7 @@ from daq.can_batch import recorded_frames
 from daq.errors import RecordingError
 from daq.frames import BusEvent, RawFrame
 from daq.mcap_file import CountingFile, McapFile, RecordBatch
-from daq.mcap_reading import RecordedMessage, RecordingStream
+from daq.mcap_reading import RecordedMessage, RecordingStream, json_items
 from daq.pipeline import Pipeline
 from daq.recorder import Recorder, file_name
 from daq.recording_run import read_run_file, run_files
@@ -81,9 +81,10 @@ def test_one_batch_spanning_several_files_is_split_by_frame_time(tmp_path: Path)
     assert [len(raw_times(path)) for path in recorder.paths] == [10, 10, 10, 5]
     with open(recorder.paths[1], "rb") as file:
         leg_times = [
-            json.loads(r.data)["t"]
+            estimate["t"]
             for r in RecordingStream(file)
             if isinstance(r, RecordedMessage) and r.topic.startswith("/leg/")
+            for estimate in json_items(r.data)
         ]
     assert leg_times == raw_times(recorder.paths[1])  # the estimates went with their frames
 
@@ -166,3 +167,12 @@ def test_a_file_cut_short_reads_back_to_its_last_complete_chunk(tmp_path: Path) 
         except Exception:  # noqa: BLE001 -- the cut end
             pass
     assert count >= 50
+
+
+def test_leg_messages_of_this_and_earlier_releases_read_alike() -> None:
+    one = {"leg": "SB1_F1", "t": 1.5, "force_N": 1000.0}
+    two = {"leg": "SB1_F1", "t": 1.6, "force_N": None}
+    batch = json.dumps({"leg": "SB1_F1", "estimates": [one, two]}).encode()
+    assert json_items(batch) == [one, two]
+    assert json_items(json.dumps(one).encode()) == [one]  # one estimate per message, before
+    assert json_items(b'{"t":2.0,"legs":{}}') == [{"t": 2.0, "legs": {}}]  # other topics

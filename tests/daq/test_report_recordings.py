@@ -24,6 +24,7 @@ from daq.mcap_file import CONFIG_ATTACHMENT, DBC_ATTACHMENT, McapFile
 from daq.pipeline import Pipeline
 from daq.report import ReportOptions, report
 from daq.report.content import analyse
+from daq.report.figures import png_bytes, time_series_figure
 from daq.report.loading import load_recording
 from dbc.errors import ConfigError
 from sim_bridge.faults import FaultConfig, FaultWindow
@@ -208,8 +209,6 @@ def test_estimates_are_recomputed_from_the_raw_frames_when_none_were_recorded(
 
 
 def test_a_recording_cut_short_is_reported_up_to_its_last_chunk(tmp_path: Path) -> None:
-    # chunks of ~0.6 s: the cut ends at ~1.9 s (a report of ~2.5 s trips a matplotlib
-    # layout warning in the pressure figure, recorded in any format)
     path = record(tmp_path / "run.mcap", seconds=3.0, chunk_size=256 * 1024)
     data = path.read_bytes()
     cut = tmp_path / "cut.mcap"
@@ -218,6 +217,19 @@ def test_a_recording_cut_short_is_reported_up_to_its_last_chunk(tmp_path: Path) 
     assert not recording.complete and 0 < recording.counts.frames
     report(ReportOptions(cut, tmp_path / "out"))
     assert "cut short" in (tmp_path / "out" / "report.html").read_text()
+
+
+def test_the_time_axis_ends_with_the_longest_cycle(tmp_path: Path) -> None:
+    """A cycle's end is the next one's start: "just before it" must stay in the cycle at
+    Unix times (1e-9 s below it is the same float), else a second, shorter cycle's end
+    sets the axis and the phase names fall outside it (a collapsed figure)."""
+    content = analyse(load_recording(record(tmp_path / "r.mcap", seconds=2.5)))
+    assert content.time.in_cycle and len(content.cycles) == 2
+    ends = [content.time.before(cycle.end_s) for cycle in content.cycles]
+    assert ends == pytest.approx([2.0, 0.49], abs=1e-3)
+    figure = time_series_figure(content, "pressure")
+    png_bytes(figure)  # warnings are errors: the layout holds
+    assert figure.axes[0].get_xlim()[1] == pytest.approx(2.0, abs=1e-3)
 
 
 def run_cli(*args: str) -> subprocess.CompletedProcess[str]:
