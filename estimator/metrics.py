@@ -93,16 +93,19 @@ class SoilMetricsTracker:
                 self._above_s += min(step_s, self.max_gap_s)
         self._previous = (t_s, pressure_Pa)
 
+        window = self._window
         if not 0.0 <= step_s <= self.max_gap_s:  # first sample, a gap or a step back
-            self._window.clear()
+            window.clear()
             self._window_sum_Pa = 0.0
             self._run_start_t_s = t_s
-        self._window.append((t_s, pressure_Pa))
-        self._window_sum_Pa += pressure_Pa
-        while self._window[0][0] <= t_s - self.window_s:
-            self._window_sum_Pa -= self._window.popleft()[1]
+        window.append(self._previous)
+        window_sum_Pa = self._window_sum_Pa + pressure_Pa
+        oldest_kept_t_s = t_s - self.window_s
+        while window[0][0] <= oldest_kept_t_s:
+            window_sum_Pa -= window.popleft()[1]
+        self._window_sum_Pa = window_sum_Pa
         if t_s - self._run_start_t_s >= self.window_s:
-            mean_Pa = self._window_sum_Pa / len(self._window)
+            mean_Pa = window_sum_Pa / len(window)
             if not mean_Pa <= self._near_Pa:
                 self._near_Pa, self._near_t_s = mean_Pa, t_s
 
