@@ -8,7 +8,10 @@ from dataclasses import dataclass
 
 import can
 
+from estimator.records import fast_init
 
+
+@fast_init  # one per frame received
 @dataclass(frozen=True, slots=True)
 class RawFrame:
     """One CAN frame as received."""
@@ -33,13 +36,13 @@ class RawFrame:
 def from_can_message(message: can.Message) -> RawFrame:
     """The :class:`RawFrame` of a python-can message (live or from a log reader)."""
     return RawFrame(
-        t_s=float(message.timestamp),
-        arbitration_id=int(message.arbitration_id),
-        is_extended_id=bool(message.is_extended_id),
-        data=bytes(message.data or b""),
-        is_error_frame=bool(message.is_error_frame),
-        is_remote_frame=bool(message.is_remote_frame),
-        is_fd=bool(message.is_fd),
+        float(message.timestamp),
+        int(message.arbitration_id),
+        bool(message.is_extended_id),
+        bytes(message.data or b""),
+        bool(message.is_error_frame),
+        bool(message.is_remote_frame),
+        bool(message.is_fd),
     )
 
 
