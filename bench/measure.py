@@ -21,10 +21,9 @@ the sender could only send late, because it shares the CPU, was "on the wire"
 since then, as a kernel time stamp would say).
 """
 
-import sys
 import threading
-from collections.abc import Collection, Iterator, Mapping, Sequence
-from contextlib import contextmanager
+from collections.abc import Callable, Collection, Mapping, Sequence
+from contextlib import AbstractContextManager
 from dataclasses import dataclass
 from typing import Any, Protocol
 
@@ -131,24 +130,14 @@ def measure(
     return result
 
 
-@contextmanager
-def switch_interval(seconds: float) -> Iterator[None]:
-    """The GIL switch interval ``seconds`` meanwhile (each system runs with its own)."""
-    before = sys.getswitchinterval()
-    sys.setswitchinterval(seconds)
-    try:
-        yield
-    finally:
-        sys.setswitchinterval(before)
-
-
 @dataclass(frozen=True)
 class System:
-    """A system under test, the GIL switch interval it runs with, and its own Python
-    threads (native IDs; left out of the others' CPU time while they are measured)."""
+    """A system under test, the interpreter settings it runs with (e.g. the service's
+    :func:`daq.interpreter.tuned_interpreter`), and its own Python threads (native IDs;
+    left out of the others' CPU time while they are measured)."""
 
     target: Target
-    switch_interval_s: float
+    interpreter: Callable[[], AbstractContextManager[None]]
     threads: frozenset[int]
 
 
@@ -185,7 +174,7 @@ def run_systems(
         results = {}
         for name, system in systems.items():
             others = set().union(*(s.threads for n, s in systems.items() if n != name))
-            with switch_interval(system.switch_interval_s):
+            with system.interpreter():
                 results[name] = measure(
                     system.target,
                     probe,

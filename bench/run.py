@@ -19,8 +19,8 @@ Writes ``bench/results.json`` and prints a markdown table.
    threads, idle meanwhile) is left out. The systems: the service as configured by
    default (``pipeline``, as deployed: one thread receives, processes and publishes,
    raw frames recorded in batches, signals published at most 10 Hz per message and
-   not recorded, 1 ms GIL switch interval); with reader and publisher in threads of
-   their own (``pipeline_threads``: ``[service] event_loop = false``); with every
+   not recorded, the CLI's interpreter settings of :mod:`daq.interpreter`); with reader
+   and publisher in threads of their own (``pipeline_threads``: ``[service] event_loop = false``); with every
    frame's signals recorded and published (``pipeline_tuned``, the earlier defaults:
    ``[recording] signals = true``, ``[publish] signals_max_rate_hz = 0``); and the
    naive baseline (:class:`~bench.targets.NaiveBaseline`).
@@ -36,7 +36,7 @@ import threading
 import time
 from collections import Counter
 from collections.abc import Sequence
-from contextlib import ExitStack
+from contextlib import ExitStack, nullcontext
 from pathlib import Path
 from typing import Any
 
@@ -47,7 +47,7 @@ from bench.probe import ProbeProcess
 from bench.report import markdown_table, targets_met
 from bench.subscriber import peer_config
 from bench.targets import NaiveBaseline, ServiceUnderTest, service_config
-from daq.run_command import GIL_SWITCH_INTERVAL_S
+from daq.interpreter import tuned_interpreter
 from dbc.machine import load_machine_config
 
 RESULTS = Path(__file__).resolve().parent / "results.json"
@@ -169,7 +169,7 @@ def _run_systems(
     tuned: bool,
 ) -> dict[str, Any]:
     endpoint = f"tcp/127.0.0.1:{free_port()}"
-    # As deployed: the config's defaults and the CLI's GIL switch interval; the baseline
+    # As deployed: the config's defaults and the CLI's interpreter settings; the baseline
     # as Python starts.
     variants: list[tuple[str, dict[str, str]]] = [("pipeline", {})]
     if tuned:
@@ -187,12 +187,12 @@ def _run_systems(
             config = service_config(workdir, PIPELINE_PREFIX.format(name=name), tables)
             before = {thread.native_id for thread in threading.enumerate()}
             services[name] = stack.enter_context(ServiceUnderTest(config, session))
-            systems[name] = System(services[name], GIL_SWITCH_INTERVAL_S, own_threads(before))
+            systems[name] = System(services[name], tuned_interpreter, own_threads(before))
         before = {thread.native_id for thread in threading.enumerate()}
         baseline = stack.enter_context(
             NaiveBaseline(config.machine, config.database, session, BASELINE_PREFIX)
         )
-        systems["baseline"] = System(baseline, sys.getswitchinterval(), own_threads(before))
+        systems["baseline"] = System(baseline, nullcontext, own_threads(before))
         leg_ids = {
             config.database.get_message_by_name(leg.message).frame_id
             for leg in config.machine.legs.values()

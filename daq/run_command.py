@@ -7,20 +7,15 @@ one line on stderr.
 """
 
 import argparse
-import sys
 from collections.abc import Sequence
 from pathlib import Path
 
+from daq.interpreter import tuned_interpreter
 from daq.runner import run_service
 from daq.service_config import load_service_config
 from daq.stop_signal import StopSignal
 from daq.subcommand import PROG, Subcommand, fail, setup_logging
 from dbc.errors import ConfigError, DbcError, PortalDaqError
-
-#: The reader, consumer, publisher and recorder threads hand frames on within about a
-#: millisecond; CPython's default 5 ms GIL switch interval would add up to 5 ms of
-#: latency whenever a busy thread holds the GIL (measured: bench/).
-GIL_SWITCH_INTERVAL_S = 0.001
 
 
 def run_main(args: Sequence[str]) -> int:
@@ -37,9 +32,8 @@ def run_main(args: Sequence[str]) -> int:
         config = load_service_config(options.config)
     except (ConfigError, DbcError) as exc:
         return fail(exc, 2)
-    sys.setswitchinterval(GIL_SWITCH_INTERVAL_S)
     try:
-        with StopSignal() as stop:  # SIGTERM, SIGINT
+        with tuned_interpreter(), StopSignal() as stop:  # SIGTERM, SIGINT
             run_service(config, stop)
     except (ConfigError, DbcError) as exc:
         return fail(exc, 2)
