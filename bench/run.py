@@ -20,10 +20,10 @@ Writes ``bench/results.json`` and prints a markdown table.
    default (``pipeline``, as deployed: one thread receives, processes and publishes,
    raw frames recorded in batches, signals published at most 10 Hz per message and
    not recorded, the CLI's interpreter settings of :mod:`daq.interpreter`); with reader
-   and publisher in threads of their own (``pipeline_threads``: ``[service] event_loop = false``); with every
-   frame's signals recorded and published (``pipeline_tuned``, the earlier defaults:
-   ``[recording] signals = true``, ``[publish] signals_max_rate_hz = 0``); and the
-   naive baseline (:class:`~bench.targets.NaiveBaseline`).
+   and publisher in threads of their own (``pipeline_threads``: ``[service] event_loop =
+   false``); with every frame's signals recorded and published (``pipeline_tuned``,
+   the earlier defaults: ``[recording] signals = true``, ``[publish]
+   signals_max_rate_hz = 0``); and the naive baseline (:class:`~bench.targets.NaiveBaseline`).
 """
 
 import argparse
