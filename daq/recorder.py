@@ -325,6 +325,7 @@ class Recorder(Worker):
             self._database,
             compression=self.settings.compression,
             chunk_size=self.settings.chunk_size,
+            pause=lambda: time.sleep(0),  # let the GIL go to the frames' thread
         )
         assert self.run_id is not None  # drawn in _before_start
         run = run_metadata(self._machine_id, self.run_id, self._files_created)

@@ -1,6 +1,7 @@
 """MCAP recording: rotation by size and time, the files of one run, reading back a file
 cut short by a crash."""
 
+import io
 import json
 import logging
 import time
@@ -176,3 +177,14 @@ def test_leg_messages_of_this_and_earlier_releases_read_alike() -> None:
     assert json_items(batch) == [one, two]
     assert json_items(json.dumps(one).encode()) == [one]  # one estimate per message, before
     assert json_items(b'{"t":2.0,"legs":{}}') == [{"t": 2.0, "legs": {}}]  # other topics
+
+
+def test_the_writer_pauses_after_every_message() -> None:
+    """The recorder's thread lets the GIL go after each message (``pause``), so a batch
+    never holds up the frames' thread for longer than one message."""
+    _, database = example_machine()
+    written: list[int] = []
+    with McapFile(io.BytesIO(), database, pause=lambda: written.append(mcap.message_count)) as mcap:
+        mcap.start()
+        mcap.write_batch(RecordBatch.of(results(30), signals=True))
+    assert written == list(range(1, 1 + 1 + 30 + 1))  # raw batch, leg batch, 30 signals
