@@ -1,7 +1,9 @@
 """From decoded frames to the estimator's leg samples, by the config's signal mapping.
 
 A leg's two chamber pressures may come in one frame (one sensor hub) or in two
-(one transducer per chamber, e.g. J1939 nodes with their own source addresses).
+(one transducer per chamber, e.g. J1939 nodes with their own source addresses; or
+two multiplexer values of one message). A frame of a multiplexed message makes the
+samples of the legs whose signals it carries.
 The sampler holds the latest value of each chamber, with what its own frame's
 checks found (CRC, counter, the chamber's status). **Timing rule:** a leg sample is
 made when a new value of the leg's trigger chamber arrives (default: piston); it
@@ -59,7 +61,11 @@ class LegSampler:
         self._routes: dict[str, list[_Route]] = {}
         for leg in legs.values():
             piston, rod = leg.piston, leg.rod
-            if (piston.message, piston.source_address) == (rod.message, rod.source_address):
+            if (piston.message, piston.source_address, piston.mux_ids) == (
+                rod.message,
+                rod.source_address,
+                rod.mux_ids,
+            ):
                 statuses = tuple(
                     dict.fromkeys(s for s in (piston.status, rod.status) if s is not None)
                 )
@@ -87,6 +93,11 @@ class LegSampler:
         source_address = frame.source_address
         signals = frame.signals
         t_s, faults = frame.t_s, frame.faults
+        senders = [
+            leg
+            for leg in paired
+            if leg.source_address is None or leg.source_address == source_address
+        ]
         samples = [
             (
                 leg.leg,
@@ -97,18 +108,19 @@ class LegSampler:
                     _with_status(faults, leg.statuses, signals) if leg.statuses else faults,
                 ),
             )
-            for leg in paired
-            if leg.source_address is None or leg.source_address == source_address
+            for leg in senders
+            if leg.piston in signals  # a multiplexed message's frame may carry other legs
         ]
         if not routes:  # the usual case: both chambers in the frame, no state
-            return samples or None
-        matched = [
+            return samples if senders else None
+        by_sender = [
             route
             for route in routes
             if route.signal.source_address is None or route.signal.source_address == source_address
         ]
-        if not samples and not matched:
+        if not senders and not by_sender:
             return None
+        matched = [route for route in by_sender if route.signal.signal in signals]
         for route in matched:
             status = route.signal.status
             chamber_faults = _with_status(faults, (status,) if status else (), signals)

@@ -198,7 +198,10 @@ def main(options: BridgeOptions) -> int:
     result = load_source(options.source, config)
     builder = FrameBuilder(config, database)
     if builder.skipped:
-        logger.info("not sent (the simulation has none of their signals): %s", builder.skipped)
+        logger.info(
+            "not sent (the simulation has none of their signals, or multiplexed): %s",
+            builder.skipped,
+        )
     if builder.defaulted:
         logger.info("sent as constant 0 (no simulated value): %s", builder.defaulted)
     injector = FaultInjector(options.faults, fault_targets(builder))

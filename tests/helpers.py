@@ -13,6 +13,19 @@ ROOT = Path(__file__).resolve().parent.parent
 EXAMPLE_CONFIG = ROOT / "deploy" / "machine.example.toml"
 FILES = Path(__file__).resolve().parent / "files"
 LEGS = ("SB1_F1", "SB1_F2", "SB1_F3", "SB2_F1", "SB2_F2", "SB2_F3")
+#: The example machine's ``[leg_defaults]`` table, for machine configs written in tests.
+LEG_DEFAULTS_TOML = """
+[leg_defaults]
+A_piston_m2 = 7.854e-3
+A_rod_m2 = 4.737e-3
+l_r_m = 0.90
+l_z_m = 0.25
+l_b_m = 1.20
+l_gb_m = 0.55
+alpha_cyl_deg = 75.0
+F_gLeg_N = 4905.0
+A_foot_m2 = 0.33
+"""
 
 
 def example_machine():  # type: ignore[no-untyped-def]

@@ -22,28 +22,21 @@ from dbc.machine import MachineConfig, parse_machine_config
 from dbc.protection import CRC_ALGORITHMS, CrcCheck, TableCrc, reference_checksum
 from dbc.units import PRESSURE_UNITS_TO_PA
 from estimator import foot_force_N
-from tests.helpers import ROOT
+from tests.helpers import LEG_DEFAULTS_TOML, ROOT
 
 DBC_PATH = ROOT / "tests" / "files" / "transducers.dbc"
 DATABASE = load_database(DBC_PATH)
 PGN_ID = 0x18FF2021  # priority 6, PGN 0xFF20 (proprietary B), source address 0x21
 
-BASE = """
+BASE = (
+    """
 [machine]
 id = "hyd"
 mass_kg = 18800.0
 
-[leg_defaults]
-A_piston_m2 = 7.854e-3
-A_rod_m2 = 4.737e-3
-l_r_m = 0.90
-l_z_m = 0.25
-l_b_m = 1.20
-l_gb_m = 0.55
-alpha_cyl_deg = 75.0
-F_gLeg_N = 4905.0
-A_foot_m2 = 0.33
-
+"""
+    + LEG_DEFAULTS_TOML
+    + """
 [legs.J1]
 piston = { signal = "HYD_PRESS.Pressure", source_address = 0x21, status = "Status" }
 rod = { signal = "HYD_PRESS.Pressure", source_address = 0x22, status = "Status" }
@@ -81,6 +74,7 @@ max_delta_counter = 3
 [protection.LEG_PSI]
 counter = "Counter"
 """
+)
 
 
 def config_of(text: str = BASE) -> MachineConfig:
