@@ -13,10 +13,11 @@ invalid with ``rod_stale`` (or ``piston_stale``). The sample's time is the trigg
 frame's. Both chambers in one frame: skew 0, one sample per frame.
 """
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-from dbc.decoding import DecodedFrame
+from dbc.decoding import DecodedFrame, SignalValue
 from dbc.machine import TRIGGERS, ChamberSignal, LegConfig, StatusCheck
 from estimator.leg import LegSample
 
@@ -103,8 +104,8 @@ class LegSampler:
                 leg.leg,
                 LegSample(
                     t_s,
-                    float(signals[leg.piston]),
-                    float(signals[leg.rod]),
+                    _pressure_Pa(signals[leg.piston]),
+                    _pressure_Pa(signals[leg.rod]),
                     _with_status(faults, leg.statuses, signals) if leg.statuses else faults,
                 ),
             )
@@ -125,7 +126,7 @@ class LegSampler:
             status = route.signal.status
             chamber_faults = _with_status(faults, (status,) if status else (), signals)
             self._latest[(route.leg.name, route.chamber)] = _Reading(
-                t_s, float(signals[route.signal.signal]), chamber_faults
+                t_s, _pressure_Pa(signals[route.signal.signal]), chamber_faults
             )
         return samples + [self._sample(route.leg) for route in matched if route.triggers]
 
@@ -148,6 +149,12 @@ class LegSampler:
     def reset(self) -> None:
         """Forget the latest chamber values (after a gap in reception)."""
         self._latest.clear()
+
+
+def _pressure_Pa(value: SignalValue) -> float:
+    """A decoded chamber pressure; NaN for a value-table name in its place (a transducer's
+    "not available" or "error" code), which the estimator judges out of range."""
+    return math.nan if isinstance(value, str) else float(value)
 
 
 def _with_status(
