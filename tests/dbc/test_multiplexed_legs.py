@@ -13,20 +13,10 @@ from dbc.errors import ConfigError
 from dbc.machine import MachineConfig, load_machine_config
 from estimator import foot_force_N
 from sim_bridge.frames import FrameBuilder
-from tests.helpers import LEG_DEFAULTS_TOML
+from tests.helpers import LEG_DEFAULTS_TOML, dbc_text
 
-DBC = """VERSION ""
-
-NS_ :
-	BA_DEF_
-	BA_
-	VAL_
-	BA_DEF_DEF_
-
-BS_:
-
-BU_: Hub DAQ
-
+DBC = dbc_text(
+    """
 BO_ 512 HUB_PRESS: 8 Hub
  SG_ Leg M : 0|8@1+ (1,0) [0|5] "" DAQ
  SG_ A_pPiston m0 : 8|16@1+ (0.01,0) [0|655.35] "BAR" DAQ
@@ -47,14 +37,14 @@ BO_ 514 DIAG: 8 Hub
  SG_ DiagMux M : 0|8@1+ (1,0) [0|1] "" DAQ
  SG_ Machine_Phase m0 : 8|8@1+ (1,0) [0|4] "" DAQ
  SG_ Machine_CycleTime m1 : 8|16@1+ (0.01,0) [0|655.35] "s" DAQ
-
-BA_DEF_ BO_ "GenMsgCycleTime" INT 0 65535;
-BA_DEF_DEF_ "GenMsgCycleTime" 0;
+""",
+    """
 BA_ "GenMsgCycleTime" BO_ 512 10;
 BA_ "GenMsgCycleTime" BO_ 513 10;
 BA_ "GenMsgCycleTime" BO_ 514 100;
 VAL_ 512 HubStatus 0 "ok" 1 "fault";
-"""
+""",
+)
 
 CONFIG = (
     """

@@ -11,37 +11,26 @@ from daq.frames import RawFrame
 from daq.pipeline import Pipeline
 from dbc.machine import MachineConfig, load_machine_config
 from estimator import foot_force_N
-from tests.helpers import LEG_DEFAULTS_TOML
+from tests.helpers import LEG_DEFAULTS_TOML, dbc_text
 
-DBC = """VERSION ""
-
-NS_ :
-	BA_DEF_
-	BA_
-	VAL_
-	BA_DEF_DEF_
-
-BS_:
-
-BU_: Tx DAQ
-
+DBC = dbc_text(
+    """
 BO_ 2364538657 PRESS: 8 Tx
  SG_ P : 0|16@1+ (0.05,0) [0|3212.75] "kPa" DAQ
 
 BO_ 768 HUB: 4 Tx
  SG_ pPiston : 0|16@1+ (0.01,0) [0|642.55] "bar" DAQ
  SG_ pRod : 16|16@1+ (0.01,0) [0|642.55] "bar" DAQ
-
-BA_DEF_ BO_ "GenMsgCycleTime" INT 0 65535;
-BA_DEF_ BO_ "VFrameFormat" ENUM "StandardCAN","ExtendedCAN","reserved","J1939PG";
-BA_DEF_DEF_ "GenMsgCycleTime" 0;
-BA_DEF_DEF_ "VFrameFormat" "StandardCAN";
+""",
+    """
 BA_ "GenMsgCycleTime" BO_ 2364538657 20;
 BA_ "GenMsgCycleTime" BO_ 768 10;
 BA_ "VFrameFormat" BO_ 2364538657 3;
 VAL_ 2364538657 P 65535 "NotAvailable" 65024 "Error";
 VAL_ 768 pRod 65535 "SNA";
-"""
+""",
+    nodes="Tx DAQ",
+)
 
 CONFIG = f"""
 [machine]

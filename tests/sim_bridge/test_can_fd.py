@@ -13,7 +13,7 @@ from dbc.encoding import FrameEncoder
 from dbc.machine import load_machine_config
 from estimator import foot_force_N
 from sim_bridge.emitter import Emitter, end_of_run_ns
-from tests.helpers import LEG_DEFAULTS_TOML, LEGS
+from tests.helpers import LEG_DEFAULTS_TOML, LEGS, dbc_text
 from tests.sim_bridge.synthetic import make_playout, make_result
 
 SIGNALS = "\n".join(
@@ -21,27 +21,10 @@ SIGNALS = "\n".join(
     for i, leg in enumerate(LEGS)
     for k, chamber in enumerate(("Piston", "Rod"))
 )
-DBC = f"""VERSION ""
-
-NS_ :
-	BA_DEF_
-	BA_
-	BA_DEF_DEF_
-
-BS_:
-
-BU_: Hub DAQ
-
-BO_ 768 ALL_LEGS: 32 Hub
-{SIGNALS}
-
-BA_DEF_ BO_ "GenMsgCycleTime" INT 0 65535;
-BA_DEF_ BO_ "VFrameFormat" ENUM "StandardCAN","ExtendedCAN","StandardCAN_FD","ExtendedCAN_FD";
-BA_DEF_DEF_ "GenMsgCycleTime" 0;
-BA_DEF_DEF_ "VFrameFormat" "StandardCAN";
-BA_ "GenMsgCycleTime" BO_ 768 10;
-BA_ "VFrameFormat" BO_ 768 2;
-"""
+DBC = dbc_text(
+    f"BO_ 768 ALL_LEGS: 32 Hub\n{SIGNALS}",
+    'BA_ "GenMsgCycleTime" BO_ 768 10;\nBA_ "VFrameFormat" BO_ 768 14;\n',
+)
 LEG_TABLES = "".join(
     f'[legs.{leg}]\npiston = "ALL_LEGS.{leg}_pPiston"\nrod = "ALL_LEGS.{leg}_pRod"\n'
     for leg in LEGS
