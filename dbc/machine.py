@@ -340,6 +340,10 @@ def _leg(
     if leg_status is not None:
         chambers = _attach_leg_status(table, chambers, leg_status, leg_status_ok)
     piston, rod = chambers["piston"], chambers["rod"]
+    where = (piston.message, piston.signal, piston.source_address)
+    if where == (rod.message, rod.signal, rod.source_address):
+        # A copy-paste slip, which eq. (4) would turn into p (A_piston - A_rod) silently.
+        raise table.error("rod", f"is the piston's signal {piston}; each chamber has its own")
     trigger = table.string("trigger", "piston")
     if trigger not in TRIGGERS:
         raise table.error("trigger", f"must be one of {list(TRIGGERS)}, got {trigger!r}")

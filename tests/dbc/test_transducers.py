@@ -540,6 +540,13 @@ def test_one_dbc_message_per_sender_of_a_pgn() -> None:
         ),
         ('status = "Status" }', "status_ok = 0 }", "legs.J1.piston.status_ok", "without a status"),
         (
+            'rod = { signal = "HYD_PRESS.Pressure", source_address = 0x24 }',
+            'rod = { signal = "HYD_PRESS.Pressure", source_address = 0x23 }',
+            "legs.J2.rod",
+            "the piston's signal HYD_PRESS.Pressure@0x23",
+        ),
+        ('rod = "LEG_HUB.pRod"', 'rod = "LEG_HUB.pPiston"', "legs.HUB.rod", "LEG_HUB.pPiston"),
+        (
             'source_address = 0x21, status = "Status" }',
             "sa = 1 }",
             "legs.J1.piston.sa",
