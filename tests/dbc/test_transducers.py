@@ -22,7 +22,7 @@ from dbc.machine import MachineConfig, parse_machine_config
 from dbc.protection import CRC_ALGORITHMS, CrcCheck, TableCrc, reference_checksum
 from dbc.units import PRESSURE_UNITS_TO_PA
 from estimator import foot_force_N
-from tests.helpers import LEG_DEFAULTS_TOML, ROOT
+from tests.helpers import LEG_DEFAULTS_TOML, ROOT, dbc_text
 
 DBC_PATH = ROOT / "tests" / "files" / "transducers.dbc"
 DATABASE = load_database(DBC_PATH)
@@ -558,3 +558,26 @@ def test_bad_chamber_keys_are_refused(old: str, new: str, key: str, reason: str)
     assert old in BASE
     error = refused(BASE.replace(old, new, 1))
     assert error.key == key and reason in str(error)
+
+
+def test_an_11_bit_message_is_no_j1939_one_even_where_j1939_is_the_dbc_default() -> None:
+    """J1939 IDs have 29 bits: with ``VFrameFormat`` defaulting to J1939PG, the DBC's
+    standard-ID messages are still matched by their ID (before, their frames were
+    ``unknown_id`` and their legs never estimated)."""
+    from dbc.database import load_database_string
+
+    dbc = dbc_text(
+        'BO_ 768 STD_LEG: 4 Hub\n SG_ pp : 0|16@1+ (0.01,0) [0|655.35] "bar" DAQ\n'
+        ' SG_ pr : 16|16@1+ (0.01,0) [0|655.35] "bar" DAQ\n',
+        'BA_DEF_DEF_ "VFrameFormat" "J1939PG";\nBA_ "GenMsgCycleTime" BO_ 768 10;\n',
+    ).replace('BA_DEF_DEF_ "VFrameFormat" "StandardCAN";\n', "")
+    database = load_database_string(dbc, "default_j1939.dbc")
+    legs_start = BASE.index("[legs.J1]")
+    text = BASE[:legs_start] + '[legs.L]\npiston = "STD_LEG.pp"\nrod = "STD_LEG.pr"\n'
+    config = parse_machine_config(tomllib.loads(text), "m.toml", database)
+    pipeline = Pipeline.from_config(config, database)
+    (estimate,) = pipeline.process(RawFrame(1.0, 0x300, False, bytes([16, 39, 232, 3]))).estimates
+    assert estimate.valid and (estimate.p_piston_Pa, estimate.p_rod_Pa) == (100e5, 10e5)
+    pinned = text.replace('"STD_LEG.pp"', '{ signal = "STD_LEG.pp", source_address = 0x21 }')
+    with pytest.raises(ConfigError, match="not a J1939 message"):
+        parse_machine_config(tomllib.loads(pinned), "m.toml", database)
