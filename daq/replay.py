@@ -100,10 +100,16 @@ def write_csv(rows: Iterable[LegEstimate], out: IO[str]) -> int:
     return count
 
 
-def replay(paths: Path | Sequence[Path], out: IO[str], config_path: Path | None = None) -> int:
+def replay(
+    paths: Path | Sequence[Path],
+    out: IO[str],
+    config_path: Path | None = None,
+    channel: str | None = None,
+) -> int:
     """Replay a recording into CSV on ``out``; returns the row count.
 
-    ``paths``: MCAP files or directories of one run, or python-can logs.
+    ``paths``: MCAP files or directories of one run, or python-can logs (of which only
+    the frames of ``channel`` are replayed when it is given).
     """
     machine = load_machine_config(config_path) if config_path is not None else None
     files = expand([paths] if isinstance(paths, Path) else paths)
@@ -112,23 +118,43 @@ def replay(paths: Path | Sequence[Path], out: IO[str], config_path: Path | None 
     if machine is None:
         raise ConfigError(files[0], "", "replaying a CAN log needs --config (the machine config)")
     pipeline = Pipeline.from_config(*machine)
-    return write_csv(estimates(pipeline, (f for path in files for f in can_log_frames(path))), out)
+    frames = (f for path in files for f in can_log_frames(path, channel))
+    return write_csv(estimates(pipeline, frames), out)
 
 
-def can_log_frames(path: Path) -> Iterator[RawFrame]:
-    """The frames of a python-can log (candump .log, .asc, .blf, .csv, ...)."""
+def can_log_frames(path: Path, channel: str | None = None) -> Iterator[RawFrame]:
+    """The frames of a python-can log (candump .log, .asc, .blf, .csv, ...); with
+    ``channel``, those of that channel only (as python-can names it: ``can0`` in a
+    candump log, the number from 0 in ASC and BLF), else all, with a warning when they
+    come from more than one (a logger on two buses)."""
     try:
         reader = can.LogReader(str(path))
     except (OSError, ValueError) as exc:
         raise RecordingError(path, f"cannot read it as a CAN log: {exc}") from exc
     count = 0
+    channels: set[str] = set()
     with reader:
         try:
             for message in reader:
-                yield from_can_message(message)
                 count += 1
+                name = str(message.channel)
+                if name not in channels:
+                    channels.add(name)
+                    if channel is None and len(channels) == 2:
+                        logger.warning(
+                            "%s: frames of more than one channel (%s): replayed as one bus; "
+                            "pick one with --channel",
+                            path,
+                            ", ".join(sorted(channels)),
+                        )
+                if channel is None or name == channel:
+                    yield from_can_message(message)
         except (ValueError, IndexError, KeyError, struct.error) as exc:  # python-can's parsers
             raise RecordingError(path, f"unreadable after frame {count}: {exc}") from exc
+    if channel is not None and channel not in channels:
+        raise RecordingError(
+            path, f"no frame on channel {channel!r}; its channels: {', '.join(sorted(channels))}"
+        )
 
 
 def _open(path: Path) -> IO[bytes]:
