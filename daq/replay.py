@@ -37,7 +37,7 @@ from daq.mcap_file import BUS_TOPIC, CONFIG_ATTACHMENT, DBC_ATTACHMENT, RAW_TOPI
 from daq.mcap_reading import RecordedAttachment, RecordedMessage, RecordingStream
 from daq.pipeline import FrameResult, Pipeline
 from daq.recording_run import MCAP_SUFFIX, expand, run_files
-from dbc.database import load_database_string
+from dbc.database import load_database_bytes
 from dbc.errors import ConfigError
 from dbc.machine import MachineConfig, load_machine_config, parse_machine_config
 from estimator.leg import LegEstimate
@@ -216,7 +216,5 @@ def embedded_machine(attachments: dict[str, bytes], path: Path) -> Machine:
         data = tomllib.loads(attachments[CONFIG_ATTACHMENT].decode())
     except (UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
         raise ConfigError(source, "", f"not valid TOML: {exc}") from exc
-    database = load_database_string(
-        attachments[DBC_ATTACHMENT].decode(), f"{path}:{DBC_ATTACHMENT}"
-    )
+    database = load_database_bytes(attachments[DBC_ATTACHMENT], f"{path}:{DBC_ATTACHMENT}")
     return parse_machine_config(data, source, database), database
