@@ -21,6 +21,7 @@ rotations too.
 import csv
 import json
 import logging
+import sqlite3
 import struct
 import tomllib
 from collections.abc import Iterable, Iterator, Sequence
@@ -58,6 +59,9 @@ CSV_COLUMNS = (
 )
 
 Machine = tuple[MachineConfig, Database]
+
+#: What python-can's log parsers raise for a file they cannot read (SQLite's for ``.db``).
+_READER_ERRORS = (ValueError, IndexError, KeyError, struct.error, sqlite3.Error)
 
 
 def results(pipeline: Pipeline, items: Iterable[RawFrame | BusEvent]) -> Iterator[FrameResult]:
@@ -119,26 +123,43 @@ def replay(
         raise ConfigError(files[0], "", "replaying a CAN log needs --config (the machine config)")
     pipeline = Pipeline.from_config(*machine)
     frames = (f for path in files for f in can_log_frames(path, channel))
-    return write_csv(estimates(pipeline, frames), out)
+    rows = write_csv(estimates(pipeline, frames), out)
+    if pipeline.bad:
+        logger.warning(
+            "%d frames, %d of them not used (%s)",
+            pipeline.frames,
+            pipeline.bad.total(),
+            ", ".join(f"{kind} {n}" for kind, n in sorted(pipeline.bad.items())),
+        )
+    return rows
 
 
 def can_log_frames(path: Path, channel: str | None = None) -> Iterator[RawFrame]:
     """The frames of a python-can log (candump .log, .asc, .blf, .csv, ...); with
     ``channel``, those of that channel only (as python-can names it: ``can0`` in a
     candump log, the number from 0 in ASC and BLF), else all, with a warning when they
-    come from more than one (a logger on two buses)."""
+    come from more than one (a logger on two buses). A frame without a channel (python-can
+    gives none to a candump error frame) is kept whatever ``channel`` is. The times of an
+    ASC log with ``timestamps relative`` (each the step since the event before) are
+    summed from its start."""
+    if not path.is_file():  # python-can's SQLite reader would create it
+        raise RecordingError(path, "cannot read it as a CAN log: no such file")
     try:
         reader = can.LogReader(str(path))
-    except (OSError, ValueError) as exc:
+    except (OSError, NotImplementedError, *_READER_ERRORS) as exc:  # NotImplemented: no asammdf
         raise RecordingError(path, f"cannot read it as a CAN log: {exc}") from exc
     count = 0
     channels: set[str] = set()
+    elapsed_s = 0.0
     with reader:
         try:
             for message in reader:
                 count += 1
-                name = str(message.channel)
-                if name not in channels:
+                if isinstance(reader, can.ASCReader) and reader.timestamps_format == "relative":
+                    elapsed_s += message.timestamp
+                    message.timestamp = elapsed_s
+                name = None if message.channel is None else str(message.channel)
+                if name is not None and name not in channels:
                     channels.add(name)
                     if channel is None and len(channels) == 2:
                         logger.warning(
@@ -147,9 +168,9 @@ def can_log_frames(path: Path, channel: str | None = None) -> Iterator[RawFrame]
                             path,
                             ", ".join(sorted(channels)),
                         )
-                if channel is None or name == channel:
+                if channel is None or name in (None, channel):
                     yield from_can_message(message)
-        except (ValueError, IndexError, KeyError, struct.error) as exc:  # python-can's parsers
+        except _READER_ERRORS as exc:
             raise RecordingError(path, f"unreadable after frame {count}: {exc}") from exc
     if channel is not None and channel not in channels:
         raise RecordingError(

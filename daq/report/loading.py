@@ -26,14 +26,12 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import IO
 
-from mcap.writer import MCAP0_MAGIC
-
 from daq.can_batch import ENCODING as BATCH_ENCODING
 from daq.can_batch import recorded_frames
 from daq.errors import RecordingError
 from daq.mcap_file import RAW_TOPIC
 from daq.mcap_reading import RecordedAttachment, RecordedMessage, RecordingStream
-from daq.recording_run import expand, run_files
+from daq.recording_run import run_files
 from daq.replay import Machine, embedded_machine, run_results
 from daq.report.tracks import Recording, RecordingCollector
 from dbc.errors import ConfigError, DbcError
@@ -62,17 +60,6 @@ def _open(path: Path) -> IO[bytes]:
         raise RecordingError(path, f"cannot open it: {exc.strerror or exc}") from exc
 
 
-def _check_magic(path: Path) -> None:
-    """RecordingError unless ``path`` starts like an MCAP file."""
-    with _open(path) as stream:
-        try:
-            start = stream.read(len(MCAP0_MAGIC))
-        except OSError as exc:
-            raise RecordingError(path, f"cannot read it: {exc.strerror or exc}") from exc
-    if start != MCAP0_MAGIC:
-        raise RecordingError(path, "not an MCAP file (a service recording is .mcap)")
-
-
 def load_recording(paths: Path | Sequence[Path], config_path: Path | None = None) -> Recording:
     """Read a recording (a file, or the files or directory of one run) into a
     :class:`Recording`.
@@ -81,10 +68,7 @@ def load_recording(paths: Path | Sequence[Path], config_path: Path | None = None
     :class:`~daq.errors.ConfigError` / :class:`~daq.errors.DbcError` (a bad
     ``config_path``, or estimates to recompute without any configuration).
     """
-    given = [paths] if isinstance(paths, Path) else paths
-    for path in expand(given):
-        _check_magic(path)
-    files = run_files(given)
+    files = run_files([paths] if isinstance(paths, Path) else paths)
     first = files[0]
     machine: Machine | None = load_machine_config(config_path) if config_path else None
     collector = RecordingCollector()

@@ -163,8 +163,9 @@ def test_a_log_of_two_buses_is_replayed_one_channel_at_a_time(
     assert all(row["valid"] == "1" for row in rows)
     assert not caplog.records
     assert replay(log, io.StringIO(), EXAMPLE_CONFIG) == 10
-    (warning,) = caplog.records
+    warning, unused = caplog.records
     assert "more than one channel (can0, can1)" in warning.getMessage()
+    assert unused.getMessage() == "10 frames, 5 of them not used (crc 5)"  # can1's
     with pytest.raises(
         RecordingError, match=r"no frame on channel 'can2'; its channels: can0, can1"
     ):

@@ -1,0 +1,152 @@
+"""CAN logs written by other tools, given to ``replay``, ``report``, ``calibrate``,
+``export`` and ``recover``: read right, or refused in one line (never a traceback,
+never a silent wrong time or an empty output with exit 0)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import can
+import pytest
+
+from daq.replay import can_log_frames
+from tests.helpers import EXAMPLE_CONFIG
+
+ASC_RELATIVE = """\
+date Tue Dec 01 19:40:44.232 2026
+base hex  timestamps relative
+internal events logged
+Begin Triggerblock Tue Dec 01 19:40:44.232 2026
+   0.000000 Start of measurement
+   0.010000 2  100             Rx   d 8 00 00 00 00 00 00 00 00
+   0.010000 2  18FEF100x       Rx   d 8 00 00 00 00 00 00 00 00
+   0.005000 2  100             Rx   d 8 00 00 00 00 00 00 00 00
+End TriggerBlock
+"""
+
+
+def test_an_asc_log_with_relative_timestamps_counts_them_from_the_start(tmp_path: Path) -> None:
+    # "timestamps relative": each time is the step since the event before (Vector's
+    # format); python-can reads them as they stand, which made time jump back and forth.
+    log = tmp_path / "relative.asc"
+    log.write_text(ASC_RELATIVE)
+    frames = list(can_log_frames(log))
+    assert [f.t_s for f in frames] == pytest.approx([0.010, 0.020, 0.025], abs=1e-12)
+    assert [(f.arbitration_id, f.is_extended_id) for f in frames] == [
+        (0x100, False),
+        (0x18FEF100, True),
+        (0x100, False),
+    ]
+    absolute = tmp_path / "absolute.asc"
+    absolute.write_text(ASC_RELATIVE.replace("relative", "absolute"))
+    assert [f.t_s for f in can_log_frames(absolute)] == [0.010, 0.010, 0.005]
+
+
+def test_candump_error_frames_keep_to_the_channel_asked_and_are_counted(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], caplog: pytest.LogCaptureFixture
+) -> None:
+    # python-can gives a candump error frame no channel: it is not a second bus.
+    from daq.replay_command import replay_main
+
+    log = tmp_path / "errors.log"
+    log.write_text(
+        "(1750000000.000000) can0 100#0000000000000000\n"
+        "(1750000000.001000) can0 20000080#0000000000000000\n"
+        "(1750000000.002000) can0 7FF#01\n"
+        "(1750000000.003000) can0 100#R\n"
+    )
+    frames = list(can_log_frames(log, "can0"))
+    assert [(f.is_error_frame, f.is_remote_frame) for f in frames] == [
+        (False, False),
+        (True, False),
+        (False, False),
+        (False, True),
+    ]
+    assert replay_main([str(log), "--config", str(EXAMPLE_CONFIG), "--out", "/dev/null"]) == 0
+    assert "more than one channel" not in caplog.text
+    err = capsys.readouterr().err
+    assert "4 frames" in err and "error_frame 1" in err and "remote_frame 1" in err, err
+
+
+@pytest.mark.parametrize(
+    ("name", "content", "reason"),
+    [
+        pytest.param(  # python-can's BLFReader leaves its file open when the header fails
+            "garbage.blf",
+            b"garbage",
+            "cannot read it as a CAN log",
+            marks=pytest.mark.filterwarnings("ignore::pytest.PytestUnraisableExceptionWarning"),
+        ),
+        ("garbage.db", b"garbage\n" * 100, "unreadable after frame 0: file is not a database"),
+        ("missing.db", None, "cannot read it as a CAN log"),
+        ("cycle.txt", b"(1.0) can0 100#00\n", 'unknown log format ".txt"'),
+    ],
+)
+def test_an_unreadable_or_unknown_log_is_one_line(
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    name: str,
+    content: bytes | None,
+    reason: str,
+) -> None:
+    from daq.replay_command import replay_main
+
+    log = tmp_path / name
+    if content is not None:
+        log.write_bytes(content)
+    assert replay_main([str(log), "--config", str(EXAMPLE_CONFIG)]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"portal-daq: {log}: ") and reason in err[0], err
+    assert content is not None or not log.exists()  # reading created no file
+
+
+def test_an_mf4_log_without_asammdf_says_what_to_install(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    pytest.importorskip("can.io.mf4")
+    from can.io import mf4
+
+    if mf4.asammdf is not None:  # type: ignore[attr-defined]
+        pytest.skip("asammdf is installed")
+    from daq.replay_command import replay_main
+
+    log = tmp_path / "trace.mf4"
+    log.write_bytes(b"MDF     4.10    ")
+    assert replay_main([str(log), "--config", str(EXAMPLE_CONFIG)]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "asammdf" in err[0], err
+
+
+def candump_log(path: Path) -> Path:
+    with can.Logger(path) as writer:
+        for k in range(3):
+            writer.on_message_received(
+                can.Message(
+                    timestamp=1_750_000_000.0 + k / 100, arbitration_id=0x100, data=bytes(8)
+                )
+            )
+    return path
+
+
+@pytest.mark.parametrize(
+    "command",
+    [
+        ["report", "--out", "{tmp}/rep"],
+        ["report", "--campaign", "--workers", "1", "--out", "{tmp}/camp"],
+        ["calibrate", "--config", str(EXAMPLE_CONFIG), "--out", "{tmp}/cal.toml"],
+        ["export", "--to", "asc", "--out", "{tmp}/out.asc"],
+        ["recover", "-o", "{tmp}/out.mcap"],
+    ],
+)
+def test_a_can_log_given_where_a_recording_is_needed_is_refused_in_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], command: list[str]
+) -> None:
+    from daq.cli import main
+
+    log = candump_log(tmp_path / "cycle.log")
+    name, *options = command
+    args = [name, str(log), *(o.replace("{tmp}", str(tmp_path)) for o in options)]
+    assert main(args) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"portal-daq: {log}: not an MCAP file (a service recording is .mcap)"], err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["cycle.log"]  # nothing written
