@@ -63,6 +63,10 @@ Machine = tuple[MachineConfig, Database]
 #: What python-can's log parsers raise for a file they cannot read (SQLite's for ``.db``).
 _READER_ERRORS = (ValueError, IndexError, KeyError, struct.error, sqlite3.Error)
 
+#: What a line of a text log must look like, for an error whose reason python-can words
+#: as its code sees it (``not enough values to unpack``).
+_LINE_FORMATS = {".log": " (a candump -L line is '(TIME) INTERFACE ID#DATA')"}
+
 
 def results(pipeline: Pipeline, items: Iterable[RawFrame | BusEvent]) -> Iterator[FrameResult]:
     """What each frame gives, in order; bus gaps reset the counters."""
@@ -122,8 +126,7 @@ def replay(
     if machine is None:
         raise ConfigError(files[0], "", "replaying a CAN log needs --config (the machine config)")
     pipeline = Pipeline.from_config(*machine)
-    frames = (f for path in files for f in can_log_frames(path, channel))
-    rows = write_csv(estimates(pipeline, frames), out)
+    rows = write_csv(estimates(pipeline, chained_log_frames(files, channel)), out)
     if pipeline.bad:
         logger.warning(
             "%d frames, %d of them not used (%s)",
@@ -132,6 +135,29 @@ def replay(
             ", ".join(f"{kind} {n}" for kind, n in sorted(pipeline.bad.items())),
         )
     return rows
+
+
+def chained_log_frames(paths: Sequence[Path], channel: str | None = None) -> Iterator[RawFrame]:
+    """The frames of CAN logs, one log after the other in the order given (the median
+    and contact carry over, as across a logger's file rotation); a log that begins
+    before the one before it ended is logged: given out of order, two loggers of one
+    bus, or times counted from 0 in each."""
+    previous: tuple[Path, float] | None = None
+    for path in paths:
+        t_s: float | None = None
+        for frame in can_log_frames(path, channel):
+            if t_s is None and previous is not None and frame.t_s < previous[1]:
+                logger.warning(
+                    "%s begins %.3f s before %s ends: logs out of order or overlapping? "
+                    "chained in the order given",
+                    path,
+                    previous[1] - frame.t_s,
+                    previous[0],
+                )
+            t_s = frame.t_s
+            yield frame
+        if t_s is not None:
+            previous = (path, t_s)
 
 
 def can_log_frames(path: Path, channel: str | None = None) -> Iterator[RawFrame]:
@@ -171,7 +197,8 @@ def can_log_frames(path: Path, channel: str | None = None) -> Iterator[RawFrame]
                 if channel is None or name in (None, channel):
                     yield from_can_message(message)
         except _READER_ERRORS as exc:
-            raise RecordingError(path, f"unreadable after frame {count}: {exc}") from exc
+            hint = _LINE_FORMATS.get(path.suffix.lower(), "")
+            raise RecordingError(path, f"unreadable after frame {count}: {exc}{hint}") from exc
     if channel is not None and channel not in channels:
         raise RecordingError(
             path, f"no frame on channel {channel!r}; its channels: {', '.join(sorted(channels))}"

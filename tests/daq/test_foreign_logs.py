@@ -4,6 +4,7 @@ never a silent wrong time or an empty output with exit 0)."""
 
 from __future__ import annotations
 
+import io
 from pathlib import Path
 
 import can
@@ -80,6 +81,12 @@ def test_candump_error_frames_keep_to_the_channel_asked_and_are_counted(
         ("garbage.db", b"garbage\n" * 100, "unreadable after frame 0: file is not a database"),
         ("missing.db", None, "cannot read it as a CAN log"),
         ("cycle.txt", b"(1.0) can0 100#00\n", 'unknown log format ".txt"'),
+        (  # candump -L always names the interface; some tools leave it out
+            "no_interface.log",
+            b"(1750000000.000000) 100#0000000000000000\n",
+            "unreadable after frame 0: not enough values to unpack (expected 3, got 2) "
+            "(a candump -L line is '(TIME) INTERFACE ID#DATA')",
+        ),
     ],
 )
 def test_an_unreadable_or_unknown_log_is_one_line(
@@ -117,13 +124,11 @@ def test_an_mf4_log_without_asammdf_says_what_to_install(
     assert len(err) == 1 and "asammdf" in err[0], err
 
 
-def candump_log(path: Path) -> Path:
+def candump_log(path: Path, start_s: float = 1_750_000_000.0) -> Path:
     with can.Logger(path) as writer:
         for k in range(3):
             writer.on_message_received(
-                can.Message(
-                    timestamp=1_750_000_000.0 + k / 100, arbitration_id=0x100, data=bytes(8)
-                )
+                can.Message(timestamp=start_s + k / 100, arbitration_id=0x100, data=bytes(8))
             )
     return path
 
@@ -150,3 +155,22 @@ def test_a_can_log_given_where_a_recording_is_needed_is_refused_in_one_line(
     err = capsys.readouterr().err.strip().splitlines()
     assert err == [f"portal-daq: {log}: not an MCAP file (a service recording is .mcap)"], err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["cycle.log"]  # nothing written
+
+
+def test_logs_given_out_of_order_are_chained_as_given_with_a_warning(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    # The median and contact carry over from one log to the next: a log that begins
+    # before the one before it ended (wrong order, two loggers, times from 0) says so.
+    from daq.replay import replay
+
+    morning = candump_log(tmp_path / "morning.log", start_s=1_750_000_000.0)
+    noon = candump_log(tmp_path / "noon.log", start_s=1_750_007_200.0)
+    assert replay([morning, noon], io.StringIO(), EXAMPLE_CONFIG) == 0
+    assert "out of order" not in caplog.text
+    assert replay([noon, morning], io.StringIO(), EXAMPLE_CONFIG) == 0
+    (line,) = [r.getMessage() for r in caplog.records if "out of order" in r.getMessage()]
+    assert line == (
+        f"{morning} begins 7200.020 s before {noon} ends: logs out of order or overlapping? "
+        "chained in the order given"
+    )
