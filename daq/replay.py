@@ -29,6 +29,7 @@ from pathlib import Path
 from typing import IO
 
 import can
+from can.io.player import MESSAGE_READERS
 from cantools.database.can import Database
 
 from daq.can_batch import recorded_frames
@@ -135,6 +136,14 @@ def replay(
             ", ".join(f"{kind} {n}" for kind, n in sorted(pipeline.bad.items())),
         )
     return rows
+
+
+def is_can_log(path: Path) -> bool:
+    """``path``'s suffix is one of python-can's log readers (also gzipped: ``.log.gz``)."""
+    suffixes = [suffix.lower() for suffix in path.suffixes[-2:]]
+    if suffixes[-1:] == [".gz"]:
+        suffixes.pop()
+    return bool(suffixes) and suffixes[-1] in MESSAGE_READERS
 
 
 def chained_log_frames(paths: Sequence[Path], channel: str | None = None) -> Iterator[RawFrame]:

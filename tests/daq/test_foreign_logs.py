@@ -5,12 +5,13 @@ never a silent wrong time or an empty output with exit 0)."""
 from __future__ import annotations
 
 import io
+import uuid
 from pathlib import Path
 
 import can
 import pytest
 
-from daq.replay import can_log_frames
+from daq.replay import can_log_frames, is_can_log, replay
 from tests.helpers import EXAMPLE_CONFIG
 
 ASC_RELATIVE = """\
@@ -136,7 +137,6 @@ def candump_log(path: Path, start_s: float = 1_750_000_000.0) -> Path:
 @pytest.mark.parametrize(
     "command",
     [
-        ["report", "--out", "{tmp}/rep"],
         ["report", "--campaign", "--workers", "1", "--out", "{tmp}/camp"],
         ["calibrate", "--config", str(EXAMPLE_CONFIG), "--out", "{tmp}/cal.toml"],
         ["export", "--to", "asc", "--out", "{tmp}/out.asc"],
@@ -162,8 +162,6 @@ def test_logs_given_out_of_order_are_chained_as_given_with_a_warning(
 ) -> None:
     # The median and contact carry over from one log to the next: a log that begins
     # before the one before it ended (wrong order, two loggers, times from 0) says so.
-    from daq.replay import replay
-
     morning = candump_log(tmp_path / "morning.log", start_s=1_750_000_000.0)
     noon = candump_log(tmp_path / "noon.log", start_s=1_750_007_200.0)
     assert replay([morning, noon], io.StringIO(), EXAMPLE_CONFIG) == 0
@@ -174,3 +172,66 @@ def test_logs_given_out_of_order_are_chained_as_given_with_a_warning(
         f"{morning} begins 7200.020 s before {noon} ends: logs out of order or overlapping? "
         "chained in the order given"
     )
+
+
+def sim_log(tmp_path: Path, name: str = "cycle.log", seconds: float = 1.0) -> Path:
+    from sim_bridge.__main__ import cli
+
+    log = tmp_path / name
+    args = ["--interface", "virtual", "--channel", f"log-{uuid.uuid4()}", "--as-fast-as-possible"]
+    assert cli([*args, "-q", "--duration", str(seconds), "--frames-log", str(log)]) == 0
+    return log
+
+
+def test_a_can_log_is_reported_with_config_as_its_replay_gives(tmp_path: Path) -> None:
+    from daq.report.command import report_main
+    from daq.report.loading import load_recording
+
+    log = sim_log(tmp_path)
+    lines = log.read_text().splitlines()
+    # a foreign node and an error frame among the machine's frames
+    stamp = lines[5].split()[0]
+    lines[5:5] = [f"{stamp} can0 7FF#01", f"{stamp} can0 20000080#00"]
+    log.write_text("\n".join(lines) + "\n")
+    out = io.StringIO()
+    rows = replay(log, out, EXAMPLE_CONFIG)
+    recording = load_recording(log, EXAMPLE_CONFIG)
+    assert recording.recomputed and recording.machine_id == "pam-proto-1"
+    assert recording.counts.frames == len(lines)
+    assert recording.counts.estimates == rows == 6 * 100
+    assert recording.counts.bad == {"unknown_id": 1, "error_frame": 1}
+    assert recording.counts.messages["LEG_SB1_F1"] == 100
+    first = float(lines[0][1 : lines[0].index(")")])
+    assert recording.start_t_s == first
+    assert (
+        report_main([str(log), "--config", str(EXAMPLE_CONFIG), "--out", str(tmp_path / "r")]) == 0
+    )
+    assert (tmp_path / "r" / "report.html").is_file()
+    # without a config: what it needs, exit 2
+    assert report_main([str(log), "--out", str(tmp_path / "r2")]) == 2
+
+
+def test_a_log_with_times_from_0_is_reported_without_a_1970_date(tmp_path: Path) -> None:
+    from daq.report.command import report_main
+
+    log = sim_log(tmp_path)
+    lines = log.read_text().splitlines()
+    t0 = float(lines[0][1 : lines[0].index(")")])
+    relative = tmp_path / "relative.log"
+    relative.write_text(
+        "".join(f"({float(l[1 : l.index(')')]) - t0:.6f}){l[l.index(')') + 1 :]}\n" for l in lines)
+    )
+    out = tmp_path / "r"
+    assert report_main([str(relative), "--config", str(EXAMPLE_CONFIG), "--out", str(out)]) == 0
+    page = (out / "report.html").read_text()
+    assert "1970" not in page
+    assert "log time, no date" in page
+
+
+@pytest.mark.parametrize(
+    ("name", "expected"),
+    [("a.log", True), ("a.ASC", True), ("a.blf", True), ("a.trc", True), ("a.log.gz", True),
+     ("a.mcap", False), ("a.toml", False), ("a.gz", False), ("a", False), ("a.tar.gz", False)],
+)  # fmt: skip
+def test_which_files_are_can_logs(name: str, expected: bool) -> None:
+    assert is_can_log(Path(name)) is expected
