@@ -138,6 +138,14 @@ def replay(
     return rows
 
 
+def recording_results(files: Sequence[Path], machine: Machine) -> Iterator[FrameResult]:
+    """What one fresh pipeline makes of every frame of ``files``: CAN logs chained in the
+    order given, or the MCAP files of one run in its order."""
+    if is_can_log(files[0]):
+        return results(Pipeline.from_config(*machine), chained_log_frames(files))
+    return run_results(files, machine)
+
+
 def is_can_log(path: Path) -> bool:
     """``path``'s suffix is one of python-can's log readers (also gzipped: ``.log.gz``)."""
     suffixes = [suffix.lower() for suffix in path.suffixes[-2:]]

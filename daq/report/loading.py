@@ -35,16 +35,8 @@ from daq.can_batch import recorded_frames
 from daq.errors import RecordingError
 from daq.mcap_file import RAW_TOPIC
 from daq.mcap_reading import RecordedAttachment, RecordedMessage, RecordingStream
-from daq.pipeline import Pipeline
 from daq.recording_run import expand, run_files
-from daq.replay import (
-    Machine,
-    chained_log_frames,
-    embedded_machine,
-    is_can_log,
-    results,
-    run_results,
-)
+from daq.replay import Machine, embedded_machine, is_can_log, recording_results, run_results
 from daq.report.tracks import Recording, RecordingCollector
 from dbc.errors import ConfigError, DbcError
 from dbc.machine import MachineConfig, load_machine_config
@@ -143,9 +135,10 @@ def _log_recording(files: Sequence[Path], config_path: Path | None) -> Recording
     through the pipeline of ``config_path``: everything derived from their frames."""
     if config_path is None:
         raise ConfigError(files[0], "", "reporting a CAN log needs --config (the machine config)")
-    config, database = load_machine_config(config_path)
+    machine = load_machine_config(config_path)
+    config = machine[0]
     collector = RecordingCollector()
-    for result in results(Pipeline.from_config(config, database), chained_log_frames(files)):
+    for result in recording_results(files, machine):
         collector.add_frames((result.frame,))
         collector.derive(result, bad=True, signals=True, estimates=True)
     if collector.frames == 0:

@@ -5,14 +5,29 @@ never a silent wrong time or an empty output with exit 0)."""
 from __future__ import annotations
 
 import io
+import logging
 import uuid
+from collections.abc import Iterator
 from pathlib import Path
 
 import can
 import pytest
 
 from daq.replay import can_log_frames, is_can_log, replay
+from dbc.machine import load_machine_config
 from tests.helpers import EXAMPLE_CONFIG
+
+
+@pytest.fixture(autouse=True)
+def _no_handler_left_behind() -> Iterator[None]:
+    """The commands' ``setup_logging`` binds the root logger to this test's captured
+    stderr, closed after it: a later test's log line would go there."""
+    before = list(logging.getLogger().handlers)
+    yield
+    for handler in list(logging.getLogger().handlers):
+        if handler not in before:
+            logging.getLogger().removeHandler(handler)
+
 
 ASC_RELATIVE = """\
 date Tue Dec 01 19:40:44.232 2026
@@ -138,7 +153,6 @@ def candump_log(path: Path, start_s: float = 1_750_000_000.0) -> Path:
     "command",
     [
         ["report", "--campaign", "--workers", "1", "--out", "{tmp}/camp"],
-        ["calibrate", "--config", str(EXAMPLE_CONFIG), "--out", "{tmp}/cal.toml"],
         ["export", "--to", "asc", "--out", "{tmp}/out.asc"],
         ["recover", "-o", "{tmp}/out.mcap"],
     ],
@@ -235,3 +249,48 @@ def test_a_log_with_times_from_0_is_reported_without_a_1970_date(tmp_path: Path)
 )  # fmt: skip
 def test_which_files_are_can_logs(name: str, expected: bool) -> None:
     assert is_can_log(Path(name)) is expected
+
+
+def test_calibrate_takes_the_movement_phase_from_the_frames_of_a_log_or_a_recording(
+    tmp_path: Path,
+) -> None:
+    """The phase decides which instants are quasi-static: it is decoded from the
+    MACHINE_STATE frames, also of a CAN log and of a recording made without
+    ``[recording] signals`` (the default), where it was ignored before."""
+    from daq.calibrate.data import machine_for, read_instants
+    from daq.mcap_file import CONFIG_ATTACHMENT, DBC_ATTACHMENT, McapFile
+    from daq.pipeline import Pipeline
+    from dbc import DEFAULT_DBC_PATH
+    from dbc.errors import ConfigError
+
+    fast = sim_log(tmp_path, "fast.log", seconds=45.0)
+    # frame times of a real-time run: instant k (frames of one time stamp) at k * 10 ms
+    stamps: dict[str, int] = {}
+    log = tmp_path / "cycle.log"
+    with open(fast) as lines, open(log, "w") as out:
+        for line in lines:
+            stamp, rest = line.split(" ", 1)
+            out.write(f"({1_796_150_000 + stamps.setdefault(stamp, len(stamps)) / 100:.6f}) {rest}")
+    machine = load_machine_config(EXAMPLE_CONFIG)
+    recordings = {}
+    for signals in (True, False):
+        path = recordings[signals] = tmp_path / f"signals_{signals}.mcap"
+        pipeline = Pipeline.from_config(*machine)
+        with open(path, "wb") as stream, McapFile(stream, machine[1]) as mcap:
+            mcap.start(
+                {
+                    CONFIG_ATTACHMENT: EXAMPLE_CONFIG.read_bytes(),
+                    DBC_ATTACHMENT: DEFAULT_DBC_PATH.read_bytes(),
+                }
+            )
+            for frame in can_log_frames(log):
+                mcap.write_result(pipeline.process(frame), signals=signals)
+    recorded = read_instants([recordings[True]], machine)
+    assert 50 < len(recorded.t_s) < recorded.total - 200  # moving phases left out
+    for path in (recordings[False], log):
+        instants = read_instants([path], machine)
+        assert instants.total == recorded.total
+        assert list(instants.t_s) == list(recorded.t_s)
+        assert (instants.force_N == recorded.force_N).all()
+    with pytest.raises(ConfigError, match="needs --config"):
+        machine_for([log], None)
