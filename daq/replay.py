@@ -21,6 +21,7 @@ rotations too.
 import csv
 import json
 import logging
+import struct
 import tomllib
 from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
@@ -120,9 +121,14 @@ def can_log_frames(path: Path) -> Iterator[RawFrame]:
         reader = can.LogReader(str(path))
     except (OSError, ValueError) as exc:
         raise RecordingError(path, f"cannot read it as a CAN log: {exc}") from exc
+    count = 0
     with reader:
-        for message in reader:
-            yield from_can_message(message)
+        try:
+            for message in reader:
+                yield from_can_message(message)
+                count += 1
+        except (ValueError, IndexError, KeyError, struct.error) as exc:  # python-can's parsers
+            raise RecordingError(path, f"unreadable after frame {count}: {exc}") from exc
 
 
 def _open(path: Path) -> IO[bytes]:

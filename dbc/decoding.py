@@ -87,8 +87,9 @@ class DecodedFrame:
 
 
 def is_j1939(message: Message) -> bool:
-    """The DBC marks ``message`` as a J1939 parameter group (matched by PGN)."""
-    return message.protocol == "j1939"
+    """The DBC marks ``message`` as a J1939 parameter group (matched by PGN). J1939 IDs have
+    29 bits: a standard-ID message is none, even where J1939PG is the DBC's default."""
+    return message.protocol == "j1939" and bool(message.is_extended_frame)
 
 
 def j1939_pgn(frame_id: int) -> int:

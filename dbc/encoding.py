@@ -21,6 +21,8 @@ class EncodedFrame:
     arbitration_id: int
     is_extended_id: bool
     data: bytes
+    #: A CAN FD frame (of a message the DBC defines as FD).
+    is_fd: bool = False
 
 
 class FrameEncoder:
@@ -93,4 +95,6 @@ class FrameEncoder:
             if not is_j1939(message):
                 raise ValueError(f"{message_name} is not a J1939 message: no source address")
             frame_id = (frame_id & ~0xFF) | source_address
-        return EncodedFrame(frame_id, bool(message.is_extended_frame), bytes(data))
+        return EncodedFrame(
+            frame_id, bool(message.is_extended_frame), bytes(data), bool(message.is_fd)
+        )

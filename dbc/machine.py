@@ -136,6 +136,8 @@ class ChamberSignal:
     status: StatusCheck | None
     #: GenMsgCycleTime of the message.
     cycle_time_s: float
+    #: The multiplexer values of the frames that carry the signal; None: every frame.
+    mux_ids: tuple[int, ...] | None = None
 
     def __str__(self) -> str:
         where = f"{self.message}.{self.signal}"
@@ -338,6 +340,10 @@ def _leg(
     if leg_status is not None:
         chambers = _attach_leg_status(table, chambers, leg_status, leg_status_ok)
     piston, rod = chambers["piston"], chambers["rod"]
+    where = (piston.message, piston.signal, piston.source_address)
+    if where == (rod.message, rod.signal, rod.source_address):
+        # A copy-paste slip, which eq. (4) would turn into p (A_piston - A_rod) silently.
+        raise table.error("rod", f"is the piston's signal {piston}; each chamber has its own")
     trigger = table.string("trigger", "piston")
     if trigger not in TRIGGERS:
         raise table.error("trigger", f"must be one of {list(TRIGGERS)}, got {trigger!r}")
@@ -398,6 +404,11 @@ def _chamber(
             raise chamber.error(
                 "status", f"must be a signal of {message.name}, the chamber's own message"
             )
+        if not _in_frames_of(message, status_signal, _mux_ids(message, signal_name)):
+            raise chamber.error(
+                "status",
+                f"{status_signal} is sent under another multiplexer value than {signal_name}",
+            )
         chamber_ok = _status_values(chamber, "status_ok", status_ok)
         status = _status_check(chamber, "status_ok", message, status_signal, chamber_ok)
     elif "status_ok" in chamber:
@@ -409,7 +420,20 @@ def _chamber(
         unit=unit,
         status=status,
         cycle_time_s=_cycle_time_s(chamber, signal_key, message),
+        mux_ids=_mux_ids(message, signal_name),
     )
+
+
+def _mux_ids(message: Message, signal_name: str) -> tuple[int, ...] | None:
+    """The multiplexer values under which ``message`` carries the signal; None: always."""
+    ids = message.get_signal_by_name(signal_name).multiplexer_ids
+    return tuple(ids) if ids else None
+
+
+def _in_frames_of(message: Message, signal_name: str, mux_ids: tuple[int, ...] | None) -> bool:
+    """Every frame carrying multiplexer values ``mux_ids`` (None: any) carries the signal."""
+    own = _mux_ids(message, signal_name)
+    return own is None or (mux_ids is not None and set(mux_ids) <= set(own))
 
 
 def _source_address(table: TomlTable, message: Message, database: Database) -> int | None:
@@ -527,11 +551,12 @@ def _attach_leg_status(
         if chamber.message == message.name
         and (source_address is None or chamber.source_address in (None, source_address))
         and chamber.status is None
+        and _in_frames_of(message, signal, chamber.mux_ids)
     }
     if not attached:
         raise table.error(
             "status",
-            f"{message.name}.{signal} is in neither chamber's message (or already judged by "
+            f"{message.name}.{signal} is in neither chamber's frames (or already judged by "
             "the chamber's own status); give it as the chamber's status instead",
         )
     return chambers | attached

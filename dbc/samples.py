@@ -1,7 +1,9 @@
 """From decoded frames to the estimator's leg samples, by the config's signal mapping.
 
 A leg's two chamber pressures may come in one frame (one sensor hub) or in two
-(one transducer per chamber, e.g. J1939 nodes with their own source addresses).
+(one transducer per chamber, e.g. J1939 nodes with their own source addresses; or
+two multiplexer values of one message). A frame of a multiplexed message makes the
+samples of the legs whose signals it carries.
 The sampler holds the latest value of each chamber, with what its own frame's
 checks found (CRC, counter, the chamber's status). **Timing rule:** a leg sample is
 made when a new value of the leg's trigger chamber arrives (default: piston); it
@@ -11,10 +13,11 @@ invalid with ``rod_stale`` (or ``piston_stale``). The sample's time is the trigg
 frame's. Both chambers in one frame: skew 0, one sample per frame.
 """
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-from dbc.decoding import DecodedFrame
+from dbc.decoding import DecodedFrame, SignalValue
 from dbc.machine import TRIGGERS, ChamberSignal, LegConfig, StatusCheck
 from estimator.leg import LegSample
 
@@ -59,7 +62,11 @@ class LegSampler:
         self._routes: dict[str, list[_Route]] = {}
         for leg in legs.values():
             piston, rod = leg.piston, leg.rod
-            if (piston.message, piston.source_address) == (rod.message, rod.source_address):
+            if (piston.message, piston.source_address, piston.mux_ids) == (
+                rod.message,
+                rod.source_address,
+                rod.mux_ids,
+            ):
                 statuses = tuple(
                     dict.fromkeys(s for s in (piston.status, rod.status) if s is not None)
                 )
@@ -87,33 +94,39 @@ class LegSampler:
         source_address = frame.source_address
         signals = frame.signals
         t_s, faults = frame.t_s, frame.faults
+        senders = [
+            leg
+            for leg in paired
+            if leg.source_address is None or leg.source_address == source_address
+        ]
         samples = [
             (
                 leg.leg,
                 LegSample(
                     t_s,
-                    float(signals[leg.piston]),
-                    float(signals[leg.rod]),
+                    _pressure_Pa(signals[leg.piston]),
+                    _pressure_Pa(signals[leg.rod]),
                     _with_status(faults, leg.statuses, signals) if leg.statuses else faults,
                 ),
             )
-            for leg in paired
-            if leg.source_address is None or leg.source_address == source_address
+            for leg in senders
+            if leg.piston in signals  # a multiplexed message's frame may carry other legs
         ]
         if not routes:  # the usual case: both chambers in the frame, no state
-            return samples or None
-        matched = [
+            return samples if senders else None
+        by_sender = [
             route
             for route in routes
             if route.signal.source_address is None or route.signal.source_address == source_address
         ]
-        if not samples and not matched:
+        if not senders and not by_sender:
             return None
+        matched = [route for route in by_sender if route.signal.signal in signals]
         for route in matched:
             status = route.signal.status
             chamber_faults = _with_status(faults, (status,) if status else (), signals)
             self._latest[(route.leg.name, route.chamber)] = _Reading(
-                t_s, float(signals[route.signal.signal]), chamber_faults
+                t_s, _pressure_Pa(signals[route.signal.signal]), chamber_faults
             )
         return samples + [self._sample(route.leg) for route in matched if route.triggers]
 
@@ -136,6 +149,12 @@ class LegSampler:
     def reset(self) -> None:
         """Forget the latest chamber values (after a gap in reception)."""
         self._latest.clear()
+
+
+def _pressure_Pa(value: SignalValue) -> float:
+    """A decoded chamber pressure; NaN for a value-table name in its place (a transducer's
+    "not available" or "error" code), which the estimator judges out of range."""
+    return math.nan if isinstance(value, str) else float(value)
 
 
 def _with_status(

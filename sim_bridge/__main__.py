@@ -92,9 +92,10 @@ def load_source(source: SourceOptions, config: MachineConfig) -> SimulationResul
     return result
 
 
-def _open_bus(interface: str, channel: str) -> can.BusABC:
+def _open_bus(interface: str, channel: str, fd: bool) -> can.BusABC:
+    """The bus to send on; ``fd``: some messages are CAN FD (SocketCAN needs it said)."""
     try:
-        return can.Bus(interface=interface, channel=channel)
+        return can.Bus(interface=interface, channel=channel, fd=fd)
     except (can.CanError, OSError, ValueError, ImportError) as exc:
         hint = ""
         if interface == "socketcan":
@@ -198,7 +199,10 @@ def main(options: BridgeOptions) -> int:
     result = load_source(options.source, config)
     builder = FrameBuilder(config, database)
     if builder.skipped:
-        logger.info("not sent (the simulation has none of their signals): %s", builder.skipped)
+        logger.info(
+            "not sent (the simulation has none of their signals, or multiplexed): %s",
+            builder.skipped,
+        )
     if builder.defaulted:
         logger.info("sent as constant 0 (no simulated value): %s", builder.defaulted)
     injector = FaultInjector(options.faults, fault_targets(builder))
@@ -209,7 +213,8 @@ def main(options: BridgeOptions) -> int:
     legs = list(config.legs)
     feet_m2 = {leg: config.legs[leg].geometry.A_foot_m2 for leg in legs}
     with ExitStack() as stack:
-        bus = stack.enter_context(_open_bus(options.interface, options.channel))
+        fd = any(database.get_message_by_name(builder.target(s)[0]).is_fd for s in builder.messages)
+        bus = stack.enter_context(_open_bus(options.interface, options.channel, fd))
         sinks: list[TruthSink] = []
         if options.truth_csv is not None:
             stream = stack.enter_context(_open_output(options.truth_csv, "w"))

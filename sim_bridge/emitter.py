@@ -181,6 +181,7 @@ class Emitter:
             arbitration_id=frame.arbitration_id,
             is_extended_id=frame.is_extended_id,
             data=frame.data,
+            is_fd=frame.is_fd,
         )
         try:
             self._bus.send(sent)

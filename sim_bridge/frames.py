@@ -15,7 +15,8 @@ Pure computation. Which signal carries what:
 - Counter and CRC signals (``[protection.<MESSAGE>]``) are left to the
   :class:`~dbc.encoding.FrameEncoder`. A signal nobody supplies is sent as 0 (clipped into
   its range) and listed in :attr:`FrameBuilder.defaulted`; a periodic message none of whose
-  signals is supplied is not sent at all (:attr:`FrameBuilder.skipped`).
+  signals is supplied is not sent at all, nor is a multiplexed one
+  (:attr:`FrameBuilder.skipped`; a leg's chamber in a multiplexed message is refused).
 
 Status signals say the first ``status_ok`` value of their chamber unless a fault says
 otherwise. Every
@@ -161,6 +162,13 @@ class FrameBuilder:
             for chamber in ("piston", "rod"):
                 mapped: ChamberSignal = getattr(leg, chamber)
                 message = database.get_message_by_name(mapped.message)
+                if message.is_multiplexed():
+                    raise ConfigError(
+                        config.source,
+                        f"legs.{leg.name}.{chamber}",
+                        f"message {message.name} is multiplexed: the bridge cannot play it "
+                        "(the service decodes it)",
+                    )
                 chambers_by_sender.setdefault((mapped.message, mapped.source_address), []).append(
                     _chamber_signals(message, leg.name, chamber, mapped)
                 )
@@ -173,12 +181,16 @@ class FrameBuilder:
         self._plans: dict[str, _MessagePlan] = {}
         #: Signals sent as a constant 0, as "MESSAGE.SIGNAL".
         self.defaulted: list[str] = []
-        #: Periodic messages not sent because the simulation supplies none of their signals.
+        #: Periodic messages not sent: the simulation supplies none of their signals, or
+        #: they are multiplexed (which the bridge cannot play; no leg's chamber may be in one).
         self.skipped: list[str] = []
         #: The senders built, with their DBC cycle times, in DBC order.
         self.cycles: list[MessageCycle] = []
         for message in database.messages:
             if not message.cycle_time:
+                continue
+            if message.is_multiplexed():
+                self.skipped.append(message.name)
                 continue
             addresses = sorted(
                 {address for name, address in chambers_by_sender if name == message.name},

@@ -13,6 +13,21 @@ ROOT = Path(__file__).resolve().parent.parent
 EXAMPLE_CONFIG = ROOT / "deploy" / "machine.example.toml"
 FILES = Path(__file__).resolve().parent / "files"
 LEGS = ("SB1_F1", "SB1_F2", "SB1_F3", "SB2_F1", "SB2_F2", "SB2_F3")
+#: Vector's frame formats: ``BA_ "VFrameFormat" BO_ <id> 3;`` is J1939, 14 and 15 CAN FD.
+FRAME_FORMATS = ("StandardCAN", "ExtendedCAN", "reserved", "J1939PG", *["reserved"] * 10)
+#: The example machine's ``[leg_defaults]`` table, for machine configs written in tests.
+LEG_DEFAULTS_TOML = """
+[leg_defaults]
+A_piston_m2 = 7.854e-3
+A_rod_m2 = 4.737e-3
+l_r_m = 0.90
+l_z_m = 0.25
+l_b_m = 1.20
+l_gb_m = 0.55
+alpha_cyl_deg = 75.0
+F_gLeg_N = 4905.0
+A_foot_m2 = 0.33
+"""
 
 
 def example_machine():  # type: ignore[no-untyped-def]
@@ -28,6 +43,21 @@ def with_leg_keys(config_text: str, keys: Mapping[str, Mapping[str, float]]) -> 
         body = "".join(f"{key} = {value!r}\n" for key, value in values.items())
         config_text = config_text.replace(header, header + body)
     return config_text
+
+
+def dbc_text(messages: str, attributes: str, nodes: str = "Hub DAQ") -> str:
+    """A DBC of ``messages`` (``BO_``/``SG_`` lines) and ``attributes`` (``BA_``, ``VAL_``
+    lines), with the definitions of ``GenMsgCycleTime`` and ``VFrameFormat``
+    (:data:`FRAME_FORMATS`; default: none, i.e. standard CAN)."""
+    formats = ",".join(f'"{name}"' for name in (*FRAME_FORMATS, "StandardCAN_FD", "ExtendedCAN_FD"))
+    return (
+        f'VERSION ""\nNS_ :\nBS_:\nBU_: {nodes}\n{messages}\n'
+        'BA_DEF_ BO_ "GenMsgCycleTime" INT 0 65535;\n'
+        f'BA_DEF_ BO_ "VFrameFormat" ENUM {formats};\n'
+        'BA_DEF_DEF_ "GenMsgCycleTime" 0;\n'
+        'BA_DEF_DEF_ "VFrameFormat" "StandardCAN";\n'
+        f"{attributes}"
+    )
 
 
 def recorded_raw_frames(path: Path) -> list[RawFrame]:

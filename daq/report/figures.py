@@ -142,7 +142,10 @@ def time_series_figure(content: ReportContent, quantity: str) -> Figure:
         else:
             values = track.force_N
         x, shown = on_axis(content.time, track.t_s, values, track.valid, content.gap_after_s[leg])
-        axes.plot(x, shown / 1e3, label=leg, **styles[leg])
+        style = styles[leg]
+        if not np.isfinite(shown).any():  # all gap: matplotlib cannot space markers on it
+            style = {**style, "markevery": None}
+        axes.plot(x, shown / 1e3, label=leg, **style)
     _phases(axes, content, labels=True)
     if quantity == "pressure":
         limit_kPa = content.settings.pressure_limit_Pa / 1e3

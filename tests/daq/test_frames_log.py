@@ -104,3 +104,33 @@ def test_an_unknown_frames_log_format_is_one_line(
     assert cli([*args, "--duration", "0.1", "--frames-log", str(tmp_path / "x.txt")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--frames-log: no log format for '.txt'" in err[0], err
+
+
+@pytest.mark.parametrize(
+    ("suffix", "bad_line"),
+    [
+        (".log", "(1750000000.030000) vcan0 100#ZZ\n"),
+        (".log", "(1750000000.030000) vcan0\n"),
+        (".asc", " 0.030000 1  100             Rx   d 8 GG 00 00 00 00 00 00 00\n"),
+    ],
+)
+def test_a_malformed_line_in_a_can_log_is_one_line_naming_file_and_frame(
+    tmp_path: Path, suffix: str, bad_line: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from daq.replay_command import replay_main
+
+    log = tmp_path / f"bad{suffix}"
+    with can.Logger(log) as writer:
+        for k in range(3):
+            writer.on_message_received(
+                can.Message(
+                    timestamp=1_750_000_000.0 + k / 100, arbitration_id=0x100, data=bytes(8)
+                )
+            )
+    lines = log.read_text().splitlines(keepends=True)
+    end = next(i for i, line in enumerate(lines) if "End" in line) if suffix == ".asc" else None
+    lines.insert(end if end is not None else len(lines), bad_line)
+    log.write_text("".join(lines))
+    assert replay_main([str(log), "--config", str(EXAMPLE_CONFIG)]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"{log}: unreadable after frame 3:" in err[0], err

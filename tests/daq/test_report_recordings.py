@@ -293,3 +293,16 @@ def test_truth_json_written_by_the_recorder_reads_back(tmp_path: Path) -> None:
         payloads = [json.loads(m.data) for _, _, m in reader.iter_messages(topics=["/sim/truth"])]
     assert [p["t_unix_s"] for p in payloads] == [T0_S + 0.01 * i for i in range(5)]
     assert load_recording(path).truth.t_s.tolist() == [p["t_unix_s"] for p in payloads]
+
+
+def test_a_leg_invalid_throughout_is_drawn_as_one_gap(tmp_path: Path) -> None:
+    """A transducer broken for the whole recording leaves its leg without a valid sample:
+    its line is all gap (matplotlib cannot place staggered markers on it), the report is
+    still written."""
+    faults = FaultConfig(sensor_fault=(FaultWindow("SB1_F2", 0.0, 10.0),), seed=1)
+    path = record(tmp_path / "run.mcap", seconds=1.0, faults=faults)
+    content = analyse(load_recording(path))
+    assert not content.recording.legs["SB1_F2"].valid.any()
+    assert content.recording.legs["SB1_F1"].valid.all()
+    report(ReportOptions(path, tmp_path / "out"))
+    assert (tmp_path / "out" / "pressure.png").stat().st_size > 10_000

@@ -22,28 +22,21 @@ from dbc.machine import MachineConfig, parse_machine_config
 from dbc.protection import CRC_ALGORITHMS, CrcCheck, TableCrc, reference_checksum
 from dbc.units import PRESSURE_UNITS_TO_PA
 from estimator import foot_force_N
-from tests.helpers import ROOT
+from tests.helpers import LEG_DEFAULTS_TOML, ROOT, dbc_text
 
 DBC_PATH = ROOT / "tests" / "files" / "transducers.dbc"
 DATABASE = load_database(DBC_PATH)
 PGN_ID = 0x18FF2021  # priority 6, PGN 0xFF20 (proprietary B), source address 0x21
 
-BASE = """
+BASE = (
+    """
 [machine]
 id = "hyd"
 mass_kg = 18800.0
 
-[leg_defaults]
-A_piston_m2 = 7.854e-3
-A_rod_m2 = 4.737e-3
-l_r_m = 0.90
-l_z_m = 0.25
-l_b_m = 1.20
-l_gb_m = 0.55
-alpha_cyl_deg = 75.0
-F_gLeg_N = 4905.0
-A_foot_m2 = 0.33
-
+"""
+    + LEG_DEFAULTS_TOML
+    + """
 [legs.J1]
 piston = { signal = "HYD_PRESS.Pressure", source_address = 0x21, status = "Status" }
 rod = { signal = "HYD_PRESS.Pressure", source_address = 0x22, status = "Status" }
@@ -81,6 +74,7 @@ max_delta_counter = 3
 [protection.LEG_PSI]
 counter = "Counter"
 """
+)
 
 
 def config_of(text: str = BASE) -> MachineConfig:
@@ -546,6 +540,13 @@ def test_one_dbc_message_per_sender_of_a_pgn() -> None:
         ),
         ('status = "Status" }', "status_ok = 0 }", "legs.J1.piston.status_ok", "without a status"),
         (
+            'rod = { signal = "HYD_PRESS.Pressure", source_address = 0x24 }',
+            'rod = { signal = "HYD_PRESS.Pressure", source_address = 0x23 }',
+            "legs.J2.rod",
+            "the piston's signal HYD_PRESS.Pressure@0x23",
+        ),
+        ('rod = "LEG_HUB.pRod"', 'rod = "LEG_HUB.pPiston"', "legs.HUB.rod", "LEG_HUB.pPiston"),
+        (
             'source_address = 0x21, status = "Status" }',
             "sa = 1 }",
             "legs.J1.piston.sa",
@@ -557,3 +558,26 @@ def test_bad_chamber_keys_are_refused(old: str, new: str, key: str, reason: str)
     assert old in BASE
     error = refused(BASE.replace(old, new, 1))
     assert error.key == key and reason in str(error)
+
+
+def test_an_11_bit_message_is_no_j1939_one_even_where_j1939_is_the_dbc_default() -> None:
+    """J1939 IDs have 29 bits: with ``VFrameFormat`` defaulting to J1939PG, the DBC's
+    standard-ID messages are still matched by their ID (before, their frames were
+    ``unknown_id`` and their legs never estimated)."""
+    from dbc.database import load_database_string
+
+    dbc = dbc_text(
+        'BO_ 768 STD_LEG: 4 Hub\n SG_ pp : 0|16@1+ (0.01,0) [0|655.35] "bar" DAQ\n'
+        ' SG_ pr : 16|16@1+ (0.01,0) [0|655.35] "bar" DAQ\n',
+        'BA_DEF_DEF_ "VFrameFormat" "J1939PG";\nBA_ "GenMsgCycleTime" BO_ 768 10;\n',
+    ).replace('BA_DEF_DEF_ "VFrameFormat" "StandardCAN";\n', "")
+    database = load_database_string(dbc, "default_j1939.dbc")
+    legs_start = BASE.index("[legs.J1]")
+    text = BASE[:legs_start] + '[legs.L]\npiston = "STD_LEG.pp"\nrod = "STD_LEG.pr"\n'
+    config = parse_machine_config(tomllib.loads(text), "m.toml", database)
+    pipeline = Pipeline.from_config(config, database)
+    (estimate,) = pipeline.process(RawFrame(1.0, 0x300, False, bytes([16, 39, 232, 3]))).estimates
+    assert estimate.valid and (estimate.p_piston_Pa, estimate.p_rod_Pa) == (100e5, 10e5)
+    pinned = text.replace('"STD_LEG.pp"', '{ signal = "STD_LEG.pp", source_address = 0x21 }')
+    with pytest.raises(ConfigError, match="not a J1939 message"):
+        parse_machine_config(tomllib.loads(pinned), "m.toml", database)
