@@ -14,8 +14,11 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import IO, Any
 
+from mcap.exceptions import InvalidMagic
 from mcap.records import Attachment, Channel, Footer, McapRecord, Message, Metadata
 from mcap.stream_reader import StreamReader
+
+from daq.errors import RecordingError
 
 logger = logging.getLogger(__name__)
 
@@ -57,22 +60,32 @@ class RecordsToTheCut:
     stream ended normally); :mod:`daq.recover` rewrites what this yields.
     """
 
-    def __init__(self, stream: IO[bytes]) -> None:
+    def __init__(self, stream: IO[bytes], name: str = "recording") -> None:
         self._stream = stream
+        self.name = name
         self.stopped_by: str | None = None
 
     def __iter__(self) -> Iterator[McapRecord]:
         records = StreamReader(self._stream, validate_crcs=True).records
+        started = False
         while True:
             try:
                 record = next(records)
             except StopIteration:
+                return
+            except InvalidMagic as exc:
+                if not started:  # not an MCAP file at all (a CAN log, say): nothing to recover
+                    raise RecordingError(
+                        self.name, "not an MCAP file (a service recording is .mcap)"
+                    ) from exc
+                self.stopped_by = f"{type(exc).__name__}: {exc}"
                 return
             # A cut-off file fails in many ways (EndOfFile, struct.error, a
             # decompression error, a CRC mismatch): each means "the end is missing".
             except Exception as exc:  # noqa: BLE001
                 self.stopped_by = f"{type(exc).__name__}: {exc}".rstrip(": ")
                 return
+            started = True
             yield record
 
 
@@ -92,7 +105,7 @@ class RecordingStream:
 
     def __iter__(self) -> Iterator[RecordedMessage | RecordedAttachment | RecordedMetadata]:
         channels: dict[int, Channel] = {}
-        records = RecordsToTheCut(self._stream)
+        records = RecordsToTheCut(self._stream, self.name)
         for record in records:
             if isinstance(record, Channel):
                 channels[record.id] = record

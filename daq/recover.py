@@ -56,9 +56,16 @@ def is_cut_short(path: Path) -> bool:
 
 
 def recover(
-    source: IO[bytes], target: IO[bytes], *, compression: str = "zstd", chunk_size: int = 1 << 20
+    source: IO[bytes],
+    target: IO[bytes],
+    *,
+    compression: str = "zstd",
+    chunk_size: int = 1 << 20,
+    name: str = "recording",
 ) -> Recovered:
-    """Copy every readable record of ``source`` into a complete MCAP on ``target``."""
+    """Copy every readable record of ``source`` into a complete MCAP on ``target``.
+
+    Raises :class:`RecordingError` (naming ``name``) when ``source`` is no MCAP at all."""
     writer = Writer(
         cast(IO[Any], target), chunk_size=chunk_size, compression=COMPRESSION[compression]
     )
@@ -67,7 +74,7 @@ def recover(
     messages = attachments = metadata = 0
     footer = False
     started = False
-    records = RecordsToTheCut(source)
+    records = RecordsToTheCut(source, name)
     for record in records:
         if isinstance(record, Header):
             writer.start(profile=record.profile, library=record.library)
@@ -116,11 +123,14 @@ def recover_file(path: Path, out: Path | None = None, *, compression: str = "zst
     target = out if out is not None else path.with_name(path.name + ".recovering")
     try:
         with open(path, "rb") as source, open(target, "wb") as sink:
-            result = recover(source, sink, compression=compression)
+            result = recover(source, sink, compression=compression, name=str(path))
             sink.flush()
             os.fsync(sink.fileno())
         if out is None:
             os.replace(target, path)
+    except RecordingError:  # not an MCAP file: nothing to write
+        target.unlink(missing_ok=True)
+        raise
     except OSError as exc:
         if out is None:
             target.unlink(missing_ok=True)

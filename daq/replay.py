@@ -21,6 +21,7 @@ rotations too.
 import csv
 import json
 import logging
+import sqlite3
 import struct
 import tomllib
 from collections.abc import Iterable, Iterator, Sequence
@@ -28,6 +29,7 @@ from pathlib import Path
 from typing import IO
 
 import can
+from can.io.player import MESSAGE_READERS
 from cantools.database.can import Database
 
 from daq.can_batch import recorded_frames
@@ -37,7 +39,7 @@ from daq.mcap_file import BUS_TOPIC, CONFIG_ATTACHMENT, DBC_ATTACHMENT, RAW_TOPI
 from daq.mcap_reading import RecordedAttachment, RecordedMessage, RecordingStream
 from daq.pipeline import FrameResult, Pipeline
 from daq.recording_run import MCAP_SUFFIX, expand, run_files
-from dbc.database import load_database_string
+from dbc.database import load_database_bytes
 from dbc.errors import ConfigError
 from dbc.machine import MachineConfig, load_machine_config, parse_machine_config
 from estimator.leg import LegEstimate
@@ -58,6 +60,13 @@ CSV_COLUMNS = (
 )
 
 Machine = tuple[MachineConfig, Database]
+
+#: What python-can's log parsers raise for a file they cannot read (SQLite's for ``.db``).
+_READER_ERRORS = (ValueError, IndexError, KeyError, struct.error, sqlite3.Error)
+
+#: What a line of a text log must look like, for an error whose reason python-can words
+#: as its code sees it (``not enough values to unpack``).
+_LINE_FORMATS = {".log": " (a candump -L line is '(TIME) INTERFACE ID#DATA')"}
 
 
 def results(pipeline: Pipeline, items: Iterable[RawFrame | BusEvent]) -> Iterator[FrameResult]:
@@ -100,10 +109,16 @@ def write_csv(rows: Iterable[LegEstimate], out: IO[str]) -> int:
     return count
 
 
-def replay(paths: Path | Sequence[Path], out: IO[str], config_path: Path | None = None) -> int:
+def replay(
+    paths: Path | Sequence[Path],
+    out: IO[str],
+    config_path: Path | None = None,
+    channel: str | None = None,
+) -> int:
     """Replay a recording into CSV on ``out``; returns the row count.
 
-    ``paths``: MCAP files or directories of one run, or python-can logs.
+    ``paths``: MCAP files or directories of one run, or python-can logs (of which only
+    the frames of ``channel`` are replayed when it is given).
     """
     machine = load_machine_config(config_path) if config_path is not None else None
     files = expand([paths] if isinstance(paths, Path) else paths)
@@ -112,23 +127,99 @@ def replay(paths: Path | Sequence[Path], out: IO[str], config_path: Path | None 
     if machine is None:
         raise ConfigError(files[0], "", "replaying a CAN log needs --config (the machine config)")
     pipeline = Pipeline.from_config(*machine)
-    return write_csv(estimates(pipeline, (f for path in files for f in can_log_frames(path))), out)
+    rows = write_csv(estimates(pipeline, chained_log_frames(files, channel)), out)
+    if pipeline.bad:
+        logger.warning(
+            "%d frames, %d of them not used (%s)",
+            pipeline.frames,
+            pipeline.bad.total(),
+            ", ".join(f"{kind} {n}" for kind, n in sorted(pipeline.bad.items())),
+        )
+    return rows
 
 
-def can_log_frames(path: Path) -> Iterator[RawFrame]:
-    """The frames of a python-can log (candump .log, .asc, .blf, .csv, ...)."""
+def recording_results(files: Sequence[Path], machine: Machine) -> Iterator[FrameResult]:
+    """What one fresh pipeline makes of every frame of ``files``: CAN logs chained in the
+    order given, or the MCAP files of one run in its order."""
+    if is_can_log(files[0]):
+        return results(Pipeline.from_config(*machine), chained_log_frames(files))
+    return run_results(files, machine)
+
+
+def is_can_log(path: Path) -> bool:
+    """``path``'s suffix is one of python-can's log readers (also gzipped: ``.log.gz``)."""
+    suffixes = [suffix.lower() for suffix in path.suffixes[-2:]]
+    if suffixes[-1:] == [".gz"]:
+        suffixes.pop()
+    return bool(suffixes) and suffixes[-1] in MESSAGE_READERS
+
+
+def chained_log_frames(paths: Sequence[Path], channel: str | None = None) -> Iterator[RawFrame]:
+    """The frames of CAN logs, one log after the other in the order given (the median
+    and contact carry over, as across a logger's file rotation); a log that begins
+    before the one before it ended is logged: given out of order, two loggers of one
+    bus, or times counted from 0 in each."""
+    previous: tuple[Path, float] | None = None
+    for path in paths:
+        t_s: float | None = None
+        for frame in can_log_frames(path, channel):
+            if t_s is None and previous is not None and frame.t_s < previous[1]:
+                logger.warning(
+                    "%s begins %.3f s before %s ends: logs out of order or overlapping? "
+                    "chained in the order given",
+                    path,
+                    previous[1] - frame.t_s,
+                    previous[0],
+                )
+            t_s = frame.t_s
+            yield frame
+        if t_s is not None:
+            previous = (path, t_s)
+
+
+def can_log_frames(path: Path, channel: str | None = None) -> Iterator[RawFrame]:
+    """The frames of a python-can log (candump .log, .asc, .blf, .csv, ...); with
+    ``channel``, those of that channel only (as python-can names it: ``can0`` in a
+    candump log, the number from 0 in ASC and BLF), else all, with a warning when they
+    come from more than one (a logger on two buses). A frame without a channel (python-can
+    gives none to a candump error frame) is kept whatever ``channel`` is. The times of an
+    ASC log with ``timestamps relative`` (each the step since the event before) are
+    summed from its start."""
+    if not path.is_file():  # python-can's SQLite reader would create it
+        raise RecordingError(path, "cannot read it as a CAN log: no such file")
     try:
         reader = can.LogReader(str(path))
-    except (OSError, ValueError) as exc:
+    except (OSError, NotImplementedError, *_READER_ERRORS) as exc:  # NotImplemented: no asammdf
         raise RecordingError(path, f"cannot read it as a CAN log: {exc}") from exc
     count = 0
+    channels: set[str] = set()
+    elapsed_s = 0.0
     with reader:
         try:
             for message in reader:
-                yield from_can_message(message)
                 count += 1
-        except (ValueError, IndexError, KeyError, struct.error) as exc:  # python-can's parsers
-            raise RecordingError(path, f"unreadable after frame {count}: {exc}") from exc
+                if isinstance(reader, can.ASCReader) and reader.timestamps_format == "relative":
+                    elapsed_s += message.timestamp
+                    message.timestamp = elapsed_s
+                name = None if message.channel is None else str(message.channel)
+                if name is not None and name not in channels:
+                    channels.add(name)
+                    if channel is None and len(channels) == 2:
+                        logger.warning(
+                            "%s: frames of more than one channel (%s): replayed as one bus; "
+                            "pick one with --channel",
+                            path,
+                            ", ".join(sorted(channels)),
+                        )
+                if channel is None or name in (None, channel):
+                    yield from_can_message(message)
+        except _READER_ERRORS as exc:
+            hint = _LINE_FORMATS.get(path.suffix.lower(), "")
+            raise RecordingError(path, f"unreadable after frame {count}: {exc}{hint}") from exc
+    if channel is not None and channel not in channels:
+        raise RecordingError(
+            path, f"no frame on channel {channel!r}; its channels: {', '.join(sorted(channels))}"
+        )
 
 
 def _open(path: Path) -> IO[bytes]:
@@ -190,7 +281,5 @@ def embedded_machine(attachments: dict[str, bytes], path: Path) -> Machine:
         data = tomllib.loads(attachments[CONFIG_ATTACHMENT].decode())
     except (UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
         raise ConfigError(source, "", f"not valid TOML: {exc}") from exc
-    database = load_database_string(
-        attachments[DBC_ATTACHMENT].decode(), f"{path}:{DBC_ATTACHMENT}"
-    )
+    database = load_database_bytes(attachments[DBC_ATTACHMENT], f"{path}:{DBC_ATTACHMENT}")
     return parse_machine_config(data, source, database), database

@@ -27,14 +27,19 @@ def replay_main(args: Sequence[str]) -> int:
     )
     parser.add_argument("--config", type=Path, help="machine config (MCAP: default embedded)")
     parser.add_argument("--out", type=Path, help="CSV file (default: stdout)")
+    parser.add_argument(
+        "--channel",
+        help="CAN logs: replay only this channel's frames (candump: can0; ASC/BLF: 0 for "
+        "the first)",
+    )
     options = parser.parse_args(args)
     setup_logging("WARNING")
     try:
         if options.out is None:
-            replay(options.recording, sys.stdout, options.config)
+            replay(options.recording, sys.stdout, options.config, options.channel)
         else:
             with open(options.out, "w", newline="") as out:
-                replay(options.recording, out, options.config)
+                replay(options.recording, out, options.config, options.channel)
     except (ConfigError, DbcError) as exc:
         return fail(exc, 2)
     except BrokenPipeError:

@@ -8,6 +8,10 @@ from cantools.database.errors import UnsupportedDatabaseFormatError
 
 from dbc.errors import DbcError
 
+#: How a DBC file's bytes are read (cantools' ``load_file`` default for DBC: Vector's tools
+#: write Windows-1252, e.g. a unit "°C"), the file and a recording's copy of it alike.
+DBC_ENCODING = "cp1252"
+
 
 def load_database(path: str | Path) -> Database:
     """Load a DBC file strictly (overlapping signals etc. are errors).
@@ -16,7 +20,9 @@ def load_database(path: str | Path) -> Database:
     malformed or not a CAN database.
     """
     try:
-        database = cantools.database.load_file(str(path), database_format="dbc", strict=True)
+        database = cantools.database.load_file(
+            str(path), database_format="dbc", encoding=DBC_ENCODING, strict=True
+        )
     except FileNotFoundError as exc:
         raise DbcError(path, "no such file; set machine.dbc in the config to the DBC") from exc
     except OSError as exc:
@@ -37,6 +43,12 @@ def load_database_string(text: str, source: str) -> Database:
     if not isinstance(database, Database) or not database.messages:
         raise DbcError(source, "holds no CAN messages")
     return database
+
+
+def load_database_bytes(data: bytes, source: str) -> Database:
+    """Load a DBC from the bytes of its file (e.g. the copy embedded in a recording), read
+    as :func:`load_database` reads the file."""
+    return load_database_string(data.decode(DBC_ENCODING, errors="replace"), source)
 
 
 def _first_line(exc: BaseException) -> str:

@@ -21,6 +21,10 @@ from dbc.decoding import DecodedFrame, SignalValue
 from dbc.machine import TRIGGERS, ChamberSignal, LegConfig, StatusCheck
 from estimator.leg import LegSample
 
+#: What a difference of two frame times (microseconds, at Unix times ~1.8e9 s: doubles
+#: 0.24 us apart) may be off by: a value exactly ``max_skew_s`` older is not stale.
+SKEW_ROUNDING_S = 1e-6
+
 
 @dataclass(frozen=True, slots=True)
 class _Paired:
@@ -135,7 +139,7 @@ class LegSampler:
         trigger = self._latest[(leg.name, leg.trigger)]
         other = self._latest.get((leg.name, other_chamber))
         faults = list(trigger.faults)
-        if other is None or trigger.t_s - other.t_s > leg.max_skew_s:
+        if other is None or trigger.t_s - other.t_s > leg.max_skew_s + SKEW_ROUNDING_S:
             faults.append(f"{other_chamber}_stale")
             other_p_Pa = other.p_Pa if other is not None else float("nan")
         else:

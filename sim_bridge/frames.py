@@ -7,6 +7,8 @@ Pure computation. Which signal carries what:
   their status signals, so a different DBC works by editing the config. Each config leg
   must be one of the simulation's legs (:data:`~sim_bridge.result.LEGS`). Pressures are
   in Pa here; the encoder converts them into the DBC signal's unit.
+- **The bridge angles** are the ``[stability]`` ``rotation`` and ``fold`` signals where
+  the config has that table, whatever their DBC names.
 - **Every other signal** is found by its name in the DBC: ``INCL_<BASE>_pPiston`` /
   ``_pRod`` / ``_Status``, ``<LEG>_Stroke``, ``<BASE>_InclinationAngle``,
   ``Bridge_FoldAngle``, ``Bridge_RotationAngle``, ``Carriage_Position``,
@@ -178,6 +180,12 @@ class FrameBuilder:
             for leg in config.legs.values()
         }
         getters = _named_getters(status_ok)
+        # The bridge angles where [stability] says they are, whatever the DBC calls them.
+        pose_getters: dict[tuple[str, str], Getter] = {}
+        if config.stability is not None:
+            rotation, fold = config.stability.rotation, config.stability.fold
+            pose_getters[(rotation.message, rotation.signal)] = getters["Bridge_RotationAngle"]
+            pose_getters[(fold.message, fold.signal)] = getters["Bridge_FoldAngle"]
         self._plans: dict[str, _MessagePlan] = {}
         #: Signals sent as a constant 0, as "MESSAGE.SIGNAL".
         self.defaulted: list[str] = []
@@ -207,7 +215,9 @@ class FrameBuilder:
                 for signal in message.signals:
                     if signal.name in taken or (message.name, signal.name) in protected:
                         continue
-                    if signal.name == "Machine_Phase":
+                    if (message.name, signal.name) in pose_getters:
+                        named.append((signal, pose_getters[(message.name, signal.name)]))
+                    elif signal.name == "Machine_Phase":
                         named.append((signal, _phase_getter(signal)))
                     elif signal.name in getters:
                         named.append((signal, getters[signal.name]))

@@ -17,6 +17,7 @@ from pathlib import Path
 from cantools.database.can import Database, Message
 
 from dbc.machine import MachineConfig
+from dbc.samples import SKEW_ROUNDING_S
 from estimator.geometry import LegGeometry
 from tests.helpers import ROOT
 
@@ -132,7 +133,7 @@ class SentFrames:
     def _sample(self, leg_name: str, t_s: float) -> Expected:
         leg = self._config.legs[leg_name]
         other = self._latest.get((leg_name, "rod" if leg.trigger == "piston" else "piston"))
-        complete = other is not None and t_s - other[0] <= leg.max_skew_s
+        complete = other is not None and t_s - other[0] <= leg.max_skew_s + SKEW_ROUNDING_S
         other_Pa = other[1] if other is not None else math.nan
         trigger_Pa = self._latest[(leg_name, leg.trigger)][1]
         p_piston_Pa, p_rod_Pa = (

@@ -27,7 +27,13 @@ def calibrate_main(args: Sequence[str]) -> int:
         "quasi-static instants of recordings; writes a TOML snippet for the machine config "
         "and a page with the weight residual before and after.",
     )
-    parser.add_argument("recording", type=Path, nargs="+", help="service recordings (.mcap)")
+    parser.add_argument(
+        "recording",
+        type=Path,
+        nargs="+",
+        help="service recordings (.mcap), or CAN logs (candump .log, .asc, .blf, ...: need "
+        "--config)",
+    )
     parser.add_argument("--config", type=Path, help="machine config (default: the embedded one)")
     parser.add_argument(
         "--out", type=Path, default=Path("calibration.toml"), help="the TOML snippet to write"

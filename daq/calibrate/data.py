@@ -3,12 +3,13 @@
 Each recording (a service MCAP file) is replayed from ``/can/raw`` through the
 pipeline of the machine configuration (``--config``, else the one embedded in the
 file), exactly as live; the leg estimates are sampled every :data:`PERIOD_S` like the
-``<prefix>/ground`` snapshots. The movement phase comes from the recorded
-``/signals/MACHINE_STATE``. Several recordings are read one after the other, each
-with a fresh pipeline, and their instants pooled.
+``<prefix>/ground`` snapshots. The movement phase comes from the ``MACHINE_STATE``
+frames of the same replay (so also from a recording made without ``[recording]
+signals``). A CAN log of another tool (candump ``.log``, ``.asc``, ``.blf``, ...) is
+replayed the same way and needs ``--config``. Several recordings are read one after
+the other, each with a fresh pipeline, and their instants pooled.
 """
 
-import json
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -17,11 +18,14 @@ import numpy as np
 import numpy.typing as npt
 
 from daq.errors import RecordingError
-from daq.mcap_reading import RecordedAttachment, RecordedMessage, RecordingStream
-from daq.replay import Machine, embedded_machine, run_estimates
-from daq.report.tracks import STATE_TOPIC, StateTrack
+from daq.mcap_reading import RecordedAttachment, RecordingStream
+from daq.payloads import signals as signals_payload
+from daq.replay import Machine, embedded_machine, is_can_log, recording_results
+from daq.report.tracks import SIGNALS_PREFIX, STATE_TOPIC, StateRow, StateTrack
+from dbc.errors import ConfigError
 from dbc.machine import load_machine_config
 from estimator.calibration import Snapshots, quasi_static, snapshots
+from estimator.leg import LegEstimate
 
 #: Spacing of the snapshots, s (the service's default ``ground_rate_hz`` of 10).
 PERIOD_S = 0.1
@@ -53,6 +57,8 @@ def machine_for(paths: Sequence[Path], config_path: Path | None) -> Machine:
     if config_path is not None:
         return load_machine_config(config_path)
     first = paths[0]
+    if is_can_log(first):
+        raise ConfigError(first, "", "calibrating from a CAN log needs --config")
     try:
         with open(first, "rb") as stream:
             attachments = {
@@ -71,7 +77,7 @@ def read_instants(paths: Sequence[Path], machine: Machine) -> Instants:
     parts: list[Snapshots] = []
     total = 0
     for path in paths:
-        rows = list(run_estimates([path], machine))
+        rows, states = _replayed(path, machine)
         if not rows:
             raise RecordingError(path, "no leg estimates: no /can/raw leg frames to replay")
         config = machine[0]
@@ -80,7 +86,7 @@ def read_instants(paths: Sequence[Path], machine: Machine) -> Instants:
             leg.cycle_time_s for leg in config.legs.values()
         )
         snaps = snapshots(rows, legs, PERIOD_S, stale_s)
-        still = _still(path, snaps.t_s)
+        still = _still(states, snaps.t_s)
         keep = quasi_static(snaps, WINDOW, MAX_CHANGE_N) & still
         total += len(snaps.t_s)
         parts.append(
@@ -97,18 +103,23 @@ def read_instants(paths: Sequence[Path], machine: Machine) -> Instants:
     )
 
 
-def _still(path: Path, t_s: npt.NDArray[np.float64]) -> npt.NDArray[np.bool_]:
+def _replayed(path: Path, machine: Machine) -> tuple[list[LegEstimate], list[StateRow]]:
+    """The leg estimates and machine states (of the ``MACHINE_STATE`` frames whose
+    CRC was fine) of one recording or CAN log, replayed."""
+    rows: list[LegEstimate] = []
+    states: list[StateRow] = []
+    for result in recording_results([path], machine):
+        rows.extend(result.estimates)
+        decoded = result.decoded
+        if decoded is not None and SIGNALS_PREFIX + decoded.message == STATE_TOPIC:
+            state = StateTrack.row(signals_payload(decoded))
+            if state is not None:
+                states.append(state)
+    return rows, states
+
+
+def _still(rows: Sequence[StateRow], t_s: npt.NDArray[np.float64]) -> npt.NDArray[np.bool_]:
     """True at the times whose movement phase (the latest MACHINE_STATE before) is still."""
-    rows = []
-    try:
-        with open(path, "rb") as stream:
-            for record in RecordingStream(stream, str(path)):
-                if isinstance(record, RecordedMessage) and record.topic == STATE_TOPIC:
-                    row = StateTrack.row(json.loads(record.data))
-                    if row is not None:
-                        rows.append(row)
-    except OSError as exc:
-        raise RecordingError(path, f"cannot read it: {exc.strerror or exc}") from exc
     if not rows:
         return np.ones(t_s.shape, dtype=bool)
     state = StateTrack.of(rows)

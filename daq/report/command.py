@@ -59,7 +59,8 @@ def parse_report_args(args: Sequence[str]) -> ReportOptions:
         "recording",
         type=Path,
         nargs="+",
-        help="a service recording (.mcap); rotated: the files or the directory of the run",
+        help="a service recording (.mcap); rotated: the files or the directory of the run; "
+        "or CAN logs (candump .log, .asc, .blf, ...: need --config)",
     )
     parser.add_argument(
         "--out", type=Path, help="output directory (default: <recording stem>_report beside it)"

@@ -18,6 +18,10 @@ estimates the live service would have recorded, bit for bit. So is a recording w
 ``/can/raw`` holds batches (:mod:`daq.can_batch`): they store the frames only, and the
 signals (machine state, message counts) and bad frames come from the replay, unless
 signals were recorded (``[recording] signals = true``).
+
+CAN logs of other tools (candump ``.log``, ``.asc``, ``.blf``, ...: anything not
+``.mcap``) need ``config_path``: their frames are chained as replay chains them
+(:func:`daq.replay.chained_log_frames`) and everything is derived from them.
 """
 
 import logging
@@ -26,15 +30,13 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import IO
 
-from mcap.writer import MCAP0_MAGIC
-
 from daq.can_batch import ENCODING as BATCH_ENCODING
 from daq.can_batch import recorded_frames
 from daq.errors import RecordingError
 from daq.mcap_file import RAW_TOPIC
 from daq.mcap_reading import RecordedAttachment, RecordedMessage, RecordingStream
 from daq.recording_run import expand, run_files
-from daq.replay import Machine, embedded_machine, run_results
+from daq.replay import Machine, embedded_machine, is_can_log, recording_results, run_results
 from daq.report.tracks import Recording, RecordingCollector
 from dbc.errors import ConfigError, DbcError
 from dbc.machine import MachineConfig, load_machine_config
@@ -62,17 +64,6 @@ def _open(path: Path) -> IO[bytes]:
         raise RecordingError(path, f"cannot open it: {exc.strerror or exc}") from exc
 
 
-def _check_magic(path: Path) -> None:
-    """RecordingError unless ``path`` starts like an MCAP file."""
-    with _open(path) as stream:
-        try:
-            start = stream.read(len(MCAP0_MAGIC))
-        except OSError as exc:
-            raise RecordingError(path, f"cannot read it: {exc.strerror or exc}") from exc
-    if start != MCAP0_MAGIC:
-        raise RecordingError(path, "not an MCAP file (a service recording is .mcap)")
-
-
 def load_recording(paths: Path | Sequence[Path], config_path: Path | None = None) -> Recording:
     """Read a recording (a file, or the files or directory of one run) into a
     :class:`Recording`.
@@ -82,8 +73,9 @@ def load_recording(paths: Path | Sequence[Path], config_path: Path | None = None
     ``config_path``, or estimates to recompute without any configuration).
     """
     given = [paths] if isinstance(paths, Path) else paths
-    for path in expand(given):
-        _check_magic(path)
+    logs = expand(given)
+    if any(is_can_log(path) for path in logs):
+        return _log_recording(logs, config_path)
     files = run_files(given)
     first = files[0]
     machine: Machine | None = load_machine_config(config_path) if config_path else None
@@ -133,9 +125,29 @@ def load_recording(paths: Path | Sequence[Path], config_path: Path | None = None
             collector.derive(result, bad=batches, signals=derive_signals, estimates=recomputed)
     config: MachineConfig | None = machine[0] if machine is not None else None
     machine_id = config.machine_id if config else machine_id_from_name(first) or first.stem
-    name = (
-        first.name if len(files) == 1 else f"{first.name} .. {files[-1].name} ({len(files)} files)"
-    )
     return collector.recording(
-        name, config, machine_id=machine_id, recomputed=recomputed, complete=complete
+        _name(files), config, machine_id=machine_id, recomputed=recomputed, complete=complete
+    )
+
+
+def _log_recording(files: Sequence[Path], config_path: Path | None) -> Recording:
+    """CAN logs of other tools (candump, ASC, BLF, ...), chained as replay chains them,
+    through the pipeline of ``config_path``: everything derived from their frames."""
+    if config_path is None:
+        raise ConfigError(files[0], "", "reporting a CAN log needs --config (the machine config)")
+    machine = load_machine_config(config_path)
+    config = machine[0]
+    collector = RecordingCollector()
+    for result in recording_results(files, machine):
+        collector.add_frames((result.frame,))
+        collector.derive(result, bad=True, signals=True, estimates=True)
+    if collector.frames == 0:
+        raise RecordingError(files[0], "holds no CAN frames: nothing to report")
+    return collector.recording(_name(files), config, machine_id=config.machine_id, recomputed=True)
+
+
+def _name(files: Sequence[Path]) -> str:
+    first = files[0]
+    return (
+        first.name if len(files) == 1 else f"{first.name} .. {files[-1].name} ({len(files)} files)"
     )

@@ -12,7 +12,7 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from datetime import UTC, datetime
 
-from daq.report.content import ReportContent
+from daq.report.content import ReportContent, log_time
 from daq.report.figures import PAPER_ABS50_N, PAPER_ABS95_N
 from estimator.settings import EstimatorSettings
 
@@ -41,7 +41,7 @@ def _number(value: float, scale: float = 1.0, digits: int = 1) -> str:
 
 
 def _time(t_s: float) -> str:
-    return f"{datetime.fromtimestamp(t_s, UTC):%Y-%m-%d %H:%M:%S.%f}"[:-3] + " UTC"
+    return log_time(t_s) or f"{datetime.fromtimestamp(t_s, UTC):%Y-%m-%d %H:%M:%S.%f}"[:-3] + " UTC"
 
 
 def _table(header: Sequence[str], rows: Iterable[Sequence[str]], text_columns: int = 1) -> str:

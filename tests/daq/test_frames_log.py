@@ -18,6 +18,7 @@ from pathlib import Path
 import can
 import pytest
 
+from daq.errors import RecordingError
 from daq.replay import replay
 from daq.service_config import load_service_config
 from sim_bridge.__main__ import cli
@@ -134,3 +135,38 @@ def test_a_malformed_line_in_a_can_log_is_one_line_naming_file_and_frame(
     assert replay_main([str(log), "--config", str(EXAMPLE_CONFIG)]) == 1
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and f"{log}: unreadable after frame 3:" in err[0], err
+
+
+def test_a_log_of_two_buses_is_replayed_one_channel_at_a_time(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """A logger on two buses may see the legs' IDs on both (another node, another DBC):
+    ``--channel`` picks the machine's bus; without it, replay says it mixes them."""
+    from dbc.encoding import FrameEncoder
+    from dbc.machine import load_machine_config
+
+    config, database = load_machine_config(EXAMPLE_CONFIG)
+    encoder = FrameEncoder.from_config(config, database)
+    log = tmp_path / "two_buses.log"
+    with can.Logger(log) as writer:
+        for k in range(5):
+            signals = {"SB1_F1_pPiston": 9e6 + k * 1e5, "SB1_F1_pRod": 1e6, "SB1_F1_Status": "ok"}
+            frame = encoder.encode("LEG_SB1_F1", signals)
+            for channel, data in (("can0", frame.data), ("can1", bytes(range(8)))):
+                writer.on_message_received(can.Message(timestamp=1_750_000_000.0 + k / 100,
+                    arbitration_id=frame.arbitration_id, is_extended_id=False, data=data,
+                    channel=channel))  # fmt: skip
+    out = io.StringIO()
+    assert replay(log, out, EXAMPLE_CONFIG, channel="can0") == 5
+    rows = list(csv.DictReader(io.StringIO(out.getvalue())))
+    assert [float(row["p_piston_Pa"]) for row in rows] == [9e6 + k * 1e5 for k in range(5)]
+    assert all(row["valid"] == "1" for row in rows)
+    assert not caplog.records
+    assert replay(log, io.StringIO(), EXAMPLE_CONFIG) == 10
+    warning, unused = caplog.records
+    assert "more than one channel (can0, can1)" in warning.getMessage()
+    assert unused.getMessage() == "10 frames, 5 of them not used (crc 5)"  # can1's
+    with pytest.raises(
+        RecordingError, match=r"no frame on channel 'can2'; its channels: can0, can1"
+    ):
+        replay(log, io.StringIO(), EXAMPLE_CONFIG, channel="can2")

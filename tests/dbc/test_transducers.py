@@ -269,6 +269,21 @@ def test_other_chamber_older_than_max_skew_makes_the_sample_invalid() -> None:
     assert (late.valid, late.reasons) == (False, ("rod_stale",))
 
 
+def test_the_other_chamber_exactly_max_skew_older_is_fresh_at_unix_times() -> None:
+    """Senders on one clock (a hub, the bridge): each piston frame goes out with the rod
+    frame of the cycle before, exactly ``max_skew_s`` older. At Unix times the difference
+    of two frame times is rounded (to ~0.2 us), which must not make some samples stale."""
+    bench = Bench()
+    reasons = []
+    for k in range(300):
+        t_s = round(1_795_400_000.123456 + k * 0.01, 6)
+        piston = bench.raw(j1939_id(6, 0x21), pressure_bytes(90.0), t_s, True)
+        reasons += [estimate.reasons for estimate in piston]
+        bench.raw(j1939_id(6, 0x22), pressure_bytes(5.0), t_s, True)
+    assert "rod_stale" in reasons[0]  # no rod value yet
+    assert all(r == () for r in reasons[1:]), [r for r in reasons[1:] if r]
+
+
 def test_rod_trigger_and_each_chambers_status_follows_its_own_frame() -> None:
     text = BASE.replace("max_skew_s = 0.004", 'max_skew_s = 0.004\ntrigger = "rod"')
     bench = Bench(text)

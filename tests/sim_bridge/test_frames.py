@@ -146,3 +146,26 @@ def test_played_rows_follow_the_simulation_time() -> None:
     cycles = [f.signals["Machine_CycleCount"] for f in frames_of(played, "MACHINE_STATE")]
     assert cycles == [0] * 5 + [1] * 5 + [2] * 2
     assert all(frame.counter_ok and frame.crc_ok for step in played for frame in step.frames)
+
+
+def test_the_pose_signals_of_the_stability_config_carry_the_bridge_pose(
+    result: SimulationResult,
+) -> None:
+    """A DBC naming the bridge angles its own way: the bridge finds them through
+    ``[stability]`` (not by the project's names), so the service's margin sees the pose."""
+    from dbc.database import load_database_string
+    from dbc.machine import DEFAULT_DBC_PATH
+
+    text = DEFAULT_DBC_PATH.read_text(encoding="cp1252")
+    renamed = text.replace("Bridge_RotationAngle", "RotAngle").replace("Bridge_FoldAngle", "Fold")
+    database = load_database_string(renamed, "renamed.dbc")
+    data = tomllib.loads(EXAMPLE_CONFIG.read_text())
+    data["stability"]["rotation"] = "BRIDGE_MOTION.RotAngle"
+    data["stability"]["fold"] = "BRIDGE_POSE.Fold"
+    builder = FrameBuilder(parse_machine_config(data, "renamed.toml", database), database)
+    row = 150  # the bridge rotated and folded
+    motion = builder.signals("BRIDGE_MOTION", result, row, 0)
+    pose = builder.signals("BRIDGE_POSE", result, row, 0)
+    assert motion["RotAngle"] == pytest.approx(result.rotation_deg[row])
+    assert pose["Fold"] == pytest.approx(result.fold_deg[row])
+    assert not {"BRIDGE_MOTION.RotAngle", "BRIDGE_POSE.Fold"} & set(builder.defaulted)

@@ -1,0 +1,296 @@
+"""CAN logs written by other tools, given to ``replay``, ``report``, ``calibrate``,
+``export`` and ``recover``: read right, or refused in one line (never a traceback,
+never a silent wrong time or an empty output with exit 0)."""
+
+from __future__ import annotations
+
+import io
+import logging
+import uuid
+from collections.abc import Iterator
+from pathlib import Path
+
+import can
+import pytest
+
+from daq.replay import can_log_frames, is_can_log, replay
+from dbc.machine import load_machine_config
+from tests.helpers import EXAMPLE_CONFIG
+
+
+@pytest.fixture(autouse=True)
+def _no_handler_left_behind() -> Iterator[None]:
+    """The commands' ``setup_logging`` binds the root logger to this test's captured
+    stderr, closed after it: a later test's log line would go there."""
+    before = list(logging.getLogger().handlers)
+    yield
+    for handler in list(logging.getLogger().handlers):
+        if handler not in before:
+            logging.getLogger().removeHandler(handler)
+
+
+ASC_RELATIVE = """\
+date Tue Dec 01 19:40:44.232 2026
+base hex  timestamps relative
+internal events logged
+Begin Triggerblock Tue Dec 01 19:40:44.232 2026
+   0.000000 Start of measurement
+   0.010000 2  100             Rx   d 8 00 00 00 00 00 00 00 00
+   0.010000 2  18FEF100x       Rx   d 8 00 00 00 00 00 00 00 00
+   0.005000 2  100             Rx   d 8 00 00 00 00 00 00 00 00
+End TriggerBlock
+"""
+
+
+def test_an_asc_log_with_relative_timestamps_counts_them_from_the_start(tmp_path: Path) -> None:
+    # "timestamps relative": each time is the step since the event before (Vector's
+    # format); python-can reads them as they stand, which made time jump back and forth.
+    log = tmp_path / "relative.asc"
+    log.write_text(ASC_RELATIVE)
+    frames = list(can_log_frames(log))
+    assert [f.t_s for f in frames] == pytest.approx([0.010, 0.020, 0.025], abs=1e-12)
+    assert [(f.arbitration_id, f.is_extended_id) for f in frames] == [
+        (0x100, False),
+        (0x18FEF100, True),
+        (0x100, False),
+    ]
+    absolute = tmp_path / "absolute.asc"
+    absolute.write_text(ASC_RELATIVE.replace("relative", "absolute"))
+    assert [f.t_s for f in can_log_frames(absolute)] == [0.010, 0.010, 0.005]
+
+
+def test_candump_error_frames_keep_to_the_channel_asked_and_are_counted(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], caplog: pytest.LogCaptureFixture
+) -> None:
+    # python-can gives a candump error frame no channel: it is not a second bus.
+    from daq.replay_command import replay_main
+
+    log = tmp_path / "errors.log"
+    log.write_text(
+        "(1750000000.000000) can0 100#0000000000000000\n"
+        "(1750000000.001000) can0 20000080#0000000000000000\n"
+        "(1750000000.002000) can0 7FF#01\n"
+        "(1750000000.003000) can0 100#R\n"
+    )
+    frames = list(can_log_frames(log, "can0"))
+    assert [(f.is_error_frame, f.is_remote_frame) for f in frames] == [
+        (False, False),
+        (True, False),
+        (False, False),
+        (False, True),
+    ]
+    assert replay_main([str(log), "--config", str(EXAMPLE_CONFIG), "--out", "/dev/null"]) == 0
+    assert "more than one channel" not in caplog.text
+    err = capsys.readouterr().err
+    assert "4 frames" in err and "error_frame 1" in err and "remote_frame 1" in err, err
+
+
+@pytest.mark.parametrize(
+    ("name", "content", "reason"),
+    [
+        pytest.param(  # python-can's BLFReader leaves its file open when the header fails
+            "garbage.blf",
+            b"garbage",
+            "cannot read it as a CAN log",
+            marks=pytest.mark.filterwarnings("ignore::pytest.PytestUnraisableExceptionWarning"),
+        ),
+        ("garbage.db", b"garbage\n" * 100, "unreadable after frame 0: file is not a database"),
+        ("missing.db", None, "cannot read it as a CAN log"),
+        ("cycle.txt", b"(1.0) can0 100#00\n", 'unknown log format ".txt"'),
+        (  # candump -L always names the interface; some tools leave it out
+            "no_interface.log",
+            b"(1750000000.000000) 100#0000000000000000\n",
+            "unreadable after frame 0: not enough values to unpack (expected 3, got 2) "
+            "(a candump -L line is '(TIME) INTERFACE ID#DATA')",
+        ),
+    ],
+)
+def test_an_unreadable_or_unknown_log_is_one_line(
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    name: str,
+    content: bytes | None,
+    reason: str,
+) -> None:
+    from daq.replay_command import replay_main
+
+    log = tmp_path / name
+    if content is not None:
+        log.write_bytes(content)
+    assert replay_main([str(log), "--config", str(EXAMPLE_CONFIG)]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"portal-daq: {log}: ") and reason in err[0], err
+    assert content is not None or not log.exists()  # reading created no file
+
+
+def test_an_mf4_log_without_asammdf_says_what_to_install(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    pytest.importorskip("can.io.mf4")
+    from can.io import mf4
+
+    if mf4.asammdf is not None:  # type: ignore[attr-defined]
+        pytest.skip("asammdf is installed")
+    from daq.replay_command import replay_main
+
+    log = tmp_path / "trace.mf4"
+    log.write_bytes(b"MDF     4.10    ")
+    assert replay_main([str(log), "--config", str(EXAMPLE_CONFIG)]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "asammdf" in err[0], err
+
+
+def candump_log(path: Path, start_s: float = 1_750_000_000.0) -> Path:
+    with can.Logger(path) as writer:
+        for k in range(3):
+            writer.on_message_received(
+                can.Message(timestamp=start_s + k / 100, arbitration_id=0x100, data=bytes(8))
+            )
+    return path
+
+
+@pytest.mark.parametrize(
+    "command",
+    [
+        ["report", "--campaign", "--workers", "1", "--out", "{tmp}/camp"],
+        ["export", "--to", "asc", "--out", "{tmp}/out.asc"],
+        ["recover", "-o", "{tmp}/out.mcap"],
+    ],
+)
+def test_a_can_log_given_where_a_recording_is_needed_is_refused_in_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], command: list[str]
+) -> None:
+    from daq.cli import main
+
+    log = candump_log(tmp_path / "cycle.log")
+    name, *options = command
+    args = [name, str(log), *(o.replace("{tmp}", str(tmp_path)) for o in options)]
+    assert main(args) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"portal-daq: {log}: not an MCAP file (a service recording is .mcap)"], err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["cycle.log"]  # nothing written
+
+
+def test_logs_given_out_of_order_are_chained_as_given_with_a_warning(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    # The median and contact carry over from one log to the next: a log that begins
+    # before the one before it ended (wrong order, two loggers, times from 0) says so.
+    morning = candump_log(tmp_path / "morning.log", start_s=1_750_000_000.0)
+    noon = candump_log(tmp_path / "noon.log", start_s=1_750_007_200.0)
+    assert replay([morning, noon], io.StringIO(), EXAMPLE_CONFIG) == 0
+    assert "out of order" not in caplog.text
+    assert replay([noon, morning], io.StringIO(), EXAMPLE_CONFIG) == 0
+    (line,) = [r.getMessage() for r in caplog.records if "out of order" in r.getMessage()]
+    assert line == (
+        f"{morning} begins 7200.020 s before {noon} ends: logs out of order or overlapping? "
+        "chained in the order given"
+    )
+
+
+def sim_log(tmp_path: Path, name: str = "cycle.log", seconds: float = 1.0) -> Path:
+    from sim_bridge.__main__ import cli
+
+    log = tmp_path / name
+    args = ["--interface", "virtual", "--channel", f"log-{uuid.uuid4()}", "--as-fast-as-possible"]
+    assert cli([*args, "-q", "--duration", str(seconds), "--frames-log", str(log)]) == 0
+    return log
+
+
+def test_a_can_log_is_reported_with_config_as_its_replay_gives(tmp_path: Path) -> None:
+    from daq.report.command import report_main
+    from daq.report.loading import load_recording
+
+    log = sim_log(tmp_path)
+    lines = log.read_text().splitlines()
+    # a foreign node and an error frame among the machine's frames
+    stamp = lines[5].split()[0]
+    lines[5:5] = [f"{stamp} can0 7FF#01", f"{stamp} can0 20000080#00"]
+    log.write_text("\n".join(lines) + "\n")
+    out = io.StringIO()
+    rows = replay(log, out, EXAMPLE_CONFIG)
+    recording = load_recording(log, EXAMPLE_CONFIG)
+    assert recording.recomputed and recording.machine_id == "pam-proto-1"
+    assert recording.counts.frames == len(lines)
+    assert recording.counts.estimates == rows == 6 * 100
+    assert recording.counts.bad == {"unknown_id": 1, "error_frame": 1}
+    assert recording.counts.messages["LEG_SB1_F1"] == 100
+    first = float(lines[0][1 : lines[0].index(")")])
+    assert recording.start_t_s == first
+    assert (
+        report_main([str(log), "--config", str(EXAMPLE_CONFIG), "--out", str(tmp_path / "r")]) == 0
+    )
+    assert (tmp_path / "r" / "report.html").is_file()
+    # without a config: what it needs, exit 2
+    assert report_main([str(log), "--out", str(tmp_path / "r2")]) == 2
+
+
+def test_a_log_with_times_from_0_is_reported_without_a_1970_date(tmp_path: Path) -> None:
+    from daq.report.command import report_main
+
+    log = sim_log(tmp_path)
+    lines = log.read_text().splitlines()
+    t0 = float(lines[0][1 : lines[0].index(")")])
+    relative = tmp_path / "relative.log"
+    relative.write_text(
+        "".join(f"({float(l[1 : l.index(')')]) - t0:.6f}){l[l.index(')') + 1 :]}\n" for l in lines)
+    )
+    out = tmp_path / "r"
+    assert report_main([str(relative), "--config", str(EXAMPLE_CONFIG), "--out", str(out)]) == 0
+    page = (out / "report.html").read_text()
+    assert "1970" not in page
+    assert "log time, no date" in page
+
+
+@pytest.mark.parametrize(
+    ("name", "expected"),
+    [("a.log", True), ("a.ASC", True), ("a.blf", True), ("a.trc", True), ("a.log.gz", True),
+     ("a.mcap", False), ("a.toml", False), ("a.gz", False), ("a", False), ("a.tar.gz", False)],
+)  # fmt: skip
+def test_which_files_are_can_logs(name: str, expected: bool) -> None:
+    assert is_can_log(Path(name)) is expected
+
+
+def test_calibrate_takes_the_movement_phase_from_the_frames_of_a_log_or_a_recording(
+    tmp_path: Path,
+) -> None:
+    """The phase decides which instants are quasi-static: it is decoded from the
+    MACHINE_STATE frames, also of a CAN log and of a recording made without
+    ``[recording] signals`` (the default), where it was ignored before."""
+    from daq.calibrate.data import machine_for, read_instants
+    from daq.mcap_file import CONFIG_ATTACHMENT, DBC_ATTACHMENT, McapFile
+    from daq.pipeline import Pipeline
+    from dbc import DEFAULT_DBC_PATH
+    from dbc.errors import ConfigError
+
+    fast = sim_log(tmp_path, "fast.log", seconds=45.0)
+    # frame times of a real-time run: instant k (frames of one time stamp) at k * 10 ms
+    stamps: dict[str, int] = {}
+    log = tmp_path / "cycle.log"
+    with open(fast) as lines, open(log, "w") as out:
+        for line in lines:
+            stamp, rest = line.split(" ", 1)
+            out.write(f"({1_796_150_000 + stamps.setdefault(stamp, len(stamps)) / 100:.6f}) {rest}")
+    machine = load_machine_config(EXAMPLE_CONFIG)
+    recordings = {}
+    for signals in (True, False):
+        path = recordings[signals] = tmp_path / f"signals_{signals}.mcap"
+        pipeline = Pipeline.from_config(*machine)
+        with open(path, "wb") as stream, McapFile(stream, machine[1]) as mcap:
+            mcap.start(
+                {
+                    CONFIG_ATTACHMENT: EXAMPLE_CONFIG.read_bytes(),
+                    DBC_ATTACHMENT: DEFAULT_DBC_PATH.read_bytes(),
+                }
+            )
+            for frame in can_log_frames(log):
+                mcap.write_result(pipeline.process(frame), signals=signals)
+    recorded = read_instants([recordings[True]], machine)
+    assert 50 < len(recorded.t_s) < recorded.total - 200  # moving phases left out
+    for path in (recordings[False], log):
+        instants = read_instants([path], machine)
+        assert instants.total == recorded.total
+        assert list(instants.t_s) == list(recorded.t_s)
+        assert (instants.force_N == recorded.force_N).all()
+    with pytest.raises(ConfigError, match="needs --config"):
+        machine_for([log], None)
