@@ -290,6 +290,7 @@ def parse_machine_config(
         name: _protection(name, table, database)
         for name, table in root.table("protection", required=False).subtables()
     }
+    _check_senders(legs_table, legs, database)
     unit_factors = _unit_factors(legs_table, legs, database)
     return MachineConfig(
         source=source,
@@ -567,6 +568,33 @@ def _message(table: TomlTable, key: str, name: str, database: Database) -> Messa
         return database.get_message_by_name(name)
     except KeyError:
         raise table.error(key, f"no message {name!r} in the DBC") from None
+
+
+def _check_senders(
+    legs_table: TomlTable, legs: Mapping[str, LegConfig], database: Database
+) -> None:
+    """A J1939 signal that several chambers read (one transducer each, one PGN) needs each
+    chamber's source address: without it, every transducer's frames would feed it."""
+    readers: dict[tuple[str, str], list[tuple[str, str, int | None]]] = {}
+    for leg in legs.values():
+        for key in TRIGGERS:
+            chamber: ChamberSignal = getattr(leg, key)
+            where = (chamber.message, chamber.signal)
+            readers.setdefault(where, []).append((leg.name, key, chamber.source_address))
+    for (message, signal), chambers in readers.items():
+        if len(chambers) < 2 or not is_j1939(database.get_message_by_name(message)):
+            continue
+        for leg_name, key, address in chambers:
+            if address is None:
+                other_leg, other_key, other_address = next(
+                    c for c in chambers if c[:2] != (leg_name, key)
+                )
+                sender = "any sender" if other_address is None else f"0x{other_address:02X}"
+                raise legs_table.table(leg_name).error(
+                    key,
+                    f"{message}.{signal} is also legs.{other_leg}.{other_key}'s (from {sender}): "
+                    "give each chamber its transducer's source_address",
+                )
 
 
 def _unit_factors(

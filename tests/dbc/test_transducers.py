@@ -562,6 +562,12 @@ def test_one_dbc_message_per_sender_of_a_pgn() -> None:
         ),
         ('rod = "LEG_HUB.pRod"', 'rod = "LEG_HUB.pPiston"', "legs.HUB.rod", "LEG_HUB.pPiston"),
         (
+            'rod = { signal = "HYD_PRESS.Pressure", source_address = 0x24 }',
+            'rod = "HYD_PRESS.Pressure"',
+            "legs.J2.rod",
+            "HYD_PRESS.Pressure is also legs.J1.piston's (from 0x21)",
+        ),
+        (
             'source_address = 0x21, status = "Status" }',
             "sa = 1 }",
             "legs.J1.piston.sa",
