@@ -5,11 +5,11 @@ It takes frames and bus events from the reader's queue, everything queued in one
 :class:`~daq.pipeline.Pipeline`, and hands the results on through bounded queues
 (``submit`` never blocks): to the recorder one :class:`~daq.mcap_file.RecordBatch`
 per run of frames (a bus event between frames is handed on in its place), to the
-publisher, as one batch, each leg estimate (JSON encoded once, the same bytes the recorder writes)
-and the decoded signals of each message at most ``[publish] signals_max_rate_hz``
-(by frame time). It owns the estimator, so it also builds the timed messages: the
-all-legs ground message at ``ground_rate_hz`` and the soil metrics every
-``status_period_s``.
+publisher, as one batch, each leg estimate (JSON encoded once, the same bytes the
+recorder writes) and the decoded signals of each message (of each J1939 sender) at
+most ``[publish] signals_max_rate_hz`` (by frame time). It owns the estimator, so it
+also builds the timed messages: the all-legs ground message at ``ground_rate_hz`` and
+the soil metrics every ``status_period_s``.
 """
 
 import logging
@@ -117,8 +117,8 @@ class Consumer(Worker):
         self._now = now
         rate_hz = settings.signals_max_rate_hz
         self._signals_period_s = 1.0 / rate_hz if rate_hz > 0 else 0.0
-        #: Frame time of the signals last published, by message.
-        self._signals_published_t_s: dict[str, float] = {}
+        #: Frame time of the signals last published, by message and J1939 sender.
+        self._signals_published_t_s: dict[tuple[str, int | None], float] = {}
         self._monotonic = monotonic
         #: ``monotonic()`` when the latest frame was handled.
         self._latest_handled_s = float("nan")
@@ -204,11 +204,13 @@ class Consumer(Worker):
             self._hand_over()
 
     def _signals_due(self, decoded: DecodedFrame) -> bool:
-        """At most one message's signals per ``signals_max_rate_hz`` (by frame time)."""
-        last_t_s = self._signals_published_t_s.get(decoded.message, float("-inf"))
+        """At most one frame's signals per ``signals_max_rate_hz`` (by frame time) for each
+        message and sender: J1939 transducers sharing a PGN each get their share."""
+        key = (decoded.message, decoded.source_address)
+        last_t_s = self._signals_published_t_s.get(key, float("-inf"))
         if not decoded.t_s - last_t_s >= self._signals_period_s:
             return False
-        self._signals_published_t_s[decoded.message] = decoded.t_s
+        self._signals_published_t_s[key] = decoded.t_s
         return True
 
     def judged_at(self) -> float:
