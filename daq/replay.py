@@ -26,7 +26,7 @@ import struct
 import tomllib
 from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
-from typing import IO
+from typing import IO, Any
 
 import can
 from can.io.player import MESSAGE_READERS
@@ -63,6 +63,9 @@ Machine = tuple[MachineConfig, Database]
 
 #: What python-can's log parsers raise for a file they cannot read (SQLite's for ``.db``).
 _READER_ERRORS = (ValueError, IndexError, KeyError, struct.error, sqlite3.Error)
+
+#: EDL in the flags of an ASC ``CANFD`` line (and of a BLF CAN FD message): an FD frame.
+_EDL = 1 << 12
 
 #: What a line of a text log must look like, for an error whose reason python-can words
 #: as its code sees it (``not enough values to unpack``).
@@ -188,7 +191,7 @@ def can_log_frames(path: Path, channel: str | None = None) -> Iterator[RawFrame]
     if not path.is_file():  # python-can's SQLite reader would create it
         raise RecordingError(path, "cannot read it as a CAN log: no such file")
     try:
-        reader = can.LogReader(str(path))
+        reader = AscReader(str(path)) if path.suffix.lower() == ".asc" else can.LogReader(str(path))
     except (OSError, NotImplementedError, *_READER_ERRORS) as exc:  # NotImplemented: no asammdf
         raise RecordingError(path, f"cannot read it as a CAN log: {exc}") from exc
     count = 0
@@ -220,6 +223,27 @@ def can_log_frames(path: Path, channel: str | None = None) -> Iterator[RawFrame]
         raise RecordingError(
             path, f"no frame on channel {channel!r}; its channels: {', '.join(sorted(channels))}"
         )
+
+
+class AscReader(can.ASCReader):
+    """python-can's ASC reader, except that a ``CANFD`` line is an FD frame only when its
+    flags have EDL (bit 12) set, as python-can's BLF reader has it: Vector's tools log
+    the classic frames of a CAN FD channel as ``CANFD`` lines too, which python-can made
+    FD frames (refused as ``fd_frame``)."""
+
+    def _process_fd_can_frame(self, line: str, msg_kwargs: dict[str, Any]) -> can.Message:
+        message = super()._process_fd_can_frame(line, msg_kwargs)
+        if message.is_error_frame:
+            return message
+        # CHANNEL DIR ID [NAME] BRS ESI DLC LENGTH DATA... DURATION BITS FLAGS ...
+        fields = line.split()
+        length_at = 6 if fields[3].isdigit() else 7
+        try:
+            flags = int(fields[length_at + int(fields[length_at]) + 3], 16)
+        except (IndexError, ValueError):  # a line of an older format: python-can's way
+            return message
+        message.is_fd = bool(flags & _EDL)
+        return message
 
 
 def _open(path: Path) -> IO[bytes]:

@@ -294,3 +294,28 @@ def test_calibrate_takes_the_movement_phase_from_the_frames_of_a_log_or_a_record
         assert (instants.force_N == recorded.force_N).all()
     with pytest.raises(ConfigError, match="needs --config"):
         machine_for([log], None)
+
+
+ASC_FD_CHANNEL = """\
+date Tue Dec 01 19:40:44.232 2026
+base hex  timestamps absolute
+internal events logged
+Begin Triggerblock Tue Dec 01 19:40:44.232 2026
+   0.010000 CANFD 1 Rx 100 LEG_SB1_F1 0 0 8 8 01 02 03 04 05 06 07 08 130000 130 2000 0 0 0 0 0
+   0.020000 CANFD 1 Rx 123 1 0 9 12 01 02 03 04 05 06 07 08 09 0A 0B 0C 130000 130 323000 0 0 0 0 0
+   0.030000 CANFD 1 Rx 100 0 0 8 8 01 02 03 04 05 06 07 08 130000 130 0 0 0 0 0 0
+End TriggerBlock
+"""
+
+
+def test_a_classic_frame_on_a_can_fd_channel_of_an_asc_log_is_no_fd_frame(tmp_path: Path) -> None:
+    # Vector logs every frame of a CAN FD channel as a CANFD line; bit 12 of its flags
+    # (EDL) tells an FD frame. python-can made every such line FD: refused as fd_frame.
+    log = tmp_path / "fd_channel.asc"
+    log.write_text(ASC_FD_CHANNEL)
+    frames = list(can_log_frames(log))
+    assert [(f.arbitration_id, f.is_fd, len(f.data)) for f in frames] == [
+        (0x100, False, 8),
+        (0x123, True, 12),
+        (0x100, False, 8),
+    ]
