@@ -235,18 +235,23 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     # The services idle while another system is measured, and say so ("not healthy: no
     # frame for 1.0 s"): true, and not what the benchmark reports.
-    logging.getLogger("daq").setLevel(logging.ERROR)
-    results = run_benchmark(
-        throughput_frames=args.throughput_frames,
-        rounds=args.rounds,
-        paced_s=args.paced_s,
-        nominal_s=args.nominal_s,
-        rate_hz=args.rate,
-        warmup=args.warmup,
-        window=args.window,
-        pin=not args.no_pin,
-        tuned=not args.no_tuned,
-    )
+    service_log = logging.getLogger("daq")
+    level = service_log.level
+    service_log.setLevel(logging.ERROR)
+    try:
+        results = run_benchmark(
+            throughput_frames=args.throughput_frames,
+            rounds=args.rounds,
+            paced_s=args.paced_s,
+            nominal_s=args.nominal_s,
+            rate_hz=args.rate,
+            warmup=args.warmup,
+            window=args.window,
+            pin=not args.no_pin,
+            tuned=not args.no_tuned,
+        )
+    finally:
+        service_log.setLevel(level)
     args.out.write_text(json.dumps(results, indent=2) + "\n")
     print(markdown_table(results))
     busy = [

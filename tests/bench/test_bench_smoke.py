@@ -5,6 +5,7 @@ threads, Zenoh on loopback, the probe process, MCAP into a temporary directory).
 """
 
 import json
+import logging
 from pathlib import Path
 
 import pytest
@@ -111,7 +112,9 @@ def test_command_line_writes_the_results_file(tmp_path: Path, capsys) -> None:  
     out = tmp_path / "results.json"
     argv = ["--throughput-frames", "100", "--paced-s", "0.02", "--rate", "2000", "--warmup", "20"]
     argv += ["--nominal-s", "0.02"]
+    level = logging.getLogger("daq").level
     assert main([*argv, "--no-pin", "--no-tuned", "--out", str(out)]) == 0
+    assert logging.getLogger("daq").level == level  # quiet while measuring only
     written = json.loads(out.read_text())
     assert "pipeline_tuned" not in written and "pipeline_threads" not in written
     assert written["pipeline"]["paced"]["frames"] == 40
