@@ -69,7 +69,10 @@ _EDL = 1 << 12
 
 #: What a line of a text log must look like, for an error whose reason python-can words
 #: as its code sees it (``not enough values to unpack``).
-_LINE_FORMATS = {".log": " (a candump -L line is '(TIME) INTERFACE ID#DATA')"}
+_LINE_FORMATS = {
+    ".log": " (a candump -L line is '(TIME) INTERFACE ID#DATA')",
+    ".csv": " (python-can's CSV: timestamp,arbitration_id,extended,remote,error,dlc,data)",
+}
 
 
 def results(pipeline: Pipeline, items: Iterable[RawFrame | BusEvent]) -> Iterator[FrameResult]:

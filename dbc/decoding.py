@@ -150,7 +150,7 @@ class _MessageCodec:
             return DecodedFrame(name, t_s, signals, (CRC_FAULT,), 0, source_address)
         if counter is None or counter_value is None:
             return DecodedFrame(name, t_s, signals, (), 0, source_address)
-        result = counter.update(counter_value)
+        result = counter.update(counter_value, t_s)
         faults = (result.fault,) if result.fault is not None else ()
         return DecodedFrame(name, t_s, signals, faults, result.lost, source_address)
 

@@ -24,6 +24,7 @@ package (the reference path); the hot path uses tables built from the same
 parameters (:class:`TableCrc`).
 """
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Literal
@@ -209,29 +210,42 @@ class CounterCheck:
     is ``counter`` (invalid; the sender restarted or many frames were lost). The
     first frame, and the first after :meth:`reset` (also called after a frame
     whose CRC failed: its counter is not trusted), is accepted as it comes; the
-    next frame is always judged against the value just seen.
+    next frame is always judged against the value just seen. So is a frame that comes
+    more than ``resync_after_s`` after the one before (frame times): after a silence
+    as long as a whole turn of the counter (the sender switched off, a log's gap),
+    the counter can no longer tell how many frames went missing, and the check starts
+    anew, as AUTOSAR's receivers resynchronise after a timeout.
 
     >>> check = CounterCheck(modulo=16, max_delta=2)
     >>> [(r.fault, r.lost) for r in map(check.update, (3, 4, 6, 6, 10, 11))]
     [(None, 0), (None, 0), (None, 1), ('counter_repeat', 0), ('counter', 3), (None, 0)]
+    >>> check = CounterCheck(modulo=16, max_delta=2, resync_after_s=0.16)
+    >>> [check.update(c, t).fault for c, t in ((3, 0.0), (9, 0.05), (5, 3600.0))]
+    [None, 'counter', None]
     """
 
-    def __init__(self, modulo: int = 16, max_delta: int = 2) -> None:
+    def __init__(
+        self, modulo: int = 16, max_delta: int = 2, resync_after_s: float = math.inf
+    ) -> None:
         if modulo < 2:
             raise ValueError(f"counter modulo must be >= 2, got {modulo}")
         if not 1 <= max_delta < modulo:
             raise ValueError(f"max_delta_counter must be 1..{modulo - 1}, got {max_delta}")
         self.modulo = modulo
         self.max_delta = max_delta
+        self.resync_after_s = resync_after_s
         self._last: int | None = None
+        self._last_t_s = math.nan
 
     def reset(self) -> None:
         """Forget the last value (after a gap in reception)."""
         self._last = None
 
-    def update(self, counter: int) -> CounterResult:
+    def update(self, counter: int, t_s: float = math.nan) -> CounterResult:
+        """Judge ``counter`` of a frame at frame time ``t_s`` (NaN: time not judged)."""
         last, self._last = self._last, counter
-        if last is None:
+        last_t_s, self._last_t_s = self._last_t_s, t_s
+        if last is None or t_s - last_t_s > self.resync_after_s:
             return _OK
         delta = (counter - last) % self.modulo
         if delta == 1:
@@ -283,4 +297,7 @@ class Protection:
         if self.counter is None:
             return None
         modulo = 2 ** message.get_signal_by_name(self.counter).length
-        return CounterCheck(modulo, self.max_delta_counter)
+        # A whole turn of the counter: longer silent, it cannot count what was lost.
+        cycle_ms = message.cycle_time
+        resync_after_s = modulo * cycle_ms / 1000.0 if cycle_ms else math.inf
+        return CounterCheck(modulo, self.max_delta_counter, resync_after_s)

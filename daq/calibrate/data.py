@@ -79,7 +79,7 @@ def read_instants(paths: Sequence[Path], machine: Machine) -> Instants:
     for path in paths:
         rows, states = _replayed(path, machine)
         if not rows:
-            raise RecordingError(path, "no leg estimates: no /can/raw leg frames to replay")
+            raise RecordingError(path, "no leg estimates: no leg frames to replay")
         config = machine[0]
         # A leg is stale as in the service: after stale_after_cycles of its cycle times.
         stale_s = config.estimator.stale_after_cycles * max(

@@ -97,6 +97,13 @@ def test_candump_error_frames_keep_to_the_channel_asked_and_are_counted(
         ("garbage.db", b"garbage\n" * 100, "unreadable after frame 0: file is not a database"),
         ("missing.db", None, "cannot read it as a CAN log"),
         ("cycle.txt", b"(1.0) can0 100#00\n", 'unknown log format ".txt"'),
+        (  # a CSV of other columns (our own replay's, say)
+            "estimates.csv",
+            b"leg,t,force_N,force_raw_N,pressure_Pa,p_piston_Pa,p_rod_Pa,contact,valid\n"
+            b"SB1_F1,0.0,1.0,1.0,1.0,1.0,1.0,1,1,\n",
+            "unreadable after frame 0: too many values to unpack (expected 7) (python-can's "
+            "CSV: timestamp,arbitration_id,extended,remote,error,dlc,data)",
+        ),
         (  # candump -L always names the interface; some tools leave it out
             "no_interface.log",
             b"(1750000000.000000) 100#0000000000000000\n",

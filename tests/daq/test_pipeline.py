@@ -67,11 +67,27 @@ def test_reset_counters_forgives_the_jump_after_a_gap() -> None:
     signals = leg_signals("SB1_F1", 9e6, 1e6)
     pipeline.process(raw(encoder.encode("LEG_SB1_F1", signals, counter=1), 0))
     pipeline.reset_counters()
-    after_gap = pipeline.process(raw(encoder.encode("LEG_SB1_F1", signals, counter=9), 1))
+    after_gap = pipeline.process(raw(encoder.encode("LEG_SB1_F1", signals, counter=9), 0.01))
     assert after_gap.estimates[0].valid
-    jump = pipeline.process(raw(encoder.encode("LEG_SB1_F1", signals, counter=3), 2))
+    jump = pipeline.process(raw(encoder.encode("LEG_SB1_F1", signals, counter=3), 0.02))
     assert jump.estimates[0].reasons == ("counter",)
     assert pipeline.bad == {"counter": 1}
+
+
+def test_a_silence_longer_than_a_turn_of_the_counter_restarts_its_check() -> None:
+    """LEG_SB1_F1: 4-bit counter, 10 ms cycle: a turn is 160 ms. A shorter gap still shows
+    the jump (frames lost); after a longer one (the sender switched off, a log's gap) the
+    counter cannot tell what was lost, and the first frame is taken as it comes."""
+    pipeline, encoder = make()
+    signals = leg_signals("SB1_F1", 9e6, 1e6)
+    pipeline.process(raw(encoder.encode("LEG_SB1_F1", signals, counter=1), 100.0))
+    short = pipeline.process(raw(encoder.encode("LEG_SB1_F1", signals, counter=9), 100.15))
+    assert short.estimates[0].reasons == ("counter",) and short.decoded is not None
+    assert short.decoded.frames_lost == 7
+    after_an_hour = pipeline.process(raw(encoder.encode("LEG_SB1_F1", signals, counter=4), 3700))
+    assert after_an_hour.estimates[0].valid and after_an_hour.decoded is not None
+    assert after_an_hour.decoded.frames_lost == 0
+    assert pipeline.bad == {"counter": 1} and pipeline.frames_lost == 7
 
 
 def test_json_payload_writes_nan_as_null() -> None:
