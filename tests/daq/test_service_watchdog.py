@@ -83,8 +83,14 @@ def wait_until(condition: object, timeout_s: float = WAIT_S) -> None:
 
 
 def test_kernel_drops_show_on_status_and_make_only_that_period_unhealthy(
-    config: ServiceConfig,
+    tmp_path: Path,
 ) -> None:
+    # The periods are the test's own status() calls: the service's loop takes its first
+    # status at start and the next an hour later (at 0.2 s it could take the drops' one).
+    path = write_service_config(
+        tmp_path, channel=f"test-{uuid.uuid4().hex}", port=free_port(), status_period_s=3600.0
+    )
+    config = load_service_config(path)
     source = KernelSource()
     with service_on(config, source) as service:
         before = service.status()
