@@ -175,9 +175,9 @@ class McapFile:
 
     ``close()`` writes the summary (``Writer.finish``); it is idempotent and does
     not close ``stream``. ``pause`` is called after each message written: the
-    recorder's thread lets the GIL go there (``time.sleep(0)``), so that writing a
-    batch holds up the thread that processes frames for one message at most, not
-    for the interpreter's switch interval (measured: the paced p99 latency).
+    recorder's thread lets the GIL go there now and then (:class:`daq.recorder.GilYield`),
+    so that writing a batch holds up the thread that processes frames for a fraction of
+    a millisecond, not for the interpreter's switch interval (measured: the paced p99).
     """
 
     def __init__(

@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 from mcap.reader import NonSeekingReader, make_reader
 
+from daq import recorder as recorder_module
 from daq.can_batch import recorded_frames
 from daq.errors import RecordingError
 from daq.frames import BusEvent, RawFrame
@@ -188,3 +189,18 @@ def test_the_writer_pauses_after_every_message() -> None:
         mcap.start()
         mcap.write_batch(RecordBatch.of(results(30), signals=True))
     assert written == list(range(1, 1 + 1 + 30 + 1))  # raw batch, leg batch, 30 signals
+
+
+def test_the_recorder_lets_the_gil_go_once_a_quarter_millisecond_of_writing(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    slept: list[float] = []
+    ticks = iter([0.0, 0.0001, 0.0002, 0.0003, 0.00031, 0.0004, 0.0006, 0.0007])
+    monkeypatch.setattr(recorder_module.time, "perf_counter", lambda: next(ticks))
+    monkeypatch.setattr(recorder_module.time, "sleep", slept.append)
+    pause = recorder_module.GilYield(every_s=0.00025)  # starts at 0.0
+    for _ in range(4):  # at 0.0001, 0.0002, 0.0003 (sleeps, restarts at 0.00031), 0.0004
+        pause()
+    assert slept == [0]
+    pause()  # 0.0006: more than 0.25 ms since 0.00031
+    assert slept == [0, 0]
