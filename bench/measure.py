@@ -23,7 +23,7 @@ since then, as a kernel time stamp would say).
 
 import threading
 from collections.abc import Callable, Collection, Mapping, Sequence
-from contextlib import AbstractContextManager
+from contextlib import AbstractContextManager, ExitStack
 from dataclasses import dataclass
 from typing import Any, Protocol
 
@@ -141,13 +141,28 @@ class System:
     threads: frozenset[int]
 
 
-def own_threads(before: Collection[int]) -> frozenset[int]:
-    """Native IDs of the Python threads that were not in ``before``."""
-    return frozenset(
-        thread.native_id
-        for thread in threading.enumerate()
-        if thread.native_id is not None and thread.native_id not in before
-    )
+class ManagedTarget(Target, Protocol):
+    """A :class:`Target` that starts on entering and stops on leaving its context."""
+
+    def __enter__(self) -> Any: ...
+
+    def __exit__(self, *exc_info: object) -> Any: ...
+
+
+def entered(
+    stack: ExitStack,
+    target: ManagedTarget,
+    interpreter: Callable[[], AbstractContextManager[None]],
+) -> System:
+    """``target`` entered on ``stack`` (started), as a :class:`System` whose threads are the
+    Python threads that entering it started."""
+
+    def python_threads() -> frozenset[int]:
+        return frozenset(t.native_id for t in threading.enumerate() if t.native_id is not None)
+
+    before = python_threads()
+    stack.enter_context(target)
+    return System(target, interpreter, python_threads() - before)
 
 
 def run_systems(

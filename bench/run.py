@@ -33,7 +33,6 @@ import logging
 import os
 import sys
 import tempfile
-import threading
 import time
 from collections import Counter
 from collections.abc import Sequence
@@ -43,7 +42,7 @@ from typing import Any
 
 from bench.frames import EXAMPLE_CONFIG, simulated_frames
 from bench.machine import free_port, machine_info, pin_to_one_cpu, unpin
-from bench.measure import Plan, System, own_threads, run_systems
+from bench.measure import Plan, System, entered, run_systems
 from bench.probe import ProbeProcess
 from bench.report import markdown_table, targets_met
 from bench.subscriber import peer_config
@@ -186,14 +185,10 @@ def _run_systems(
             workdir = Path(tmp) / name
             workdir.mkdir()
             config = service_config(workdir, PIPELINE_PREFIX.format(name=name), tables)
-            before = {thread.native_id for thread in threading.enumerate()}
-            services[name] = stack.enter_context(ServiceUnderTest(config, session))
-            systems[name] = System(services[name], tuned_interpreter, own_threads(before))
-        before = {thread.native_id for thread in threading.enumerate()}
-        baseline = stack.enter_context(
-            NaiveBaseline(config.machine, config.database, session, BASELINE_PREFIX)
-        )
-        systems["baseline"] = System(baseline, nullcontext, own_threads(before))
+            services[name] = ServiceUnderTest(config, session)
+            systems[name] = entered(stack, services[name], tuned_interpreter)
+        baseline = NaiveBaseline(config.machine, config.database, session, BASELINE_PREFIX)
+        systems["baseline"] = entered(stack, baseline, nullcontext)
         leg_ids = {
             config.database.get_message_by_name(leg.message).frame_id
             for leg in config.machine.legs.values()
