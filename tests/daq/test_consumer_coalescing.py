@@ -10,6 +10,8 @@ between ticks, and the period is 20/1024 s.
 
 import threading
 from collections.abc import Sequence
+from itertools import pairwise
+from pathlib import Path
 from typing import Any
 
 from daq.can_batch import MAX_FRAMES
@@ -17,10 +19,11 @@ from daq.consumer import RECORD_PERIOD_S, Consumer
 from daq.frames import BusEvent, RawFrame
 from daq.mcap_file import RecordBatch
 from daq.pipeline import Pipeline
-from daq.service_config import PublishSettings
+from daq.service import hold_overflow
+from daq.service_config import PublishSettings, ServiceConfig, load_service_config
 from dbc.encoding import FrameEncoder
 from estimator.machine import MachineSnapshot
-from tests.helpers import LEGS, example_machine
+from tests.helpers import LEGS, ROOT, example_machine
 
 CONFIG, DATABASE = example_machine()
 START_S = 1000.0
@@ -115,7 +118,7 @@ def leg_frames(count: int) -> list[RawFrame]:
 def run(poll_period_s: float, arrivals_s: list[float]) -> tuple[ScriptedSource, Collect]:
     """The consumer's thread on the scripted arrivals until every frame was taken."""
     clock = FakeClock()
-    source = ScriptedSource(clock, list(zip(arrivals_s, leg_frames(len(arrivals_s)))))
+    source = ScriptedSource(clock, list(zip(arrivals_s, leg_frames(len(arrivals_s)), strict=True)))
     collect = Collect(clock)
     consumer = Consumer(
         Pipeline.from_config(CONFIG, DATABASE),
@@ -146,7 +149,7 @@ def test_frames_arriving_within_a_period_are_handled_as_one_batch() -> None:
     assert [count for _, count in taking] == collect.batches
     # Each poll after a hold comes the period after the previous wake-up, not before.
     starts = [t_s for t_s, _ in taking]
-    assert [b - a for a, b in zip(starts, starts[1:])] == [PERIOD_S] * 5
+    assert [b - a for a, b in pairwise(starts)] == [PERIOD_S] * 5
     # No poll in between: the source was left alone while the frames came.
     last_frame_s = ARRIVALS_S[-1]
     assert sum(1 for t_s, _, _ in source.polls if t_s <= last_frame_s + PERIOD_S) == 6
@@ -156,7 +159,7 @@ def test_timers_run_on_time_during_the_holds() -> None:
     source, collect = run(PERIOD_S, ARRIVALS_S)
     ground_period_s = 1.0 / SETTINGS.ground_rate_hz
     assert len(collect.grounds) >= 3
-    for a, b in zip(collect.grounds, collect.grounds[1:]):
+    for a, b in pairwise(collect.grounds):
         assert abs(b - a - ground_period_s) < 1e-9
     # Every frame reaches the recorder, at most RECORD_PERIOD_S after it was taken.
     taken_at = {}
@@ -165,8 +168,8 @@ def test_timers_run_on_time_during_the_holds() -> None:
         for _ in range(count):
             taken_at[next(frames)] = t_s
     recorded = [(t_s, frame) for t_s, batch in collect.recorded for frame in batch.frames]
-    assert len(recorded) == len(ARRIVALS_S)
-    for (handed_s, _), arrival_s in zip(recorded, ARRIVALS_S):
+    assert [frame.t_s for _, frame in recorded] == [START_S + i for i in range(100)]
+    for (handed_s, _), arrival_s in zip(recorded, ARRIVALS_S, strict=True):
         assert handed_s - taken_at[arrival_s] <= RECORD_PERIOD_S + 1e-9
 
 
@@ -237,3 +240,30 @@ def test_a_quiet_bus_is_waited_on_as_without_a_period() -> None:
         assert source.done.wait(timeout=30.0)
     assert clock.waits == []
     assert source.polls[0][1] == 0.1  # the loop's longest wait
+
+
+def config_with(tmp_path: Path, service: str, bus: str = "") -> ServiceConfig:
+    path = tmp_path / "portal-daq.toml"
+    machine = (ROOT / "deploy" / "machine.example.toml").read_text()
+    path.write_text(f"[service]\n{service}\n[bus]\n{bus}\n{machine}")
+    return load_service_config(path)
+
+
+#: What Linux grants when ``SO_RCVBUF`` is clamped to the default ``net.core.rmem_max``.
+CLAMPED_RCVBUF_BYTES = 2 * 212_992
+
+
+def test_a_period_a_saturated_bus_overflows_is_warned_about(tmp_path: Path) -> None:
+    fits = config_with(tmp_path, "poll_period_ms = 50")  # 450 frames, room for 532
+    assert hold_overflow(fits, CLAMPED_RCVBUF_BYTES) is None
+    assert hold_overflow(fits, None) is None  # not a kernel socket: room unknown
+    too_long = config_with(tmp_path, "poll_period_ms = 100")
+    warning = hold_overflow(too_long, CLAMPED_RCVBUF_BYTES)
+    assert warning is not None and "poll_period_ms = 100 holds up to 900 frames" in warning
+    assert f"({CLAMPED_RCVBUF_BYTES} bytes, ~532 frames)" in warning
+    assert hold_overflow(too_long, 4 * CLAMPED_RCVBUF_BYTES) is None
+    threads = config_with(tmp_path, "event_loop = false\npoll_period_ms = 20", "queue_size = 100")
+    warning = hold_overflow(threads, None)  # the reader's queue holds them then
+    assert warning is not None and "the reader's queue (100 frames)" in warning
+    assert "queue_size" in warning
+    assert hold_overflow(config_with(tmp_path, ""), 1024) is None  # no period, no hold
