@@ -67,9 +67,9 @@ class BusSettings:
     queue_size: int = 10_000
     #: Kernel receive buffer of the SocketCAN socket: ~10,000 frames (Linux grants twice
     #: the request, and a CAN frame takes ~800 bytes of it: 768 measured on vcan0), a
-    #: second of a saturated bus, so a burst, a stall or a poll period loses nothing. Forced past ``net.core.rmem_max`` when the service may
-    #: (CAP_NET_ADMIN); a smaller buffer granted is warned about once and shown on
-    #: ``/status`` (``bus.rcvbuf_bytes``).
+    #: second of a saturated bus, so a burst, a stall or a poll period loses nothing.
+    #: Forced past ``net.core.rmem_max`` when the service may (CAP_NET_ADMIN); a smaller
+    #: buffer granted is warned about once and shown on ``/status`` (``bus.rcvbuf_bytes``).
     receive_buffer_bytes: int = 4 * 1024 * 1024
 
 
