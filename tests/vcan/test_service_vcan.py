@@ -135,8 +135,13 @@ def watched_service(
         yield process, collector
 
 
-def test_service_on_vcan0_publishes_estimates_matching_eq_4(tmp_path: Path) -> None:
-    config = make_config(tmp_path)
+@pytest.mark.parametrize("poll_period_ms", [0, 50], ids=["each_wake_up", "coalesced"])
+def test_service_on_vcan0_publishes_estimates_matching_eq_4(
+    tmp_path: Path, poll_period_ms: int
+) -> None:
+    """Also with wake-ups coalesced: the frames wait in the socket's receive buffer."""
+    config = make_config(tmp_path, extra=f"\n[service]\npoll_period_ms = {poll_period_ms}\n")
+    assert config.service.poll_period_ms == poll_period_ms
     prefix = config.zenoh.key_prefix
     with watched_service(config, tmp_path) as (_, collector):
         with vcan() as bus:
