@@ -76,6 +76,7 @@ def refused(tmp_path: Path, text: str) -> ConfigError:
         ("[publish]\nsignals_max_rate_hz = -1", "publish.signals_max_rate_hz", ">= 0"),
         ('[publish]\nsignals_max_rate_hz = "10 Hz"', "publish.signals_max_rate_hz", "a number"),
         ("[recording]\nsignals = 1", "recording.signals", "true or false"),
+        ('[recording]\nprocess = "no"', "recording.process", "true or false"),
     ],
 )
 def test_wrong_service_table_is_refused_naming_the_key(
@@ -90,15 +91,17 @@ def test_performance_keys_default_and_set(tmp_path: Path) -> None:
     defaults = load_service_config(MACHINE_ONLY)
     assert defaults.service.event_loop is True
     assert defaults.publish.signals_max_rate_hz == 10.0 and defaults.recording.signals is False
+    assert defaults.recording.process is True
     path = tmp_path / "portal-daq.toml"
     text = (
         "[service]\nevent_loop = false\n[publish]\nsignals_max_rate_hz = 0\n"
-        "[recording]\nsignals = true\n"
+        "[recording]\nsignals = true\nprocess = false\n"
     )
     path.write_text(text + MACHINE_ONLY.read_text())
     config = load_service_config(path)
     assert config.service.event_loop is False
     assert config.publish.signals_max_rate_hz == 0.0 and config.recording.signals is True
+    assert config.recording.process is False
 
 
 def test_receive_buffer_size_is_read(tmp_path: Path) -> None:
