@@ -129,6 +129,9 @@ class Recorder(Worker):
         run_id: str | None = None,
         items: ItemQueue | None = None,
     ) -> None:
+        """``items``: where to take the items from (default: a queue of its own, fed by
+        :meth:`submit`); given, the recorder is alone in its process
+        (:mod:`daq.recorder_process`) and has no thread to let the GIL go to."""
         if settings.directory is None:
             raise ValueError("settings.directory is None: recording is off")
         super().__init__()
@@ -141,6 +144,7 @@ class Recorder(Worker):
         #: Names this run of the service in every file's metadata; drawn at start if None.
         self.run_id = run_id
         self._queue: ItemQueue = items or queue.Queue(maxsize=settings.queue_size)
+        self._shares_gil = items is None
         self._file: McapFile | None = None
         self._stream: CountingFile | None = None
         self._last_flush = 0.0
@@ -365,7 +369,7 @@ class Recorder(Worker):
             self._database,
             compression=self.settings.compression,
             chunk_size=self.settings.chunk_size,
-            pause=GilYield(),
+            pause=GilYield() if self._shares_gil else lambda: None,
         )
         assert self.run_id is not None  # drawn in _before_start
         run = run_metadata(self._machine_id, self.run_id, self._files_created)
