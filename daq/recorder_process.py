@@ -182,8 +182,8 @@ class RecorderProcess:
         #: Names this run of the service in every file's metadata (drawn at start).
         self.run_id: str | None = None
         self._items: multiprocessing.Queue[Item] | None = None
-        self._shared = _Shared()
-        self._stop = _CONTEXT.Event()
+        self._shared: _Shared | None = None
+        self._stop: Event | None = None
         self._process: SpawnProcess | None = None
         self._submitted = 0
         self._dropped_here = 0
@@ -207,6 +207,8 @@ class RecorderProcess:
             return
         self.run_id = uuid.uuid4().hex
         self._items = _CONTEXT.Queue(maxsize=self.settings.queue_size)
+        self._shared = shared = _Shared()
+        self._stop = _CONTEXT.Event()
         self._process = _CONTEXT.Process(
             target=_child_main,
             name="recorder",
@@ -225,7 +227,7 @@ class RecorderProcess:
         )
         self._process.start()
         deadline = time.monotonic() + START_TIMEOUT_S
-        while self._shared.get("state") == 0:
+        while shared.get("state") == 0:
             if not self._process.is_alive() or time.monotonic() > deadline:
                 self._process.kill()
                 self._process.join()
@@ -234,9 +236,9 @@ class RecorderProcess:
                     f"the recorder's process did not start (exit code {self._process.exitcode})",
                 )
             time.sleep(0.01)
-        if self._shared.get("state") < 0:
+        if shared.get("state") < 0:
             self._process.join()
-            error = self._shared.read_text().get("error") or "unknown error"
+            error = shared.read_text().get("error") or "unknown error"
             raise RecordingError(self.directory, error)
 
     def submit(self, item: Item) -> None:
@@ -255,22 +257,22 @@ class RecorderProcess:
 
     def close(self) -> None:
         """Let the child take what is queued, finish its file and end. Idempotent."""
-        process, items = self._process, self._items
-        if self._closed or process is None or items is None:
+        process, items, stop = self._process, self._items, self._stop
+        if self._closed or process is None or items is None or stop is None:
             return
         self._closed = True
         deadline = time.monotonic() + JOIN_S
-        while self._shared.get("taken") < self._submitted and time.monotonic() < deadline:
+        while self._number("taken") < self._submitted and time.monotonic() < deadline:
             if not process.is_alive():
                 break
             time.sleep(0.005)
-        self._stop.set()
+        stop.set()
         process.join(JOIN_S)
         if process.is_alive():
             logger.error("the recorder's process did not finish in %.0f s: killed", JOIN_S)
             process.kill()
             process.join()
-        lost = self._submitted - int(self._shared.get("taken"))
+        lost = self._submitted - int(self._number("taken"))
         if lost > 0:
             self._dropped_here += lost
             logger.error("%d items were never written: the recorder's process ended first", lost)
@@ -279,57 +281,63 @@ class RecorderProcess:
 
     # --- the recorder's interface, for the service's status ----------------
 
+    def _number(self, name: str) -> float:
+        return 0.0 if self._shared is None else self._shared.get(name)
+
+    def _text(self) -> dict[str, Any]:
+        return _NO_TEXT if self._shared is None else self._shared.read_text()
+
     @property
     def alive(self) -> bool:
         process = self._process
         return (
             process is not None
             and process.is_alive()
-            and self._shared.get("writer_alive") > 0
-            and time.monotonic() - self._shared.get("heartbeat") < 10 * SHARE_PERIOD_S + 1.0
+            and self._number("writer_alive") > 0
+            and time.monotonic() - self._number("heartbeat") < 10 * SHARE_PERIOD_S + 1.0
         )
 
     @property
     def depth(self) -> int:
-        return self._submitted - int(self._shared.get("taken"))
+        return self._submitted - int(self._number("taken"))
 
     @property
     def dropped(self) -> int:
-        return self._dropped_here + int(self._shared.get("dropped"))
+        return self._dropped_here + int(self._number("dropped"))
 
     @property
     def errors(self) -> int:
-        return int(self._shared.get("errors"))
+        return int(self._number("errors"))
 
     @property
     def failed_items(self) -> int:
-        return int(self._shared.get("failed_items"))
+        return int(self._number("failed_items"))
 
     @property
     def rejected(self) -> int:
-        return int(self._shared.get("rejected"))
+        return int(self._number("rejected"))
 
     @property
     def failing(self) -> bool:
-        return self._shared.get("failing") > 0
+        return self._number("failing") > 0
 
     @property
     def current_bytes(self) -> int:
-        return int(self._shared.get("current_bytes"))
+        return int(self._number("current_bytes"))
 
     @property
     def current_path(self) -> Path | None:
-        path = self._shared.read_text().get("path")
+        path = self._text().get("path")
         return Path(path) if path else None
 
     @property
     def paths(self) -> list[Path]:
         """The files begun (the latest :data:`_KEPT`)."""
-        return [Path(path) for path in self._shared.read_text().get("paths", [])]
+        return [Path(path) for path in self._text().get("paths", [])]
 
     @property
     def gaps(self) -> list[tuple[float, float]]:
-        return [(stopped, lost) for stopped, lost in self._shared.read_text().get("gaps", [])]
+        return [(stopped, lost) for stopped, lost in self._text().get("gaps", [])]
 
 
 def _child_main(
