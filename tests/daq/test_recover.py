@@ -70,6 +70,11 @@ def record_truth_then_kill(tmp_path: Path, *, group: bool) -> tuple[Path, Path]:
             publisher = session.declare_publisher(
                 "portal/pam-proto-1/sim/truth", congestion_control=zenoh.CongestionControl.BLOCK
             )
+            # The file exists once the recorder's process opened it, a moment before the
+            # service subscribes to the truth: put once somebody listens.
+            while not publisher.matching_status.matching:
+                assert time.monotonic() < deadline and process.poll() is None
+                time.sleep(0.05)
             for i in range(SAMPLES):
                 publisher.put(truth(i))
             # Wait until all of them are on disk (the chunk is written every 0.2 s).
