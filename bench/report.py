@@ -12,6 +12,7 @@ LABELS = {
     "pipeline": "service (as deployed)",
     "pipeline_threads": "service, four threads (event_loop = false)",
     "pipeline_tuned": "service, every frame's signals recorded and published (earlier defaults)",
+    "pipeline_coalesced": "service, wake-ups coalesced (poll_period_ms = 20)",
     "baseline": "naive baseline",
 }
 MODES = ("throughput", "paced", "paced_hog", "nominal")
@@ -119,6 +120,7 @@ def markdown_table(results: dict[str, Any]) -> str:
         ("", "as deployed"),
         ("_threads", "four threads"),
         ("_tuned", "earlier defaults"),
+        ("_coalesced", "wake-ups coalesced"),
     ):
         if f"targets{suffix}" not in results:
             continue

@@ -57,6 +57,7 @@ from daq.recorder_process import RecorderProcess
 from daq.sd_notify import SdNotifier
 from daq.service_config import ServiceConfig
 from daq.sim_truth import TRUTH_KEY, TruthSubscriber
+from daq.socketcan import RCVBUF_BYTES_PER_FRAME
 from daq.stop_signal import Stop
 from daq.zenoh_links import zenoh_status
 from daq.zenoh_session import connect_endpoints
@@ -67,6 +68,8 @@ logger = logging.getLogger(__name__)
 _NUMBER = re.compile(r"\d+(\.\d+)?")
 #: A thread whose loop has not turned for this long is hung: no WATCHDOG=1.
 HEARTBEAT_MAX_AGE_S = 2.0
+#: A saturated 1 Mbit/s bus: an 8-byte standard frame takes up to ~111 us.
+SATURATED_FRAMES_PER_S = 9000.0
 
 
 class Service:
@@ -113,6 +116,7 @@ class Service:
             publisher=self.publisher,
             recorder=recorder,
             record_signals=config.recording.signals,
+            poll_period_s=config.service.poll_period_s,
             now=now,
         )
         self.session = session
@@ -188,6 +192,9 @@ class Service:
                     ready = True
                     notifier.ready()
                     logger.info("ready: CAN bus %s open", self.config.bus.channel)
+                    overflow = hold_overflow(self.config, self.reader.rcvbuf_bytes)
+                    if overflow:
+                        logger.warning("%s", overflow)
                 if now >= next_status:
                     next_status = max(next_status + period_s, now)
                     status = self.status()
@@ -322,6 +329,32 @@ class Service:
                 total,
                 self.reader.rcvbuf_bytes,
             )
+
+
+def hold_overflow(config: ServiceConfig, rcvbuf_bytes: int | None) -> str | None:
+    """Why a saturated bus's frames of one poll period (``[service] poll_period_ms``) may
+    not fit where they wait: the CAN socket's receive buffer of ``rcvbuf_bytes`` (as
+    granted) in the event loop, the reader's queue otherwise; None when they fit (or
+    the room is unknown: not a kernel socket). Logged once at start.
+    """
+    held = config.service.poll_period_s * SATURATED_FRAMES_PER_S
+    if config.service.event_loop:
+        if rcvbuf_bytes is None:
+            return None
+        room = rcvbuf_bytes // RCVBUF_BYTES_PER_FRAME
+        where = f"the CAN socket's receive buffer ({rcvbuf_bytes} bytes, ~{room} frames)"
+        remedy = "raise [bus] receive_buffer_bytes (and net.core.rmem_max)"
+    else:
+        room = config.bus.queue_size
+        where = f"the reader's queue ({room} frames)"
+        remedy = "raise [bus] queue_size"
+    if held <= room:
+        return None
+    return (
+        f"[service] poll_period_ms = {config.service.poll_period_ms:g} holds up to "
+        f"{held:.0f} frames of a saturated bus, more than {where}: frames would be lost "
+        f"(counted as dropped) under a full load; lower poll_period_ms or {remedy}"
+    )
 
 
 def problems(

@@ -37,6 +37,17 @@ class ServiceSettings:
     #: frames and messages on through queues (four threads). The event loop takes less
     #: CPU, most of all at low frame rates where every hand-off wakes a thread (bench/).
     event_loop: bool = True
+    #: After a wake-up that took frames, the consumer takes nothing more from the bus
+    #: (or the reader's queue) for this long: what arrives meanwhile waits in the
+    #: kernel's receive buffer and is processed in one go. Fewer, larger wake-ups cost
+    #: less CPU at low frame rates, at the price of up to this much latency; timers
+    #: (``/ground``, metrics, the recorder's hand-over) still run on time. 0: every
+    #: wake-up is processed at once. At most :data:`POLL_PERIOD_MAX_MS`.
+    poll_period_ms: float = 0.0
+
+    @property
+    def poll_period_s(self) -> float:
+        return self.poll_period_ms / 1000.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -54,11 +65,11 @@ class BusSettings:
     #: Frames the reader thread may queue for the consumer; beyond, frames are dropped
     #: and counted (``dropped``).
     queue_size: int = 10_000
-    #: Kernel receive buffer of the SocketCAN socket: ~5,000 frames (a CAN frame takes
-    #: ~800 bytes there), half a second of a saturated bus, so a burst or a stall
-    #: loses nothing. Forced past ``net.core.rmem_max`` when the service may
-    #: (CAP_NET_ADMIN); a smaller buffer granted is warned about once and shown on
-    #: ``/status`` (``bus.rcvbuf_bytes``).
+    #: Kernel receive buffer of the SocketCAN socket: ~10,000 frames (Linux grants twice
+    #: the request, and a CAN frame takes ~800 bytes of it: 768 measured on vcan0), a
+    #: second of a saturated bus, so a burst, a stall or a poll period loses nothing.
+    #: Forced past ``net.core.rmem_max`` when the service may (CAP_NET_ADMIN); a smaller
+    #: buffer granted is warned about once and shown on ``/status`` (``bus.rcvbuf_bytes``).
     receive_buffer_bytes: int = 4 * 1024 * 1024
 
 
@@ -204,9 +215,26 @@ def _choice(table: TomlTable, name: str, choices: tuple[str, ...], default: Any)
     return value
 
 
+#: Longest ``[service] poll_period_ms``: frames held longer would near the consumer's
+#: lag tolerance (0.5 s, :data:`daq.consumer.LAG_TOLERANCE_S`), past which fresh legs
+#: look stale on ``/ground``; and a saturated bus's 9,000 frames/s stay well under a
+#: wake-up's 4,096 frames (:data:`daq.can_batch.MAX_FRAMES`).
+POLL_PERIOD_MAX_MS = 250.0
+
+
 def _service(table: TomlTable) -> ServiceSettings:
+    defaults = ServiceSettings()
     table.reject_unknown(_keys(ServiceSettings))
-    return ServiceSettings(event_loop=table.boolean("event_loop", ServiceSettings().event_loop))
+    poll_period_ms = table.number("poll_period_ms", defaults.poll_period_ms)
+    if not 0.0 <= poll_period_ms <= POLL_PERIOD_MAX_MS:
+        raise table.error(
+            "poll_period_ms",
+            f"must be between 0 and {POLL_PERIOD_MAX_MS:g}, got {poll_period_ms:g}",
+        )
+    return ServiceSettings(
+        event_loop=table.boolean("event_loop", defaults.event_loop),
+        poll_period_ms=poll_period_ms,
+    )
 
 
 def _bus(table: TomlTable) -> BusSettings:

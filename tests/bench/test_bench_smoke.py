@@ -14,6 +14,7 @@ from bench.report import markdown_table
 from bench.run import main, run_benchmark
 
 MODES = ("throughput", "paced", "paced_hog", "nominal")
+SYSTEMS = ("pipeline", "pipeline_threads", "pipeline_tuned", "pipeline_coalesced", "baseline")
 LATENCY_KEYS = {"count", "median", "p90", "p99", "p99_9", "mean", "max"}
 
 
@@ -31,7 +32,7 @@ def results() -> dict:
 
 
 def test_every_system_and_mode_is_reported(results: dict) -> None:
-    for system in ("pipeline", "pipeline_threads", "pipeline_tuned", "baseline"):
+    for system in SYSTEMS:
         for mode in MODES:
             r = results[system][mode]
             assert r["mode"] == mode
@@ -46,7 +47,7 @@ def test_every_system_and_mode_is_reported(results: dict) -> None:
 
 
 def test_each_system_reports_its_fastest_round(results: dict) -> None:
-    for system in ("pipeline", "pipeline_threads", "pipeline_tuned", "baseline"):
+    for system in SYSTEMS:
         rounds = results[system]["throughput_rounds"]
         assert len(rounds) == 2
         fastest = max(rounds, key=lambda r: r["frames_per_s"])
@@ -57,7 +58,7 @@ def test_each_system_reports_its_fastest_round(results: dict) -> None:
 
 
 def test_the_service_checked_and_recorded_everything(results: dict) -> None:
-    for system in ("pipeline", "pipeline_threads", "pipeline_tuned"):
+    for system in SYSTEMS[:-1]:
         counters = results[system]["counters"]
         assert counters["bad"] == {}  # every simulated frame passes its CRC and counter
         assert not any(counters["dropped"].values())
@@ -77,6 +78,7 @@ def test_the_service_checked_and_recorded_everything(results: dict) -> None:
     assert results["pipeline_tuned"]["recording"]["messages"]["signals"] == frames
     assert results["pipeline"]["settings"] == {}
     assert results["pipeline_threads"]["settings"] == {"service": "event_loop = false"}
+    assert results["pipeline_coalesced"]["settings"] == {"service": "poll_period_ms = 20"}
 
 
 def test_machine_setup_ratio_and_targets(results: dict) -> None:
@@ -86,6 +88,7 @@ def test_machine_setup_ratio_and_targets(results: dict) -> None:
     assert results["setup"]["frame_mix"]["LEG_SB1_F1"] > 0
     assert results["ratio_frames_per_s"] > 0 and results["ratio_frames_per_s_tuned"] > 0
     assert results["ratio_cpu_per_frame"] > 0
+    assert set(results["targets_coalesced"]) == set(results["targets_tuned"])
     assert set(results["targets_tuned"]) == set(results["targets_threads"])
     assert set(results["targets_threads"]) == set(results["targets"])
     assert set(results["targets"]) == {
@@ -104,7 +107,9 @@ def test_machine_setup_ratio_and_targets(results: dict) -> None:
 def test_markdown_table_has_a_row_per_system_and_mode(results: dict) -> None:
     table = markdown_table(results)
     rows = [line for line in table.splitlines() if line.startswith("| ") and "---" not in line]
-    assert len(rows) == 1 + 4 * len(MODES)
+    assert len(rows) == 1 + len(SYSTEMS) * len(MODES)
+    assert "| service, wake-ups coalesced (poll_period_ms = 20) |" in table
+    assert "Service, wake-ups coalesced: " in table
     assert "Machine: " in table and "x the baseline's frames/s" in table and "load average" in table
 
 
@@ -116,6 +121,6 @@ def test_command_line_writes_the_results_file(tmp_path: Path, capsys) -> None:  
     assert main([*argv, "--no-pin", "--no-tuned", "--out", str(out)]) == 0
     assert logging.getLogger("daq").level == level  # quiet while measuring only
     written = json.loads(out.read_text())
-    assert "pipeline_tuned" not in written and "pipeline_threads" not in written
+    assert not any(name in written for name in SYSTEMS[1:-1])
     assert written["pipeline"]["paced"]["frames"] == 40
     assert "| service (as deployed) |" in capsys.readouterr().out

@@ -414,22 +414,29 @@ def test_reader_never_blocks_and_counts_overflow() -> None:
     assert reader.state == "closed"
 
 
-@pytest.mark.parametrize("event_loop", [True, False])
+@pytest.mark.parametrize(
+    ("service_table", "event_loop", "poll_period_s"),
+    [("event_loop = true", True, 0.0), ("event_loop = false", False, 0.0)]
+    + [("event_loop = true\npoll_period_ms = 20", True, 0.02)],
+    ids=["event_loop", "threads", "coalesced"],
+)
 def test_raw_batches_read_by_mcap_and_portal_daq_replay_give_the_live_estimates(
-    tmp_path: Path, event_loop: bool
+    tmp_path: Path, service_table: str, event_loop: bool, poll_period_s: float
 ) -> None:
     """The recording's /can/raw batches, read with mcap's own reader and decoded by the
     layout in daq.can_batch, and `portal-daq replay` of the file, give the estimates
-    received live on Zenoh, bit for bit (faults included; both thread layouts)."""
+    received live on Zenoh, bit for bit (faults included; both thread layouts, and
+    wake-ups coalesced)."""
     path = write_service_config(
         tmp_path,
         channel=f"test-{uuid.uuid4().hex}",
         port=free_port(),
         recording=tmp_path / "rec",
-        extra=f"\n[service]\nevent_loop = {str(event_loop).lower()}\n",
+        extra=f"\n[service]\n{service_table}\n",
     )
     config = load_service_config(path)
     assert config.service.event_loop is event_loop
+    assert config.service.poll_period_s == poll_period_s
     encoder = encoder_for(config)
     messages = leg_messages(encoder, FRAMES_PER_LEG, time.time())
     t = messages[-1].timestamp + 0.01
