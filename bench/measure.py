@@ -12,7 +12,8 @@ record queues are. :func:`measure` offers a slice of frames in one of two modes:
   (:class:`~bench.cpu.CpuHog`) runs on the other CPU (``paced_hog``), and at the DBC's
   nominal rate (``nominal``), where what counts is the CPU the service takes.
 
-CPU: per thread of this process (``cpu_us_per_frame``); ``service_cpu_pct`` is every
+CPU: per thread of this process and of the system's child processes (the recorder's
+process, :mod:`daq.recorder_process`) (``cpu_us_per_frame``); ``service_cpu_pct`` is every
 thread but the sender's (``MainThread``) in per cent of one CPU over the measurement.
 
 Latency is per leg estimate: from the frame's time stamp to the probe's arrival
@@ -42,6 +43,9 @@ class Target(Protocol):
     def queued(self) -> int: ...
     def wait_processed(self, count: int, timeout_s: float) -> float: ...
     def counters(self) -> dict[str, Any]: ...
+    def processes(self) -> Mapping[int, str]:
+        """Child processes whose CPU is the system's (process ID -> name)."""
+        ...
 
 
 @dataclass(frozen=True)
@@ -87,8 +91,9 @@ def measure(
     estimate arrived, and report frames/s, latency and CPU time per frame."""
     base = target.processed()
     expected_legs = sum(1 for frame in frames if frame.arbitration_id in leg_ids)
-    cpu_before = thread_cpu_ns(others)
-    foreign = ForeignLoad(("self", probe.pid))
+    children = target.processes()
+    cpu_before = thread_cpu_ns(others, children)
+    foreign = ForeignLoad(("self", probe.pid, *children))
     if rate_hz is None:
 
         def busy(sent: int) -> bool:
@@ -98,7 +103,7 @@ def measure(
     else:
         sent = send_paced(target.send, frames, rate_hz)
     done_s = target.wait_processed(base + len(frames), timeout_s)
-    cpu_per_frame = cpu_us_per_frame(cpu_before, thread_cpu_ns(others), len(frames))
+    cpu_per_frame = cpu_us_per_frame(cpu_before, thread_cpu_ns(others, children), len(frames))
     foreign_pct = foreign.percent()
     received = probe.collect(expected_legs, timeout_s)
     pairs = np.array(received["leg_samples"], dtype=np.float64).reshape(-1, 2)

@@ -14,18 +14,20 @@ Writes ``bench/results.json`` and prints a markdown table.
    carries what the service and the baseline publish; the probe connects to it.
 4. Systems, all running at once and taking turns (:func:`bench.measure.run_systems`):
    a warm-up, five rounds as fast as taken (each system's fastest counts), a paced
-   measurement, the paced one again while a CPU hog spins on the other CPU, and one
-   at the DBC's nominal rate; the CPU time of the systems not measured (their Python
-   threads, idle meanwhile) is left out. The systems: the service as configured by
-   default (``pipeline``, as deployed: one thread receives, processes and publishes,
-   raw frames recorded in batches, signals published at most 10 Hz per message and
-   not recorded, the CLI's interpreter settings of :mod:`daq.interpreter`); with reader
-   and publisher in threads of their own (``pipeline_threads``: ``[service] event_loop =
-   false``); with every frame's signals recorded and published (``pipeline_tuned``,
-   the earlier defaults: ``[recording] signals = true``, ``[publish]
-   signals_max_rate_hz = 0``); with wake-ups coalesced (``pipeline_coalesced``: ``[service]
-   poll_period_ms = 20``, the embedded PC's setting for a low CPU at the DBC's rate); and
-   the naive baseline (:class:`~bench.targets.NaiveBaseline`).
+   measurement, the paced one again while a CPU hog spins on the other CPU (at
+   ``SCHED_IDLE``: see :class:`bench.cpu.CpuHog`), and one at the DBC's nominal rate;
+   the CPU time of the systems not measured (their Python threads, idle meanwhile) is
+   left out. The systems: the service as configured by default (``pipeline``, as
+   deployed: one thread receives, processes and publishes, raw frames recorded in
+   batches by the recorder's process, whose CPU counts too, signals published at most
+   10 Hz per message and not recorded, the CLI's interpreter settings of
+   :mod:`daq.interpreter`); with reader and publisher in threads of their own
+   (``pipeline_threads``: ``[service] event_loop = false``); with every frame's signals
+   recorded and published (``pipeline_tuned``, the earlier defaults: ``[recording]
+   signals = true``, ``[publish] signals_max_rate_hz = 0``); with wake-ups coalesced
+   (``pipeline_coalesced``: ``[service] poll_period_ms = 20``, the embedded PC's setting
+   for a low CPU at the DBC's rate); and the naive baseline
+   (:class:`~bench.targets.NaiveBaseline`).
 """
 
 import argparse

@@ -29,8 +29,8 @@ from bench.frames import EXAMPLE_CONFIG
 from daq.can_batch import recorded_frames
 from daq.mcap_file import RAW_TOPIC
 from daq.mcap_reading import json_items
-from daq.recorder import Recorder
-from daq.runner import bus_factory, recording_attachments
+from daq.recorder_process import RecorderProcess
+from daq.runner import build_recorder, bus_factory
 from daq.service import Service
 from daq.service_config import ServiceConfig, load_service_config
 from dbc.decoding import FrameDecoder
@@ -78,12 +78,9 @@ class ServiceUnderTest:
     def __init__(self, config: ServiceConfig, session: zenoh.Session) -> None:
         self.config = config
         filters = FrameDecoder(config.database, config.machine.protection).receive_filters
-        self.recorder = Recorder(
-            config.recording,
-            config.database,
-            machine_id=config.machine.machine_id,
-            attachments=recording_attachments(config),
-        )
+        recorder = build_recorder(config)
+        assert recorder is not None, "the benchmark's config records"
+        self.recorder = recorder
         self.service = Service(
             config,
             open_bus=bus_factory(config.bus, filters),
@@ -132,6 +129,13 @@ class ServiceUnderTest:
             time.sleep(0.001)
         return time.time()
 
+    def processes(self) -> dict[int, str]:
+        """The recorder's process, if it has one."""
+        recorder = self.recorder
+        if isinstance(recorder, RecorderProcess) and recorder.pid is not None:
+            return {recorder.pid: "recorder-process"}
+        return {}
+
     def counters(self) -> dict[str, Any]:
         service = self.service
         status = service.status()
@@ -147,7 +151,7 @@ class ServiceUnderTest:
         """Files written, their size, messages per kind of topic (from the MCAP
         summaries), the raw frames and the leg estimates in them (call after the service
         closed: the files are finished then)."""
-        paths = [path for path in self.recorder.paths if path.exists()]
+        paths = sorted(self.recorder.directory.glob("*.mcap"))
         messages: Counter[str] = Counter()
         frames = estimates = 0
         for path in paths:
@@ -253,3 +257,6 @@ class NaiveBaseline:
 
     def counters(self) -> dict[str, Any]:
         return {"frames_processed": self._processed}
+
+    def processes(self) -> dict[int, str]:
+        return {}

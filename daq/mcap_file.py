@@ -106,18 +106,57 @@ class RecordBatch:
             decoded_frames(results) if signals else (),
         )
 
-    def split(self, t_s: float) -> tuple["RecordBatch", "RecordBatch"]:
+
+@dataclass(frozen=True, slots=True)
+class EncodedBatch:
+    """A :class:`RecordBatch` with its frames in the ``/can/raw`` layout and its signals
+    as JSON: what the recorder writes, and what crosses to the recorder's process
+    (:mod:`daq.recorder_process`): a few byte strings and tuples instead of an object per
+    frame pickle ~20x faster."""
+
+    #: The frames, :func:`daq.can_batch.encode` d (empty without frames).
+    raw: bytes
+    #: Frames in ``raw`` (a dropped batch counts as its frames).
+    frame_count: int
+    #: Frame time of the first frame (the ``/can/raw`` message's log time); 0 without.
+    first_t_s: float
+    #: (leg, frame time, JSON), as in :attr:`RecordBatch.estimates`.
+    estimates: Sequence[tuple[str, float, bytes]]
+    #: (message name, frame time, JSON of its signals), with ``[recording] signals``.
+    signals: Sequence[tuple[str, float, bytes]] = ()
+
+    @classmethod
+    def of(cls, batch: RecordBatch) -> "EncodedBatch":
+        frames = batch.frames
+        signals = [
+            (decoded.message, decoded.t_s, payloads.json_bytes(payloads.signals(decoded)))
+            for decoded in batch.decoded
+        ]
+        return cls._of_frames(frames, batch.estimates, signals)
+
+    @classmethod
+    def _of_frames(
+        cls,
+        frames: Sequence[RawFrame],
+        estimates: Sequence[tuple[str, float, bytes]],
+        signals: Sequence[tuple[str, float, bytes]],
+    ) -> "EncodedBatch":
+        raw = can_batch.encode(frames) if frames else b""
+        return cls(raw, len(frames), frames[0].t_s if frames else 0.0, estimates, signals)
+
+    def split(self, t_s: float) -> tuple["EncodedBatch", "EncodedBatch"]:
         """What came before frame time ``t_s``, and the rest (frames are in time order)."""
+        frames = list(can_batch.decode(self.raw)) if self.raw else []
         return (
-            RecordBatch(
-                [f for f in self.frames if f.t_s < t_s],
+            self._of_frames(
+                [f for f in frames if f.t_s < t_s],
                 [e for e in self.estimates if e[1] < t_s],
-                [d for d in self.decoded if d.t_s < t_s],
+                [s for s in self.signals if s[1] < t_s],
             ),
-            RecordBatch(
-                [f for f in self.frames if f.t_s >= t_s],
+            self._of_frames(
+                [f for f in frames if f.t_s >= t_s],
                 [e for e in self.estimates if e[1] >= t_s],
-                [d for d in self.decoded if d.t_s >= t_s],
+                [s for s in self.signals if s[1] >= t_s],
             ),
         )
 
@@ -233,17 +272,16 @@ class McapFile:
             self._writer.add_metadata(RUN_METADATA, dict(run))
         self._started = True
 
-    def write_batch(self, batch: RecordBatch) -> None:
+    def write_batch(self, batch: "RecordBatch | EncodedBatch") -> None:
         """The batch's raw frames (one message), its estimates and signals (one each)."""
-        frames = batch.frames
-        if frames:
-            t_ns = _ns(frames[0].t_s)
+        encoded = batch if isinstance(batch, EncodedBatch) else EncodedBatch.of(batch)
+        if encoded.frame_count:
             channel = self._channels.get(RAW_TOPIC) or self._raw_channel()
-            self._add(channel, t_ns, can_batch.encode(frames))
+            self._add(channel, _ns(encoded.first_t_s), encoded.raw)
         # One message per leg and batch: mcap's add_message costs more than encoding an
         # estimate, and the batch is only the published bytes joined.
         by_leg: dict[str, list[tuple[float, bytes]]] = {}
-        for leg, t_s, data in batch.estimates:
+        for leg, t_s, data in encoded.estimates:
             by_leg.setdefault(leg, []).append((t_s, data))
         for leg, estimates in by_leg.items():
             topic = LEG_TOPIC.format(leg=leg)
@@ -253,12 +291,12 @@ class McapFile:
             joined = b",".join(data for _, data in estimates)
             payload = b'{"leg":' + orjson.dumps(leg) + b',"estimates":[' + joined + b"]}"
             self._add(channel, _ns(estimates[0][0]), payload)
-        for decoded in batch.decoded:
-            topic = SIGNALS_TOPIC.format(message=decoded.message)
+        for message, t_s, data in encoded.signals:
+            topic = SIGNALS_TOPIC.format(message=message)
             channel = self._channels.get(topic) or self._json_channel(
-                topic, f"portal.signals.{decoded.message}", None
+                topic, f"portal.signals.{message}", None
             )
-            self._add(channel, _ns(decoded.t_s), payloads.json_bytes(payloads.signals(decoded)))
+            self._add(channel, _ns(t_s), data)
 
     def write_result(self, result: FrameResult, *, signals: bool = True) -> None:
         """One processed frame as a batch of its own (offline writers and tests; the

@@ -39,13 +39,14 @@ import uuid
 from collections.abc import Callable, Mapping
 from datetime import UTC, datetime
 from pathlib import Path
+from typing import Protocol
 
 from cantools.database.can import Database
 
 from daq._worker import Worker
 from daq.errors import RecordingError
 from daq.frames import BusEvent
-from daq.mcap_file import CountingFile, McapFile, RecordBatch, RecordingGap
+from daq.mcap_file import CountingFile, EncodedBatch, McapFile, RecordBatch, RecordingGap
 from daq.recording_run import run_metadata
 from daq.recover import is_cut_short, recover_file
 from daq.service_config import RecordingSettings
@@ -56,10 +57,23 @@ logger = logging.getLogger(__name__)
 
 #: After a write error, the next file is tried this much later.
 RETRY_AFTER_S = 5.0
-#: On close, queued items are still written for at most this long.
+#: On close, queued items are still written for at most this long (the rest: dropped).
 DRAIN_S = 0.5
 
-Item = RecordBatch | BusEvent | TruthRecord | MachineSnapshot
+Item = RecordBatch | EncodedBatch | BusEvent | TruthRecord | MachineSnapshot
+
+
+class ItemQueue(Protocol):
+    """Where the recorder takes its items from: a ``queue.Queue`` in this process, or a
+    ``multiprocessing`` queue in the recorder's process (:mod:`daq.recorder_process`)."""
+
+    def put_nowait(self, item: Item) -> None: ...
+
+    def get(self, block: bool = True, timeout: float | None = None) -> Item: ...
+
+    def get_nowait(self) -> Item: ...
+
+    def qsize(self) -> int: ...
 
 
 class GilYield:
@@ -88,8 +102,11 @@ def file_name(machine_id: str, t_s: float) -> str:
     return f"{machine_id}_{stamp:%Y%m%dT%H%M%S}.{stamp.microsecond // 1000:03d}Z.mcap"
 
 
-def _count(item: Item) -> int:
-    return (len(item.frames) or 1) if isinstance(item, RecordBatch) else 1
+def count(item: Item) -> int:
+    """What dropping ``item`` loses, as counted in ``dropped``: a batch counts its frames."""
+    if isinstance(item, RecordBatch):
+        return len(item.frames) or 1
+    return (item.frame_count or 1) if isinstance(item, EncodedBatch) else 1
 
 
 class Recorder(Worker):
@@ -110,7 +127,11 @@ class Recorder(Worker):
         attachments: Mapping[str, bytes] = {},
         now: Callable[[], float] = time.time,
         run_id: str | None = None,
+        items: ItemQueue | None = None,
     ) -> None:
+        """``items``: where to take the items from (default: a queue of its own, fed by
+        :meth:`submit`); given, the recorder is alone in its process
+        (:mod:`daq.recorder_process`) and has no thread to let the GIL go to."""
         if settings.directory is None:
             raise ValueError("settings.directory is None: recording is off")
         super().__init__()
@@ -122,7 +143,8 @@ class Recorder(Worker):
         self._now = now
         #: Names this run of the service in every file's metadata; drawn at start if None.
         self.run_id = run_id
-        self._queue: queue.Queue[Item] = queue.Queue(maxsize=settings.queue_size)
+        self._queue: ItemQueue = items or queue.Queue(maxsize=settings.queue_size)
+        self._shares_gil = items is None
         self._file: McapFile | None = None
         self._stream: CountingFile | None = None
         self._last_flush = 0.0
@@ -203,7 +225,7 @@ class Recorder(Worker):
         try:
             self._queue.put_nowait(item)
         except queue.Full:
-            self.dropped += _count(item)
+            self.dropped += count(item)
 
     def _after_stop(self) -> None:
         """Finish the file; the thread wrote what was queued (for at most :data:`DRAIN_S`)."""
@@ -223,12 +245,19 @@ class Recorder(Worker):
             if time.monotonic() - self._last_flush >= period_s:
                 self._guarded(self._flush)
         deadline = time.monotonic() + DRAIN_S
-        while time.monotonic() < deadline:
+        left = 0
+        while True:
             try:
                 item = self._queue.get_nowait()
             except queue.Empty:
                 break
-            self._write_guarded(item)
+            if time.monotonic() < deadline:
+                self._write_guarded(item)
+            else:
+                left += count(item)
+        if left:
+            self.dropped += left
+            logger.error("%d items not written: closing took longer than %.1f s", left, DRAIN_S)
 
     def _write_guarded(self, item: Item) -> None:
         try:
@@ -239,13 +268,15 @@ class Recorder(Worker):
                 logger.exception("skipping an item the recorder cannot write (counting them)")
 
     def _write(self, item: Item) -> None:
+        if isinstance(item, RecordBatch):
+            item = EncodedBatch.of(item)
         if not self._ready(item):
-            self.dropped += _count(item)
+            self.dropped += count(item)
             return
-        if isinstance(item, RecordBatch) and item.frames:
+        if isinstance(item, EncodedBatch) and item.frame_count:
             # A batch spanning the file's duration: its later frames begin the next file.
-            head, tail = item.split(self._rotation_t_s(item.frames[0].t_s))
-            if tail.frames:
+            head, tail = item.split(self._rotation_t_s(item.first_t_s))
+            if tail.frame_count:
                 self._write_to_file(head)
                 self._write(tail)
                 return
@@ -259,11 +290,8 @@ class Recorder(Worker):
             ):
                 return False
         # Frame time drives rotation; bus events carry wall-clock time.
-        if (
-            isinstance(item, RecordBatch)
-            and item.frames
-            and self._due_for_rotation(item.frames[0].t_s)
-        ):
+        first_t_s = _first_frame_t_s(item)
+        if first_t_s is not None and self._due_for_rotation(first_t_s):
             self._close_file()
             return self._guarded(lambda: self._open(self._now()))
         return True
@@ -271,7 +299,7 @@ class Recorder(Worker):
     def _write_to_file(self, item: Item) -> None:
         mcap = self._file
         assert mcap is not None
-        if isinstance(item, RecordBatch):
+        if isinstance(item, RecordBatch | EncodedBatch):
             self._guarded(lambda: mcap.write_batch(item))
         elif isinstance(item, TruthRecord):
             sample = truth_payload(item)
@@ -341,7 +369,7 @@ class Recorder(Worker):
             self._database,
             compression=self.settings.compression,
             chunk_size=self.settings.chunk_size,
-            pause=GilYield(),
+            pause=GilYield() if self._shares_gil else lambda: None,
         )
         assert self.run_id is not None  # drawn in _before_start
         run = run_metadata(self._machine_id, self.run_id, self._files_created)
@@ -400,6 +428,13 @@ class Recorder(Worker):
                 stream.close()
             except OSError:
                 pass
+
+
+def _first_frame_t_s(item: Item) -> float | None:
+    """The frame time of a batch's first frame; None for anything else."""
+    if isinstance(item, EncodedBatch) and item.frame_count:
+        return item.first_t_s
+    return None
 
 
 def _one_line(exc: BaseException) -> str:

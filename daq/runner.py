@@ -14,6 +14,7 @@ from daq.bus_reader import BusFactory, FrameSource, PythonCanSource, sysfs_link_
 from daq.errors import RecordingError
 from daq.mcap_file import CONFIG_ATTACHMENT, DBC_ATTACHMENT
 from daq.recorder import Recorder
+from daq.recorder_process import RecorderProcess
 from daq.sd_notify import SdNotifier
 from daq.service import Service
 from daq.service_config import BusSettings, ServiceConfig
@@ -91,21 +92,29 @@ def recording_attachments(config: ServiceConfig) -> dict[str, bytes]:
         raise RecordingError(exc.filename or config.source, f"cannot read: {exc.strerror}") from exc
 
 
+def build_recorder(config: ServiceConfig) -> Recorder | RecorderProcess | None:
+    """The recorder ``[recording]`` asks for (in a process of its own by default); None
+    without a directory. Opens nothing."""
+    settings = config.recording
+    if settings.directory is None:
+        return None
+    kind = RecorderProcess if settings.process else Recorder
+    return kind(
+        settings,
+        config.database,
+        machine_id=config.machine.machine_id,
+        attachments=recording_attachments(config),
+    )
+
+
 def run_service(config: ServiceConfig, stop: Stop) -> None:
     """Open everything, run until ``stop`` is set, close everything.
 
     Raises ZenohError, RecordingError (or ConfigError for a bad Zenoh file) at start.
     """
     filters = FrameDecoder(config.database, config.machine.protection).receive_filters
-    recorder = None
-    if config.recording.directory is not None:
-        recorder = Recorder(
-            config.recording,
-            config.database,
-            machine_id=config.machine.machine_id,
-            attachments=recording_attachments(config),
-        )
-    else:
+    recorder = build_recorder(config)
+    if recorder is None:
         logger.info("no [recording] directory: not recording")
     link_up = sysfs_link_probe(config.bus.channel) if config.bus.interface == "socketcan" else None
     with (

@@ -53,6 +53,7 @@ from daq.payloads import JsonObject
 from daq.pipeline import Pipeline
 from daq.publisher import ZenohPublisher
 from daq.recorder import Recorder
+from daq.recorder_process import RecorderProcess
 from daq.sd_notify import SdNotifier
 from daq.service_config import ServiceConfig
 from daq.sim_truth import TRUTH_KEY, TruthSubscriber
@@ -80,7 +81,7 @@ class Service:
         *,
         open_bus: BusFactory,
         session: zenoh.Session,
-        recorder: Recorder | None = None,
+        recorder: Recorder | RecorderProcess | None = None,
         notifier: SdNotifier | None = None,
         link_up: LinkProbe | None = None,
         now: Callable[[], float] = time.time,

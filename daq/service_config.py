@@ -137,6 +137,10 @@ class RecordingSettings:
     #: Off: they are derivable from ``/can/raw`` (replay and report do), and writing
     #: them costs about as much as everything else the recorder does (bench/).
     signals: bool = False
+    #: Write the files in a process of its own (:mod:`daq.recorder_process`), off the
+    #: GIL of the thread that processes frames: writing MCAP in a thread held it up to
+    #: ~0.7 ms at a time, the tail of the frame -> subscriber latency (bench/).
+    process: bool = True
 
 
 @dataclass(frozen=True)
@@ -319,4 +323,5 @@ def _recording(table: TomlTable, config_dir: Path) -> RecordingSettings:
         queue_size=_positive_int(table, "queue_size", defaults.queue_size),
         truth=table.boolean("truth", defaults.truth),
         signals=table.boolean("signals", defaults.signals),
+        process=table.boolean("process", defaults.process),
     )

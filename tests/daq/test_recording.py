@@ -18,6 +18,7 @@ from daq.mcap_file import CountingFile, McapFile, RecordBatch
 from daq.mcap_reading import RecordedMessage, RecordingStream, json_items
 from daq.pipeline import Pipeline
 from daq.recorder import Recorder, file_name
+from daq.recorder_process import RecorderProcess
 from daq.recording_run import read_run_file, run_files
 from daq.service_config import RecordingSettings
 from dbc.encoding import FrameEncoder
@@ -38,7 +39,7 @@ def raw_times(path: Path) -> list[float]:
     return [frame.t_s for frame in recorded_raw_frames(path)]
 
 
-def wait_drained(recorder: Recorder) -> None:
+def wait_drained(recorder: Recorder | RecorderProcess) -> None:
     deadline = time.monotonic() + 10
     while recorder.depth and time.monotonic() < deadline:
         time.sleep(0.01)
@@ -62,10 +63,15 @@ def test_rotation_by_size_keeps_every_message_in_order(tmp_path: Path) -> None:
     assert times == [1000.0 + 0.01 * i for i in range(400)]
 
 
-def test_rotation_by_frame_time(tmp_path: Path) -> None:
+#: The recorder in a thread of the service's process, and in a process of its own.
+KINDS = pytest.mark.parametrize("kind", [Recorder, RecorderProcess], ids=["thread", "process"])
+
+
+@KINDS
+def test_rotation_by_frame_time(tmp_path: Path, kind: type[Recorder | RecorderProcess]) -> None:
     _, database = example_machine()
     settings = RecordingSettings(directory=tmp_path, max_duration_s=1.0)
-    with Recorder(settings, database, machine_id="m") as recorder:
+    with kind(settings, database, machine_id="m") as recorder:
         for result in results(35, dt=0.1):  # 3.4 s of frames
             recorder.submit(RecordBatch.of([result], signals=True))
         recorder.submit(BusEvent(2000.0, "down", "test"))
@@ -74,10 +80,13 @@ def test_rotation_by_frame_time(tmp_path: Path) -> None:
     assert [len(raw_times(path)) for path in recorder.paths] == [10, 10, 10, 5]
 
 
-def test_one_batch_spanning_several_files_is_split_by_frame_time(tmp_path: Path) -> None:
+@KINDS
+def test_one_batch_spanning_several_files_is_split_by_frame_time(
+    tmp_path: Path, kind: type[Recorder | RecorderProcess]
+) -> None:
     _, database = example_machine()
     settings = RecordingSettings(directory=tmp_path, max_duration_s=1.0)
-    with Recorder(settings, database, machine_id="m") as recorder:
+    with kind(settings, database, machine_id="m") as recorder:
         recorder.submit(RecordBatch.of(results(35, dt=0.1), signals=True))  # 3.4 s at once
         wait_drained(recorder)
     assert [len(raw_times(path)) for path in recorder.paths] == [10, 10, 10, 5]

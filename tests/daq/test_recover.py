@@ -1,8 +1,13 @@
-"""Crash-cut recordings: SIGKILL the service; `recover` and the restart complete the file."""
+"""Crash-cut recordings: SIGKILL the service; `recover` and the restart complete the file.
+
+SIGKILL of the service's main process alone leaves the recorder's process, which finishes
+the file; SIGKILL of the whole group (systemd's last resort after TimeoutStopSec) cuts it.
+"""
 
 from __future__ import annotations
 
 import json
+import os
 import signal
 import subprocess
 import sys
@@ -42,10 +47,13 @@ def start_service(config: Path) -> subprocess.Popen[str]:
         cwd=ROOT,
         stderr=subprocess.PIPE,
         text=True,
+        start_new_session=True,  # a process group of its own: the service and its recorder
     )
 
 
-def test_sigkilled_recording_is_recovered_by_the_cli_and_at_restart(tmp_path: Path) -> None:
+def record_truth_then_kill(tmp_path: Path, *, group: bool) -> tuple[Path, Path]:
+    """Run the service until SAMPLES truth samples are on disk, then SIGKILL its main
+    process (``group``: and its recorder's process); the config and the file."""
     port = free_port()
     rec = tmp_path / "rec"
     config = write_service_config(
@@ -62,18 +70,45 @@ def test_sigkilled_recording_is_recovered_by_the_cli_and_at_restart(tmp_path: Pa
             publisher = session.declare_publisher(
                 "portal/pam-proto-1/sim/truth", congestion_control=zenoh.CongestionControl.BLOCK
             )
+            # The file exists once the recorder's process opened it, a moment before the
+            # service subscribes to the truth: put once somebody listens.
+            while not publisher.matching_status.matching:
+                assert time.monotonic() < deadline and process.poll() is None
+                time.sleep(0.05)
             for i in range(SAMPLES):
                 publisher.put(truth(i))
             # Wait until all of them are on disk (the chunk is written every 0.2 s).
             while truth_in(cut) != list(range(SAMPLES)):
                 assert time.monotonic() < deadline, truth_in(cut)
                 time.sleep(0.05)
-        process.send_signal(signal.SIGKILL)
+        if group:
+            os.killpg(process.pid, signal.SIGKILL)
+        else:
+            process.send_signal(signal.SIGKILL)
         process.wait(timeout=WAIT_S)
     finally:
         if process.poll() is None:
             process.kill()
         process.communicate()
+    return config, cut
+
+
+def test_recorder_process_finishes_the_file_when_the_service_is_sigkilled(
+    tmp_path: Path,
+) -> None:
+    _, path = record_truth_then_kill(tmp_path, group=False)
+    deadline = time.monotonic() + WAIT_S
+    while is_cut_short(path):  # the recorder's process notices within 0.1 s
+        assert time.monotonic() < deadline, "the recorder's process did not finish the file"
+        time.sleep(0.05)
+    with open(path, "rb") as file:
+        assert make_reader(file).get_summary() is not None
+    assert truth_in(path) == list(range(SAMPLES))
+
+
+def test_sigkilled_recording_is_recovered_by_the_cli_and_at_restart(tmp_path: Path) -> None:
+    config, cut = record_truth_then_kill(tmp_path, group=True)
+    rec = cut.parent
     assert is_cut_short(cut)
     with open(cut, "rb") as file, pytest.raises(McapError):
         list(make_reader(file).iter_messages())

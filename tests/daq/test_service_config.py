@@ -76,6 +76,7 @@ def refused(tmp_path: Path, text: str) -> ConfigError:
         ("[publish]\nsignals_max_rate_hz = -1", "publish.signals_max_rate_hz", ">= 0"),
         ('[publish]\nsignals_max_rate_hz = "10 Hz"', "publish.signals_max_rate_hz", "a number"),
         ("[recording]\nsignals = 1", "recording.signals", "true or false"),
+        ('[recording]\nprocess = "no"', "recording.process", "true or false"),
         ("[service]\npoll_period_ms = -1", "service.poll_period_ms", "between 0 and 250"),
         ("[service]\npoll_period_ms = 1000", "service.poll_period_ms", "between 0 and 250"),
         ('[service]\npoll_period_ms = "20 ms"', "service.poll_period_ms", "a number"),
@@ -93,16 +94,18 @@ def test_performance_keys_default_and_set(tmp_path: Path) -> None:
     defaults = load_service_config(MACHINE_ONLY)
     assert defaults.service.event_loop is True and defaults.service.poll_period_s == 0.0
     assert defaults.publish.signals_max_rate_hz == 10.0 and defaults.recording.signals is False
+    assert defaults.recording.process is True
     path = tmp_path / "portal-daq.toml"
     text = (
         "[service]\nevent_loop = false\npoll_period_ms = 20\n[publish]\nsignals_max_rate_hz = 0\n"
-        "[recording]\nsignals = true\n"
+        "[recording]\nsignals = true\nprocess = false\n"
     )
     path.write_text(text + MACHINE_ONLY.read_text())
     config = load_service_config(path)
     assert config.service.event_loop is False
     assert config.service.poll_period_ms == 20.0 and config.service.poll_period_s == 0.02
     assert config.publish.signals_max_rate_hz == 0.0 and config.recording.signals is True
+    assert config.recording.process is False
 
 
 def test_receive_buffer_size_is_read(tmp_path: Path) -> None:

@@ -24,10 +24,9 @@ from daq.frames import BusEvent, RawFrame
 from daq.mcap_reading import json_items
 from daq.payloads import json_bytes, leg_ground
 from daq.pipeline import Pipeline
-from daq.recorder import Recorder
 from daq.replay import replay, results
 from daq.report.loading import load_recording
-from daq.runner import bus_factory, recording_attachments
+from daq.runner import build_recorder, bus_factory
 from daq.service import Service
 from daq.service_config import ServiceConfig, load_service_config
 from daq.zenoh_session import zenoh_config
@@ -64,12 +63,7 @@ def live_service(config: ServiceConfig) -> Iterator[Service]:
     """The service on a virtual bus, with a real Zenoh session and recorder, running
     (:meth:`Service.run`) in a thread as it does in the main thread of the process."""
     filters = FrameDecoder(config.database, config.machine.protection).receive_filters
-    recorder = Recorder(
-        config.recording,
-        config.database,
-        machine_id=config.machine.machine_id,
-        attachments=recording_attachments(config),
-    )
+    recorder = build_recorder(config)  # as deployed: in a process of its own
     with zenoh.open(zenoh_config(config.zenoh)) as session:
         service = Service(
             config,

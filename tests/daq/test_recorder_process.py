@@ -1,0 +1,83 @@
+"""The recorder in a process of its own: what the service hands it is written as the
+recorder in a thread writes it, losses are counted, signals do not stop it."""
+
+import os
+import signal
+import time
+from pathlib import Path
+
+import pytest
+from mcap.reader import make_reader
+
+from daq.errors import RecordingError
+from daq.frames import BusEvent
+from daq.mcap_file import RecordBatch
+from daq.recorder import Recorder
+from daq.recorder_process import RecorderProcess
+from daq.service_config import RecordingSettings
+from tests.daq.test_recording import raw_times, results, wait_drained
+from tests.helpers import example_machine
+
+
+def messages(path: Path) -> list[tuple[str, int, bytes]]:
+    with open(path, "rb") as file:
+        reader = make_reader(file)
+        assert reader.get_summary() is not None  # finished: summary and index
+        return [(c.topic, m.log_time, m.data) for _, c, m in reader.iter_messages()]
+
+
+def test_writes_what_the_recorder_in_a_thread_writes(tmp_path: Path) -> None:
+    _, database = example_machine()
+    batches = [RecordBatch.of(results(40, t0=1000.0 + i), signals=True) for i in range(5)]
+    written = {}
+    for kind in (Recorder, RecorderProcess):
+        settings = RecordingSettings(directory=tmp_path / kind.__name__)
+        with kind(settings, database, machine_id="m") as recorder:
+            for batch in batches:
+                recorder.submit(batch)
+            recorder.submit(BusEvent(1010.0, "down", "test"))
+            wait_drained(recorder)
+        assert recorder.dropped == 0 and recorder.errors == 0 and len(recorder.paths) == 1
+        written[kind] = messages(recorder.paths[0])
+    assert len(written[Recorder]) == 5 * 2 + 5 * 40 + 1  # raw and leg per batch, signals, event
+    assert written[RecorderProcess] == written[Recorder]
+
+
+def test_a_directory_it_cannot_create_is_a_recording_error(tmp_path: Path) -> None:
+    _, database = example_machine()
+    (tmp_path / "file").write_text("")
+    settings = RecordingSettings(directory=tmp_path / "file" / "rec")
+    with pytest.raises(RecordingError, match="cannot create it"):
+        RecorderProcess(settings, database, machine_id="m").start()
+
+
+def test_a_full_queue_drops_and_counts_frames_and_the_rest_is_written(tmp_path: Path) -> None:
+    _, database = example_machine()
+    settings = RecordingSettings(directory=tmp_path, queue_size=5)
+    recorder = RecorderProcess(settings, database, machine_id="m")
+    with recorder:
+        assert recorder.pid is not None
+        os.kill(recorder.pid, signal.SIGSTOP)  # a child that does not take anything
+        try:
+            for i in range(10):
+                recorder.submit(RecordBatch.of(results(3, t0=1000.0 + i), signals=False))
+            assert recorder.depth == 5 and recorder.dropped == 5 * 3
+        finally:
+            os.kill(recorder.pid, signal.SIGCONT)
+    assert recorder.dropped == 15 and recorder.depth == 0
+    assert len(raw_times(recorder.paths[0])) == 15
+
+
+def test_sigterm_and_sigint_do_not_stop_it_close_does(tmp_path: Path) -> None:
+    _, database = example_machine()
+    recorder = RecorderProcess(RecordingSettings(directory=tmp_path), database, machine_id="m")
+    with recorder:
+        assert recorder.pid is not None
+        for signum in (signal.SIGTERM, signal.SIGINT):
+            os.kill(recorder.pid, signum)  # systemd and a terminal signal the whole group
+        recorder.submit(RecordBatch.of(results(7), signals=False))
+        wait_drained(recorder)
+        time.sleep(0.3)  # long enough for a signal to have ended it
+        assert recorder.alive
+    assert not recorder.alive and recorder.dropped == 0
+    assert len(raw_times(recorder.paths[0])) == 7
