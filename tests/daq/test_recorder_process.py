@@ -68,11 +68,12 @@ def test_a_full_queue_drops_and_counts_frames_and_the_rest_is_written(tmp_path: 
     assert len(raw_times(recorder.paths[0])) == 15
 
 
-def test_sigterm_and_sigint_do_not_stop_it_close_does(tmp_path: Path) -> None:
+def test_it_runs_at_sched_idle_and_only_close_stops_it(tmp_path: Path) -> None:
     _, database = example_machine()
     recorder = RecorderProcess(RecordingSettings(directory=tmp_path), database, machine_id="m")
     with recorder:
         assert recorder.pid is not None
+        assert os.sched_getscheduler(recorder.pid) == os.SCHED_IDLE  # the service goes first
         for signum in (signal.SIGTERM, signal.SIGINT):
             os.kill(recorder.pid, signum)  # systemd and a terminal signal the whole group
         recorder.submit(RecordBatch.of(results(7), signals=False))
