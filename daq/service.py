@@ -6,7 +6,7 @@ bus, the Zenoh session, the recorder and the systemd notifier (built in
 session and a temporary directory). Data path, as an event loop (``[service]
 event_loop = true``, the default): one thread polls the bus and processes what came
 in one go; the publisher (which may wait on a congested link) is handed what to put
-through its bounded queue, the recorder a batch every 50 ms::
+through its bounded queue, the recorder (a process of its own) a batch every 0.1 s::
 
     bus --recv until none--> Consumer (BusReader.poll, Pipeline) --queue--> ZenohPublisher
                                  \\--queue--> Recorder (MCAP)
