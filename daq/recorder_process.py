@@ -40,9 +40,9 @@ import queue
 import signal
 import time
 import uuid
+from collections import deque
 from collections.abc import Mapping
 from multiprocessing.context import SpawnProcess
-from multiprocessing.synchronize import Event
 from pathlib import Path
 from typing import Any
 
@@ -58,8 +58,6 @@ logger = logging.getLogger(__name__)
 
 #: How often the child shares its counters (and checks that its parent lives).
 SHARE_PERIOD_S = 0.25
-#: The child's heartbeat older than this: the recorder hangs (not alive).
-HEARTBEAT_MAX_AGE_S = 2.0
 #: Longest wait for the child to open its first file.
 START_TIMEOUT_S = 60.0
 #: On close, the longest wait for the child to take what is queued, and again to finish.
@@ -81,7 +79,6 @@ class _Shared:
     """
 
     NUMBERS = (
-        "heartbeat",  # time.monotonic() of the child's last turn (one clock for all processes)
         "state",  # 0 starting, 1 recording, -1 failed to start
         "taken",  # items taken from the queue
         "dropped",
@@ -91,6 +88,7 @@ class _Shared:
         "current_bytes",
         "failing",
         "writer_alive",
+        "stop",  # set by the service: finish the file and end
         "text_version",
     )
 
@@ -186,9 +184,10 @@ class RecorderProcess:
         self.run_id: str | None = None
         self._items: multiprocessing.Queue[Item] | None = None
         self._shared: _Shared | None = None
-        self._stop: Event | None = None
         self._process: SpawnProcess | None = None
         self._submitted = 0
+        #: What each item the child has not taken yet counts (for a child that dies).
+        self._untaken: deque[int] = deque()
         self._dropped_here = 0
         self._closed = False
 
@@ -211,7 +210,6 @@ class RecorderProcess:
         self.run_id = uuid.uuid4().hex
         self._items = _CONTEXT.Queue(maxsize=self.settings.queue_size)
         self._shared = shared = _Shared()
-        self._stop = _CONTEXT.Event()
         self._process = _CONTEXT.Process(
             target=_child_main,
             name="recorder",
@@ -223,7 +221,6 @@ class RecorderProcess:
                 self.run_id,
                 self._items,
                 self._shared,
-                self._stop,
                 logging.getLevelName(logging.getLogger("daq").getEffectiveLevel()),
             ),
             daemon=True,
@@ -257,11 +254,18 @@ class RecorderProcess:
             self._dropped_here += count(item)
         else:
             self._submitted += 1
+            self._untaken.append(count(item))
+            self._forget_taken()
+
+    def _forget_taken(self) -> None:
+        untaken = self._untaken
+        while len(untaken) > self.depth:
+            untaken.popleft()
 
     def close(self) -> None:
         """Let the child take what is queued, finish its file and end. Idempotent."""
-        process, items, stop = self._process, self._items, self._stop
-        if self._closed or process is None or items is None or stop is None:
+        process, items, shared = self._process, self._items, self._shared
+        if self._closed or process is None or items is None or shared is None:
             return
         self._closed = True
         deadline = time.monotonic() + JOIN_S
@@ -269,16 +273,20 @@ class RecorderProcess:
             if not process.is_alive():
                 break
             time.sleep(0.005)
-        stop.set()
+        # A flag, not a multiprocessing Event: setting an Event waits for the child's
+        # acknowledgement, forever if the child was killed while waiting on it.
+        shared.set("stop", 1.0)
         process.join(JOIN_S)
         if process.is_alive():
             logger.error("the recorder's process did not finish in %.0f s: killed", JOIN_S)
             process.kill()
             process.join()
-        lost = self._submitted - int(self._number("taken"))
-        if lost > 0:
+        self._forget_taken()
+        if self._untaken:
+            lost = sum(self._untaken)
             self._dropped_here += lost
-            logger.error("%d items were never written: the recorder's process ended first", lost)
+            self._untaken.clear()
+            logger.error("%d frames and items never written: the recorder's process ended", lost)
         items.cancel_join_thread()  # whatever is left has been counted
         items.close()
 
@@ -293,12 +301,7 @@ class RecorderProcess:
     @property
     def alive(self) -> bool:
         process = self._process
-        return (
-            process is not None
-            and process.is_alive()
-            and self._number("writer_alive") > 0
-            and time.monotonic() - self._number("heartbeat") < HEARTBEAT_MAX_AGE_S
-        )
+        return process is not None and process.is_alive() and self._number("writer_alive") > 0
 
     @property
     def depth(self) -> int:
@@ -351,10 +354,9 @@ def _child_main(
     run_id: str,
     items: "multiprocessing.Queue[Item]",
     shared: _Shared,
-    stop: Event,
     log_level: str,
 ) -> None:
-    """The child process: records what comes through ``items`` until ``stop`` is set."""
+    """The child process: records what comes through ``items`` until the ``stop`` flag."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_IGN)
     setup_logging(log_level)
@@ -381,7 +383,8 @@ def _child_main(
     text: dict[str, Any] = {}
     while True:
         text = _share(recorder, shared, text)
-        if stop.wait(SHARE_PERIOD_S):
+        time.sleep(SHARE_PERIOD_S)
+        if shared.get("stop"):
             break
         if parent is not None and not parent.is_alive():
             logger.error("the service ended without stopping the recorder: finishing the file")
@@ -392,7 +395,6 @@ def _child_main(
 
 def _share(recorder: Recorder, shared: _Shared, text: dict[str, Any]) -> dict[str, Any]:
     """Publish the recorder's counters, and its text when it changed; the text shared."""
-    shared.set("heartbeat", time.monotonic())
     shared.set("writer_alive", 1.0 if recorder.alive else 0.0)
     shared.set("dropped", recorder.dropped)
     shared.set("errors", recorder.errors)

@@ -82,3 +82,18 @@ def test_it_runs_at_sched_idle_and_only_close_stops_it(tmp_path: Path) -> None:
         assert recorder.alive
     assert not recorder.alive and recorder.dropped == 0
     assert len(raw_times(recorder.paths[0])) == 7
+
+
+def test_a_dead_child_is_not_alive_and_what_it_never_took_is_counted(tmp_path: Path) -> None:
+    _, database = example_machine()
+    recorder = RecorderProcess(RecordingSettings(directory=tmp_path), database, machine_id="m")
+    with recorder:
+        assert recorder.alive and recorder.pid is not None
+        os.kill(recorder.pid, signal.SIGKILL)
+        deadline = time.monotonic() + 10
+        while recorder.alive:  # the watchdog's condition: the service is not alive now
+            assert time.monotonic() < deadline
+            time.sleep(0.01)
+        recorder.submit(RecordBatch.of(results(4), signals=False))
+        recorder.submit(BusEvent(1010.0, "down", "test"))
+    assert recorder.dropped == 4 + 1  # the batch's frames and the event, never written
