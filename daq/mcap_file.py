@@ -2,9 +2,10 @@
 
 The stream is passed in (opened by :mod:`daq.recorder`, or a ``BytesIO`` in tests).
 What is written comes in :class:`RecordBatch` es (one per batch of frames the
-consumer processed). Topics: ``/can/raw`` in the binary layout of
-:mod:`daq.can_batch` (its schema in the file), the others with a JSON Schema
-(``jsonschema``) and JSON messages:
+consumer processed), or as the :class:`EncodedBatch` they become (frames in their
+``/can/raw`` bytes: what crosses to the recorder's process). Topics: ``/can/raw`` in
+the binary layout of :mod:`daq.can_batch` (its schema in the file), the others with a
+JSON Schema (``jsonschema``) and JSON messages:
 
 =======================  ===================================================
 ``/can/raw``             every frame, bad ones included, a batch per message
