@@ -18,9 +18,11 @@ forked) and stands, for the service, in the recorder's place:
   the status reads without waiting on the child.
 - The child ignores SIGINT and SIGTERM (a terminal and systemd signal the whole group):
   :meth:`RecorderProcess.close` waits until the child has taken every item, then tells
-  it to stop; it finishes the file (last chunk, summary) and exits. Items it never took
-  (a child that hangs, killed after :data:`JOIN_S`) are counted as dropped. A child
-  whose parent died finishes its file and exits.
+  it to stop (a flag in shared memory: a ``multiprocessing.Event`` would wait forever
+  on a child killed while waiting on it); it finishes the file (last chunk, summary) and
+  exits. Items it never took (a child that died, or hung and was killed after
+  :data:`JOIN_S`) are counted as dropped; a dead child makes the service not alive. A
+  child whose parent died finishes its file and exits.
 - The child runs at ``SCHED_IDLE``: any wake-up of the service's threads preempts it at
   once, and it writes in the CPU time they leave (on a machine of several cores, on
   another core). At nice +5 instead, on one CPU, a frame waited behind its writing: the
