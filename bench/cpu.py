@@ -22,6 +22,14 @@ from pathlib import Path
 TASKS = Path("/proc/self/task")
 
 
+def _ran_ns(task: Path) -> int | None:
+    """Nanoseconds the thread ``/proc/.../task/<tid>`` ran so far; None once it ended."""
+    try:
+        return int((task / "schedstat").read_text().split()[0])
+    except (OSError, ValueError, IndexError):
+        return None
+
+
 def thread_cpu_ns(
     exclude: Collection[int] = (), children: Mapping[int, str] = {}
 ) -> dict[str, int]:
@@ -33,21 +41,21 @@ def thread_cpu_ns(
     for task in TASKS.iterdir():
         if int(task.name) in exclude:
             continue
+        ran_ns = _ran_ns(task)
+        if ran_ns is None:
+            continue
         try:
-            ran_ns = int((task / "schedstat").read_text().split()[0])
             os_name = (task / "comm").read_text().strip()
-        except (OSError, ValueError, IndexError):  # the thread ended meanwhile
+        except OSError:  # the thread ended meanwhile
             continue
         name = names.get(int(task.name)) or re.sub(r"\d+", "", os_name)
         name = name.split(" for bus ")[0]  # python-can's "Notifier for bus <channel>"
         totals[name] = totals.get(name, 0) + ran_ns
     for pid, name in children.items():
         for task in Path(f"/proc/{pid}/task").glob("*"):
-            try:
-                ran_ns = int((task / "schedstat").read_text().split()[0])
-            except (OSError, ValueError, IndexError):
-                continue
-            totals[name] = totals.get(name, 0) + ran_ns
+            ran_ns = _ran_ns(task)
+            if ran_ns is not None:
+                totals[name] = totals.get(name, 0) + ran_ns
     return totals
 
 
