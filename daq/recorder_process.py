@@ -41,7 +41,6 @@ import os
 import queue
 import signal
 import time
-import uuid
 from collections import deque
 from collections.abc import Mapping
 from multiprocessing.context import SpawnProcess
@@ -93,11 +92,11 @@ class _Shared:
         "stop",  # set by the service: finish the file and end
         "text_version",
     )
+    _INDEX = {name: at for at, name in enumerate(NUMBERS)}
 
     def __init__(self) -> None:
         self.numbers = _CONTEXT.RawArray(ctypes.c_double, len(self.NUMBERS))
         self.text = _CONTEXT.RawArray(ctypes.c_char, TEXT_BYTES)
-        self._index = {name: at for at, name in enumerate(self.NUMBERS)}
         self._text_seen: tuple[float, dict[str, Any]] = (-1.0, _NO_TEXT)
 
     def __getstate__(self) -> dict[str, Any]:
@@ -105,14 +104,13 @@ class _Shared:
 
     def __setstate__(self, state: dict[str, Any]) -> None:
         self.numbers, self.text = state["numbers"], state["text"]
-        self._index = {name: at for at, name in enumerate(self.NUMBERS)}
         self._text_seen = (-1.0, _NO_TEXT)
 
     def get(self, name: str) -> float:
-        return float(self.numbers[self._index[name]])
+        return float(self.numbers[self._INDEX[name]])
 
     def set(self, name: str, value: float) -> None:
-        self.numbers[self._index[name]] = value
+        self.numbers[self._INDEX[name]] = value
 
     def write_text(self, content: Mapping[str, Any]) -> None:
         data = json.dumps(content).encode()
@@ -182,8 +180,6 @@ class RecorderProcess:
         self._database = database
         self._machine_id = machine_id
         self._attachments = dict(attachments)
-        #: Names this run of the service in every file's metadata (drawn at start).
-        self.run_id: str | None = None
         self._items: multiprocessing.Queue[Item] | None = None
         self._shared: _Shared | None = None
         self._process: SpawnProcess | None = None
@@ -209,7 +205,6 @@ class RecorderProcess:
         """Start the child; return once it records. Raises :class:`RecordingError`."""
         if self._process is not None:
             return
-        self.run_id = uuid.uuid4().hex
         self._items = _CONTEXT.Queue(maxsize=self.settings.queue_size)
         self._shared = shared = _Shared()
         self._process = _CONTEXT.Process(
@@ -220,7 +215,6 @@ class RecorderProcess:
                 self._database,
                 self._machine_id,
                 self._attachments,
-                self.run_id,
                 self._items,
                 self._shared,
                 logging.getLevelName(logging.getLogger("daq").getEffectiveLevel()),
@@ -271,7 +265,7 @@ class RecorderProcess:
             return
         self._closed = True
         deadline = time.monotonic() + JOIN_S
-        while self._number("taken") < self._submitted and time.monotonic() < deadline:
+        while self.depth and time.monotonic() < deadline:
             if not process.is_alive():
                 break
             time.sleep(0.005)
@@ -353,7 +347,6 @@ def _child_main(
     database: Database,
     machine_id: str,
     attachments: Mapping[str, bytes],
-    run_id: str,
     items: "multiprocessing.Queue[Item]",
     shared: _Shared,
     log_level: str,
@@ -371,7 +364,6 @@ def _child_main(
         database,
         machine_id=machine_id,
         attachments=attachments,
-        run_id=run_id,
         items=_TakenCounter(items, shared),
     )
     try:
