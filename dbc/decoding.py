@@ -118,9 +118,17 @@ class _MessageCodec:
         self.counter_signal: str | None = None
         # One counter state per sender: J1939 transducers sharing a PGN count on their own.
         self._counters: dict[int | None, CounterCheck] = {}
+        # A counter with a value table (e.g. 15 "NotAvailable") decodes to a name for some
+        # values; the check judges its number.
+        self._counter_codes: dict[str, int] = {}
         if protection is not None:
             self.crc = protection.crc_check(message, compiled=compiled)
             self.counter_signal = protection.counter
+            if protection.counter is not None:
+                choices: Mapping[int, object] = (
+                    message.get_signal_by_name(protection.counter).choices or {}
+                )
+                self._counter_codes = {str(name): int(raw) for raw, name in choices.items()}
 
     def decode(
         self, arbitration_id: int, data: bytes, t_s: float, source_address: int | None
@@ -140,7 +148,8 @@ class _MessageCodec:
         counter_value = None
         counter = None
         if self.counter_signal is not None:
-            counter_value = int(signals[self.counter_signal])
+            value = signals[self.counter_signal]
+            counter_value = self._counter_codes[value] if isinstance(value, str) else int(value)
             counter = self._counters.get(source_address) or self._counter(source_address)
         if self.crc is not None and not self.crc.matches(data, counter_value):
             # The counter of a corrupted frame is not trusted: judge the next good frame
