@@ -12,6 +12,7 @@ from crccheck.crc import Crc8SaeJ1850
 
 from daq.frames import RawFrame
 from daq.pipeline import Pipeline
+from dbc.database import load_database_bytes
 from dbc.decoding import FrameDecoder
 from dbc.machine import MachineConfig, load_machine_config
 
@@ -82,3 +83,23 @@ def test_a_counter_value_the_dbc_names_is_judged_by_its_number(compiled: bool) -
         reasons.append(result.estimates[0].reasons)
     assert reasons == [(), (), (), (), ("counter_repeat",)]
     assert dict(pipeline.bad) == {"counter_repeat": 1}
+
+
+@pytest.mark.parametrize("encoding", ["utf-8-sig", "utf-16"])
+def test_a_dbc_with_a_byte_order_mark_is_read_in_the_encoding_it_declares(
+    tmp_path: Path, encoding: str
+) -> None:
+    """An editor's "UTF-8 with BOM" or Windows' "Unicode" DBC: once "not a valid DBC"."""
+    text = (STRANGER / "motorola_psi.dbc").read_text(encoding="cp1252")
+    (tmp_path / "motorola_psi.dbc").write_bytes(text.encode(encoding))
+    (tmp_path / "machine.toml").write_text((STRANGER / "motorola_psi.toml").read_text())
+    config, database = load_machine_config(tmp_path / "machine.toml")
+    assert database.get_message_by_name("STATE").get_signal_by_name("OilTemp").unit == "\u00b0C"
+    copy = load_database_bytes(text.encode(encoding), "rec.mcap:dbc")  # a recording's copy
+    assert copy.get_message_by_name("STATE").get_signal_by_name("OilTemp").unit == "\u00b0C"
+    (estimate,) = (
+        Pipeline.from_config(config, database)
+        .process(RawFrame(1.0, HUB_FRONT_ID, True, _hub_frame(0, 15000, 1000)))
+        .estimates
+    )
+    assert estimate.force_raw_N == pytest.approx(eq4_N(1500 * PSI_PA, 100 * PSI_PA), rel=1e-9)
