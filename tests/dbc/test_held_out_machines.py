@@ -15,6 +15,7 @@ from daq.pipeline import Pipeline
 from dbc.database import load_database_bytes
 from dbc.decoding import FrameDecoder
 from dbc.machine import MachineConfig, load_machine_config
+from dbc.units import pressure_factor_to_Pa
 
 STRANGER = Path(__file__).resolve().parent.parent / "files" / "stranger"
 PSI_PA = 4.4482216152605 / 0.0254**2
@@ -103,3 +104,24 @@ def test_a_dbc_with_a_byte_order_mark_is_read_in_the_encoding_it_declares(
         .estimates
     )
     assert estimate.force_raw_N == pytest.approx(eq4_N(1500 * PSI_PA, 100 * PSI_PA), rel=1e-9)
+
+
+def test_units_marked_gauge_are_pressure_units_and_come_out_in_pa() -> None:
+    """The DBC's "psi(g)" (a chamber) and "PSIG" (a pressure on no leg): once the first
+    stopped the config and the second went to Zenoh and MCAP in psi."""
+    pipeline, config, _ = _pipeline("motorola_psi.toml", compiled=True)
+    assert config.legs["FL"].piston.unit == "psi(g)"
+    assert config.unit_factors["ACCU"] == {"pAccu": pytest.approx(PSI_PA, rel=1e-12)}
+    accu = pipeline.process(RawFrame(1.0, 0x601, False, (30000).to_bytes(2, "big")))
+    assert accu.decoded is not None
+    assert accu.decoded.signals["pAccu"] == pytest.approx(3000.0 * PSI_PA, rel=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("unit", "pa"),
+    [("psig", PSI_PA), ("bar(g)", 1e5), ("barg", 1e5), ("kPa gauge", 1e3), ("MPa (g)", 1e6)]
+    + [("bara", None), ("psia", None), ("kg", None), ("g", None)],
+)
+def test_gauge_marks_and_absolute_units(unit: str, pa: float | None) -> None:
+    factor = pressure_factor_to_Pa(unit)
+    assert factor == (None if pa is None else pytest.approx(pa, rel=1e-12))
