@@ -125,3 +125,42 @@ def test_units_marked_gauge_are_pressure_units_and_come_out_in_pa() -> None:
 def test_gauge_marks_and_absolute_units(unit: str, pa: float | None) -> None:
     factor = pressure_factor_to_Pa(unit)
     assert factor == (None if pa is None else pytest.approx(pa, rel=1e-12))
+
+
+def _page(page: int, cap_raw: int, ann_raw: int, tail: bytes) -> bytes:
+    """A MUXHUB payload: page, MPa pressures at 0.001, and bytes 5..7 (counter, CRC)."""
+    return bytes([page]) + cap_raw.to_bytes(2, "little") + ann_raw.to_bytes(2, "little") + tail
+
+
+def _page0(counter: int, cap_raw: int, ann_raw: int) -> bytes:
+    data = _page(0, cap_raw, ann_raw, bytes([counter, 0]))
+    return data + bytes([Crc8SaeJ1850.calc(data)])
+
+
+def test_a_counter_and_crc_on_one_multiplexer_page_are_checked_on_its_frames() -> None:
+    """Once a page without the counter raised KeyError out of the pipeline, and the CRC
+    was checked (failed) on frames that do not carry it."""
+    pipeline, _, _ = _pipeline("mux_pages.toml", compiled=True)  # cantools decodes it
+    frames = [
+        _page0(7, 12500, 1250),
+        _page(1, 10000, 2000, bytes([0x12, 0x34, 0x56])),  # no counter, no CRC
+        _page0(8, 12500, 1250),
+        _page(1, 10000, 2000, bytes([0xAB, 0xCD, 0xEF])),
+        _page0(8, 12500, 1250),  # repeated counter
+        _page0(9, 12500, 1250)[:7] + b"\x00",  # bad CRC
+    ]
+    estimates = [
+        pipeline.process(RawFrame(1.0 + 0.005 * i, 0x300, False, data)).estimates
+        for i, data in enumerate(frames)
+    ]
+    assert [(e.leg, e.reasons) for (e,) in estimates] == [
+        ("bank-0", ()),
+        ("bank-1", ()),
+        ("bank-0", ()),
+        ("bank-1", ()),
+        ("bank-0", ("counter_repeat",)),
+        ("bank-0", ("crc",)),
+    ]
+    assert estimates[0][0].force_raw_N == pytest.approx(eq4_N(12.5e6, 1.25e6), rel=1e-12)
+    assert estimates[1][0].force_raw_N == pytest.approx(eq4_N(10e6, 2e6), rel=1e-12)
+    assert dict(pipeline.bad) == {"counter_repeat": 1, "crc": 1}
