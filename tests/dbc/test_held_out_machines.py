@@ -14,6 +14,7 @@ from daq.frames import RawFrame
 from daq.pipeline import Pipeline
 from dbc.database import load_database_bytes
 from dbc.decoding import FrameDecoder
+from dbc.errors import ConfigError
 from dbc.machine import MachineConfig, load_machine_config
 from dbc.units import pressure_factor_to_Pa
 
@@ -164,3 +165,34 @@ def test_a_counter_and_crc_on_one_multiplexer_page_are_checked_on_its_frames() -
     assert estimates[0][0].force_raw_N == pytest.approx(eq4_N(12.5e6, 1.25e6), rel=1e-12)
     assert estimates[1][0].force_raw_N == pytest.approx(eq4_N(10e6, 2e6), rel=1e-12)
     assert dict(pipeline.bad) == {"counter_repeat": 1, "crc": 1}
+
+
+STABILITY = """
+[stability]
+rotation = "POSE.Rot"
+fold = "POSE.Fold"
+bridge_length_m = 6.0
+hinge_m = 3.0
+[stability.bases.front]
+axis_m = [0.0, 0.0]
+feet_m = { FL = [1.5, 0.0] }
+[stability.bases.rear]
+axis_m = [0.0, 0.0]
+feet_m = { RL = [-1.5, 0.0] }
+"""
+
+
+def test_bridge_angles_in_degrees_spelled_as_dbcs_do_are_taken(tmp_path: Path) -> None:
+    """ "°" (Vector's) and "Deg": once only "deg" was taken, and the DBC had to change."""
+    (tmp_path / "motorola_psi.dbc").write_bytes((STRANGER / "motorola_psi.dbc").read_bytes())
+    text = (STRANGER / "motorola_psi.toml").read_text() + STABILITY
+    (tmp_path / "machine.toml").write_text(text)
+    config, _ = load_machine_config(tmp_path / "machine.toml")
+    assert config.stability is not None and str(config.stability.fold) == "POSE.Fold"
+    (tmp_path / "machine.toml").write_text(text.replace('"POSE.Fold"', '"HUB_REAR.RL_pRod"'))
+    with pytest.raises(ConfigError) as refused:
+        load_machine_config(tmp_path / "machine.toml")
+    assert str(refused.value) == (
+        f"{tmp_path / 'machine.toml'}: stability.fold: HUB_REAR.RL_pRod must be in degrees "
+        "in the DBC (deg, \u00b0, degree), got 'Bar'"
+    )
