@@ -156,9 +156,7 @@ class _MessageCodec:
         if self.counter_signal is not None:
             value = signals.get(self.counter_signal)
             if value is not None:
-                counter_value = (
-                    self._counter_codes[value] if isinstance(value, str) else int(value)
-                )
+                counter_value = self._counter_codes[value] if isinstance(value, str) else int(value)
                 counter = self._counters.get(source_address) or self._counter(source_address)
         crc = self.crc
         if (
