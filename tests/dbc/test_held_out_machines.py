@@ -4,9 +4,11 @@ the DBC's layout (not by the project's encoder), forces checked against eq. (4) 
 out here from the config's numbers, in SI."""
 
 import math
+import struct
 from pathlib import Path
 
 import pytest
+from cantools.autosar.end_to_end import compute_profile5_crc
 from cantools.database.can import Database
 from crccheck.crc import Crc8SaeJ1850
 
@@ -196,3 +198,35 @@ def test_bridge_angles_in_degrees_spelled_as_dbcs_do_are_taken(tmp_path: Path) -
         f"{tmp_path / 'machine.toml'}: stability.fold: HUB_REAR.RL_pRod must be in degrees "
         "in the DBC (deg, \u00b0, degree), got 'Bar'"
     )
+
+
+def _fd_page(page: int, counter: int, cap_MPa: float, ann_MPa: float) -> bytes:
+    """A HUB_FD payload: page, float32 pressures, counter, then the E2E profile 5 CRC of
+    them and data ID 0x1234, low byte first (cantools' CRC is of a payload's bytes 2..)."""
+    data = bytes([page]) + struct.pack("<ff", cap_MPa, ann_MPa) + bytes([counter])
+    crc = compute_profile5_crc(b"\x00\x00" + data, 0x1234)  # over the bytes after its own
+    return data + crc.to_bytes(2, "little")
+
+
+def test_a_message_longer_than_a_classic_frame_takes_fd_frames() -> None:
+    """HUB_FD is 12 bytes and the DBC names no frame format: its frames can only be CAN FD
+    (every one was counted fd_frame and dropped)."""
+    pipeline, _, database = _pipeline("fd_float.toml", compiled=True)
+    assert not database.get_message_by_name("HUB_FD").is_fd  # as cantools reads the DBC
+    pages = [(0, 12.5, 1.25), (1, 10.0, 2.0), (0, math.nan, 1.25), (1, 10.0, math.inf)]
+    estimates = [
+        pipeline.process(
+            RawFrame(1.0 + 0.005 * i, 0x300, False, _fd_page(page, i, p, r), is_fd=True)
+        ).estimates[0]
+        for i, (page, p, r) in enumerate(pages)
+    ]
+    assert [(e.leg, e.valid) for e in estimates] == [
+        ("A", True),
+        ("B", True),
+        ("A", False),
+        ("B", False),
+    ]
+    assert estimates[0].force_raw_N == pytest.approx(eq4_N(12.5e6, 1.25e6), rel=1e-12)
+    assert estimates[1].force_raw_N == pytest.approx(eq4_N(10e6, 2e6), rel=1e-12)
+    assert estimates[2].reasons == estimates[3].reasons == ("range",)
+    assert not pipeline.bad
