@@ -5,11 +5,13 @@ out here from the config's numbers, in SI."""
 
 import math
 import struct
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
 from cantools.autosar.end_to_end import compute_profile5_crc
 from cantools.database.can import Database
+from cantools.j1939 import frame_id_pack
 from crccheck.crc import Crc8SaeJ1850
 
 from daq.frames import RawFrame
@@ -230,3 +232,41 @@ def test_a_message_longer_than_a_classic_frame_takes_fd_frames() -> None:
     assert estimates[1].force_raw_N == pytest.approx(eq4_N(10e6, 2e6), rel=1e-12)
     assert estimates[2].reasons == estimates[3].reasons == ("range",)
     assert not pipeline.bad
+
+
+def _press_a(priority: int, destination: int, source: int, counter: int, raw: int) -> RawFrame:
+    """A PRESS_A frame (PGN 0xED00, PDU1) as a transducer sends it: 0.05 kPa/bit, Diag "ok",
+    the counter in byte 3, CRC-8 SAE J1850 of bytes 0..6 in byte 7."""
+    frame_id = frame_id_pack(priority, 0, 0, 0xED, destination, source)
+    data = raw.to_bytes(2, "little") + bytes([0, counter, 0, 0, 0])
+    return RawFrame(0.0, frame_id, True, data + bytes([Crc8SaeJ1850.calc(data)]))
+
+
+def test_j1939_pdu1_transducers_whatever_priority_and_destination() -> None:
+    """Held up: PGN 0xED00 from 0x30..0x33 at priority 3 to 0x27 (the DBC: 6, to 0xFE),
+    each transducer's own counter, "kPa " with a blank, a value-table code."""
+    pipeline, _, _ = _pipeline("j1939_propa.toml", compiled=True)
+    filters = pipeline.decoder.receive_filters
+    estimates = []
+    t_s = 1.0
+    for counter in range(3):
+        for source, kPa in ((0x31, 800.0), (0x30, 2800.0), (0x32, 2500.0), (0x33, 600.0)):
+            frame = _press_a(3, 0x27, source, counter, round(kPa / 0.05))
+            assert any(frame.arbitration_id & f.can_mask == f.can_id & f.can_mask for f in filters)
+            result = pipeline.process(replace(frame, t_s=t_s))
+            estimates += [(e.leg, e.force_raw_N, e.reasons) for e in result.estimates]
+            t_s += 0.001
+        t_s += 0.016
+    assert (
+        estimates
+        == [
+            ("left-front", pytest.approx(eq4_N(2.8e6, 0.8e6), rel=1e-12), ()),
+            ("right-front", pytest.approx(eq4_N(2.5e6, 0.6e6), rel=1e-12), ()),
+        ]
+        * 3
+    )
+    result = pipeline.process(replace(_press_a(6, 0xFE, 0x30, 3, 0xFFFF), t_s=t_s))
+    (estimate,) = result.estimates
+    assert math.isnan(estimate.p_piston_Pa) and estimate.reasons == ("range",)
+    result = pipeline.process(replace(_press_a(6, 0xFE, 0x34, 0, 100), t_s=t_s))
+    assert result.estimates == () and dict(pipeline.bad) == {"unmapped_source": 1}
