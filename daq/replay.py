@@ -19,16 +19,19 @@ rotations too.
 """
 
 import csv
+import gzip
 import json
 import logging
 import sqlite3
 import struct
 import tomllib
+import zlib
 from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
-from typing import IO, Any
+from typing import IO, Any, TextIO, cast
 
 import can
+from can.io.generic import MessageReader, TextIOMessageReader
 from can.io.player import MESSAGE_READERS
 from cantools.database.can import Database
 
@@ -190,11 +193,12 @@ def can_log_frames(path: Path, channel: str | None = None) -> Iterator[RawFrame]
     come from more than one (a logger on two buses). A frame without a channel (python-can
     gives none to a candump error frame) is kept whatever ``channel`` is. The times of an
     ASC log with ``timestamps relative`` (each the step since the event before) are
-    summed from its start."""
+    summed from its start. A text log cut short is read up to its last whole line
+    (:class:`LogLines`), with a warning."""
     if not path.is_file():  # python-can's SQLite reader would create it
         raise RecordingError(path, "cannot read it as a CAN log: no such file")
     try:
-        reader = AscReader(str(path)) if path.suffix.lower() == ".asc" else can.LogReader(str(path))
+        reader, lines = _log_reader(path)
     except (OSError, NotImplementedError, *_READER_ERRORS) as exc:  # NotImplemented: no asammdf
         raise RecordingError(path, f"cannot read it as a CAN log: {exc}") from exc
     count = 0
@@ -222,10 +226,69 @@ def can_log_frames(path: Path, channel: str | None = None) -> Iterator[RawFrame]
         except _READER_ERRORS as exc:
             hint = _LINE_FORMATS.get(path.suffix.lower(), "")
             raise RecordingError(path, f"unreadable after frame {count}: {exc}{hint}") from exc
+    if lines is not None and lines.cut is not None:
+        logger.warning("%s is cut short (%s): read up to frame %d", path, lines.cut, count)
     if channel is not None and channel not in channels:
         raise RecordingError(
             path, f"no frame on channel {channel!r}; its channels: {', '.join(sorted(channels))}"
         )
+
+
+def _log_reader(path: Path) -> tuple[MessageReader, "LogLines | None"]:
+    """python-can's reader of ``path`` by its suffix (also gzipped); a text log's lines
+    come through :class:`LogLines`."""
+    suffixes = [suffix.lower() for suffix in path.suffixes[-2:]]
+    gzipped = suffixes[-1:] == [".gz"]
+    suffix = suffixes[-2] if gzipped and len(suffixes) == 2 else suffixes[-1] if suffixes else ""
+    reader_type = AscReader if suffix == ".asc" else MESSAGE_READERS.get(suffix)
+    if reader_type is None or not issubclass(reader_type, TextIOMessageReader):
+        return can.LogReader(str(path)), None  # binary, or python-can's word on the suffix
+    # The frames are ASCII; a header, comment or name may be in a Windows code page
+    # (a German CANoe writes "date Mo Mär 02 ..." in Windows-1252): replaced, not fatal.
+    file = (
+        gzip.open(path, "rt", encoding="utf-8-sig", errors="replace")
+        if gzipped
+        else open(path, encoding="utf-8-sig", errors="replace")  # noqa: SIM115
+    )
+    lines = LogLines(file)
+    try:
+        return reader_type(cast(TextIO, lines)), lines
+    except BaseException:
+        file.close()
+        raise
+
+
+class LogLines:
+    """The lines of a text CAN log, as python-can's readers take a file, up to a cut.
+
+    A logger killed while writing (a power cut) leaves a last line without its line end:
+    it is left out, as its data may end inside a byte (``1C`` cut to ``1`` would read as
+    0x01), and :attr:`cut` says so; a gzipped log cut short ends the same way.
+    """
+
+    def __init__(self, file: IO[str]) -> None:
+        self._file = file
+        #: Why reading stopped before the end of the file (None: it did not).
+        self.cut: str | None = None
+
+    def __iter__(self) -> "LogLines":
+        return self
+
+    def __next__(self) -> str:
+        if self.cut is not None:
+            raise StopIteration
+        try:
+            line = next(self._file)
+        except (EOFError, zlib.error, gzip.BadGzipFile) as exc:  # a gzipped log cut short
+            self.cut = str(exc)
+            raise StopIteration from exc
+        if not line.endswith("\n"):
+            self.cut = f"its last line has no line end: {line.strip()[:60]!r}, left out"
+            raise StopIteration
+        return line
+
+    def close(self) -> None:
+        self._file.close()
 
 
 class AscReader(can.ASCReader):

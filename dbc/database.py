@@ -1,5 +1,6 @@
 """Loading the CAN database (DBC) with cantools, with errors a person can act on."""
 
+import codecs
 from pathlib import Path
 
 import cantools
@@ -11,6 +12,13 @@ from dbc.errors import DbcError
 #: How a DBC file's bytes are read (cantools' ``load_file`` default for DBC: Vector's tools
 #: write Windows-1252, e.g. a unit "°C"), the file and a recording's copy of it alike.
 DBC_ENCODING = "cp1252"
+#: Byte-order marks a DBC may start with (an editor's "UTF-8 with BOM", Windows'
+#: "Unicode" = UTF-16), each with the encoding it declares: it wins over DBC_ENCODING.
+_BOM_ENCODINGS = (
+    (codecs.BOM_UTF8, "utf-8-sig"),
+    (codecs.BOM_UTF16_LE, "utf-16"),
+    (codecs.BOM_UTF16_BE, "utf-16"),
+)
 
 
 def load_database(path: str | Path) -> Database:
@@ -20,18 +28,12 @@ def load_database(path: str | Path) -> Database:
     malformed or not a CAN database.
     """
     try:
-        database = cantools.database.load_file(
-            str(path), database_format="dbc", encoding=DBC_ENCODING, strict=True
-        )
+        data = Path(path).read_bytes()
     except FileNotFoundError as exc:
         raise DbcError(path, "no such file; set machine.dbc in the config to the DBC") from exc
     except OSError as exc:
         raise DbcError(path, f"cannot read it: {exc.strerror or exc}") from exc
-    except (UnsupportedDatabaseFormatError, ValueError, KeyError) as exc:
-        raise DbcError(path, f"not a valid DBC: {_first_line(exc)}") from exc
-    if not isinstance(database, Database) or not database.messages:
-        raise DbcError(path, "holds no CAN messages")
-    return database
+    return load_database_bytes(data, str(path))
 
 
 def load_database_string(text: str, source: str) -> Database:
@@ -46,9 +48,10 @@ def load_database_string(text: str, source: str) -> Database:
 
 
 def load_database_bytes(data: bytes, source: str) -> Database:
-    """Load a DBC from the bytes of its file (e.g. the copy embedded in a recording), read
-    as :func:`load_database` reads the file."""
-    return load_database_string(data.decode(DBC_ENCODING, errors="replace"), source)
+    """Load a DBC from the bytes of its file (the file itself, or the copy embedded in a
+    recording): in the encoding its byte-order mark declares, else :data:`DBC_ENCODING`."""
+    encoding = next((enc for bom, enc in _BOM_ENCODINGS if data.startswith(bom)), DBC_ENCODING)
+    return load_database_string(data.decode(encoding, errors="replace"), source)
 
 
 def _first_line(exc: BaseException) -> str:

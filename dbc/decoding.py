@@ -118,9 +118,23 @@ class _MessageCodec:
         self.counter_signal: str | None = None
         # One counter state per sender: J1939 transducers sharing a PGN count on their own.
         self._counters: dict[int | None, CounterCheck] = {}
+        # A counter with a value table (e.g. 15 "NotAvailable") decodes to a name for some
+        # values; the check judges its number.
+        self._counter_codes: dict[str, int] = {}
+        # A CRC under a multiplexer value is in (and checked on) those frames only; so is a
+        # counter, which then counts them.
+        self._multiplexed_crc: str | None = None
         if protection is not None:
             self.crc = protection.crc_check(message, compiled=compiled)
             self.counter_signal = protection.counter
+            if protection.crc is not None:
+                if message.get_signal_by_name(protection.crc).multiplexer_ids:
+                    self._multiplexed_crc = protection.crc
+            if protection.counter is not None:
+                choices: Mapping[int, object] = (
+                    message.get_signal_by_name(protection.counter).choices or {}
+                )
+                self._counter_codes = {str(name): int(raw) for raw, name in choices.items()}
 
     def decode(
         self, arbitration_id: int, data: bytes, t_s: float, source_address: int | None
@@ -140,9 +154,16 @@ class _MessageCodec:
         counter_value = None
         counter = None
         if self.counter_signal is not None:
-            counter_value = int(signals[self.counter_signal])
-            counter = self._counters.get(source_address) or self._counter(source_address)
-        if self.crc is not None and not self.crc.matches(data, counter_value):
+            value = signals.get(self.counter_signal)
+            if value is not None:
+                counter_value = self._counter_codes[value] if isinstance(value, str) else int(value)
+                counter = self._counters.get(source_address) or self._counter(source_address)
+        crc = self.crc
+        if (
+            crc is not None
+            and (self._multiplexed_crc is None or self._multiplexed_crc in signals)
+            and not crc.matches(data, counter_value)
+        ):
             # The counter of a corrupted frame is not trusted: judge the next good frame
             # as a first one, so one bad CRC costs exactly one sample.
             if counter is not None:

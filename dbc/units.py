@@ -11,6 +11,15 @@ or, where the DBC's is empty or wrong, from the config (``unit = "bar"``).
 6894.757293168361
 >>> pressure_factor_to_Pa("m") is None
 True
+
+A unit marked gauge (``psig``, ``barg``, ``bar(g)``, ``kPa gauge``) is that unit: the
+chamber pressures are gauge pressures. An absolute one (``bara``, ``psia``) is none of
+these units (it is off by the atmosphere's ~1 bar).
+
+>>> pressure_factor_to_Pa("psi(g)") == pressure_factor_to_Pa("PSIG") == 6894.757293168361
+True
+>>> pressure_factor_to_Pa("bara") is None
+True
 """
 
 #: Accepted pressure units (lower case) and what one of them is in Pa.
@@ -28,6 +37,17 @@ PRESSURE_UNITS_TO_PA: dict[str, float] = {
 ACCEPTED_PRESSURE_UNITS = "Pa, kPa, MPa, bar, mbar, psi"
 
 
+#: Marks of a gauge unit after the unit's name (longest first), e.g. "psig", "bar(g)".
+GAUGE_MARKS = ("(gauge)", "gauge", "(g)", "g")
+
+
 def pressure_factor_to_Pa(unit: str) -> float | None:
-    """Pa per one ``unit`` (case-insensitive, surrounding blanks ignored); None if unknown."""
-    return PRESSURE_UNITS_TO_PA.get(unit.strip().lower())
+    """Pa per one ``unit`` (case-insensitive, surrounding blanks and a gauge mark
+    ignored); None if unknown."""
+    name = unit.strip().lower()
+    factor = PRESSURE_UNITS_TO_PA.get(name)
+    if factor is None:
+        mark = next((mark for mark in GAUGE_MARKS if name.endswith(mark)), None)
+        if mark is not None:
+            factor = PRESSURE_UNITS_TO_PA.get(name.removesuffix(mark).rstrip(" _-"))
+    return factor

@@ -326,3 +326,87 @@ def test_a_classic_frame_on_a_can_fd_channel_of_an_asc_log_is_no_fd_frame(tmp_pa
         (0x123, True, 12),
         (0x100, False, 8),
     ]
+
+
+def _written_log(path: Path, count: int = 5) -> list[can.Message]:
+    """``count`` frames of ID 0x100 (data ending in 0x1C) written by python-can's writer
+    for ``path``'s suffix; the messages."""
+    messages = [
+        can.Message(
+            timestamp=1_750_000_000.0 + k / 100,
+            arbitration_id=0x100,
+            is_extended_id=False,
+            data=bytes([k % 256, 0x12, 8, 7, 0, 0, 0, 0x1C]),
+            channel="can0",
+        )
+        for k in range(count)
+    ]
+    with can.Logger(path) as writer:
+        for message in messages:
+            writer.on_message_received(message)
+    return messages
+
+
+@pytest.mark.parametrize("suffix", [".log", ".asc", ".csv", ".trc", ".log.gz"])
+def test_a_text_log_cut_short_is_read_up_to_its_last_whole_line(
+    tmp_path: Path, suffix: str, caplog: pytest.LogCaptureFixture
+) -> None:
+    # A logger killed by a power cut leaves a last line without its line end, cut
+    # anywhere: in an ASC line after "1" of the last byte "1C", python-can read a whole
+    # frame with 0x01; a candump or CSV line was an error (replay exit 1, report none).
+    import gzip
+
+    whole = tmp_path / f"whole{suffix}"
+    messages = _written_log(whole, 400 if suffix.endswith(".gz") else 5)
+    text = whole.read_bytes()
+    if suffix.endswith(".gz"):
+        cut = tmp_path / "cut.log.gz"
+        cut.write_bytes(text[: len(text) // 2])  # inside the compressed stream
+        assert gzip.decompress(text).endswith(b"\n")
+    else:
+        lines = text.decode().replace("\r\n", "\n").splitlines(keepends=True)
+        # the last frame's line (CSV: its data in base64)
+        last = max(i for i, line in enumerate(lines) if "1C" in line or "ABw=" in line)
+        cut_at = lines[last].rfind("1C") + 1 or len(lines[last]) // 2  # "... 00 1"
+        cut = tmp_path / f"cut{suffix}"
+        cut.write_text("".join(lines[:last]) + lines[last][:cut_at], newline="")
+    frames = list(can_log_frames(cut))
+    expected = len(messages) - 1 if not suffix.endswith(".gz") else len(frames)
+    assert len(frames) == expected and 0 < len(frames) < len(messages)
+    assert [f.data for f in frames] == [bytes(m.data) for m in messages[: len(frames)]]
+    (line,) = [r.getMessage() for r in caplog.records if "cut short" in r.getMessage()]
+    assert line.startswith(f"{cut} is cut short (") and f"read up to frame {len(frames)}" in line
+    assert replay(cut, io.StringIO(), EXAMPLE_CONFIG) == len(frames)  # LEG_SB1_F1: one each
+
+
+def test_a_log_in_a_windows_code_page_or_with_a_bom_reads(tmp_path: Path) -> None:
+    # A German CANoe writes its ASC header in Windows-1252 ("Mär"), a comment may hold
+    # "°C"; Windows editors put a BOM before a CSV. The frames are ASCII: read them.
+    whole = tmp_path / "whole.asc"
+    messages = _written_log(whole)
+    body = whole.read_text().split("Start of measurement\n", 1)[1]
+    german = tmp_path / "german.asc"
+    german.write_bytes(
+        "date Mo Mär 02 09:15:01.000 vorm. 2026\nbase hex  timestamps absolute\n"
+        "// Öltemperatur in °C\ninternal events logged\n"
+        "Begin Triggerblock Mo Mär 02 09:15:01.000 vorm. 2026\n"
+        "   0.000000 Start of measurement\n".encode("cp1252")
+        + body.encode()
+    )
+    assert [f.data for f in can_log_frames(german)] == [bytes(m.data) for m in messages]
+    csv_log = tmp_path / "whole.csv"
+    _written_log(csv_log)
+    bom = tmp_path / "bom.csv"
+    bom.write_bytes(b"\xef\xbb\xbf" + csv_log.read_bytes())
+    assert [f.data for f in can_log_frames(bom)] == [bytes(m.data) for m in messages]
+
+
+def test_a_stray_byte_in_a_candump_line_names_the_frame_before_it(tmp_path: Path) -> None:
+    # Decoding failed for the whole 8 KiB block around the byte: "after frame 0".
+    from daq.errors import RecordingError
+
+    log = tmp_path / "stray.log"
+    good = "".join(f"({1_750_000_000 + k / 100:.6f}) can0 100#00\n" for k in range(400))
+    log.write_bytes(good.encode() + b"(1750000004.000000) can0 100#00\xff\xfe\n" + good.encode())
+    with pytest.raises(RecordingError, match="unreadable after frame 400: "):
+        list(can_log_frames(log))

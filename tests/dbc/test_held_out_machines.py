@@ -1,0 +1,198 @@
+"""Held-out machines: DBCs and machine configs written as another integrator would
+(tests/files/stranger/), driven through the public paths with frames built by hand from
+the DBC's layout (not by the project's encoder), forces checked against eq. (4) worked
+out here from the config's numbers, in SI."""
+
+import math
+from pathlib import Path
+
+import pytest
+from cantools.database.can import Database
+from crccheck.crc import Crc8SaeJ1850
+
+from daq.frames import RawFrame
+from daq.pipeline import Pipeline
+from dbc.database import load_database_bytes
+from dbc.decoding import FrameDecoder
+from dbc.errors import ConfigError
+from dbc.machine import MachineConfig, load_machine_config
+from dbc.units import pressure_factor_to_Pa
+
+STRANGER = Path(__file__).resolve().parent.parent / "files" / "stranger"
+PSI_PA = 4.4482216152605 / 0.0254**2
+
+#: The held-out machines' leg: the example cylinder and lever, written out here.
+A_PISTON_M2, A_ROD_M2 = 7.854e-3, 4.737e-3
+LEVER = (0.90 * math.sin(math.radians(75.0)) - 0.25 * math.cos(math.radians(75.0))) / 1.20
+WEIGHT_TERM_N = 0.55 / 1.20 * 4905.0
+
+
+def eq4_N(p_piston_Pa: float, p_rod_Pa: float) -> float:
+    return (p_piston_Pa * A_PISTON_M2 - p_rod_Pa * A_ROD_M2) * LEVER + WEIGHT_TERM_N
+
+
+def _pipeline(name: str, compiled: bool) -> tuple[Pipeline, MachineConfig, Database]:
+    config, database = load_machine_config(STRANGER / name)
+    pipeline = Pipeline.from_config(config, database)
+    if not compiled:
+        pipeline.decoder = FrameDecoder(
+            database, config.protection, config.unit_factors, compiled=False
+        )
+    return pipeline, config, database
+
+
+def _hub_frame(counter: int, cap_raw: int, rod_raw: int) -> bytes:
+    """A HUB_FRONT/HUB_REAR payload: Motorola 16-bit pressures, the counter in the high
+    nibble of byte 4, CRC-8 SAE J1850 of bytes 0..4 in byte 5."""
+    data = cap_raw.to_bytes(2, "big") + rod_raw.to_bytes(2, "big", signed=True)
+    data += bytes([counter << 4])
+    return data + bytes([Crc8SaeJ1850.calc(data)])
+
+
+HUB_FRONT_ID = 0x00FF0001  # 29 bit, not J1939
+
+
+@pytest.mark.parametrize("compiled", [True, False])
+def test_motorola_psi_hub_gives_eq4_in_si(compiled: bool) -> None:
+    pipeline, _, _ = _pipeline("motorola_psi.toml", compiled)
+    (estimate,) = pipeline.process(
+        RawFrame(1.0, HUB_FRONT_ID, True, _hub_frame(0, 15000, 1000))
+    ).estimates
+    assert estimate.valid and estimate.leg == "FL"
+    assert estimate.p_piston_Pa == pytest.approx(1500.0 * PSI_PA, rel=1e-12)
+    assert estimate.p_rod_Pa == pytest.approx(100.0 * PSI_PA, rel=1e-12)
+    assert estimate.force_raw_N == pytest.approx(eq4_N(1500 * PSI_PA, 100 * PSI_PA), rel=1e-9)
+    rear = pipeline.process(RawFrame(1.001, 0x00FF0002, True, _hub_frame(0, 1500, 200)))
+    (estimate,) = rear.estimates
+    assert estimate.leg == "RL" and estimate.force_raw_N == pytest.approx(eq4_N(150e5, 20e5))
+    # A signed rod pressure below the transducer range: -50 psi is -3.4 bar.
+    (estimate,) = pipeline.process(
+        RawFrame(1.02, HUB_FRONT_ID, True, _hub_frame(1, 15000, -500))
+    ).estimates
+    assert estimate.p_rod_Pa == pytest.approx(-50.0 * PSI_PA) and estimate.reasons == ("range",)
+
+
+@pytest.mark.parametrize("compiled", [True, False])
+def test_a_counter_value_the_dbc_names_is_judged_by_its_number(compiled: bool) -> None:
+    """FL_Alive's 15 is named "NotAvailable" in the DBC: the counter check takes the
+    number (a name in its place once crashed the decoder)."""
+    pipeline, _, _ = _pipeline("motorola_psi.toml", compiled)
+    reasons = []
+    for i, counter in enumerate((13, 14, 15, 0, 0)):
+        frame = RawFrame(1.0 + 0.02 * i, HUB_FRONT_ID, True, _hub_frame(counter, 15000, 1000))
+        result = pipeline.process(frame)
+        assert result.decoded is not None
+        reasons.append(result.estimates[0].reasons)
+    assert reasons == [(), (), (), (), ("counter_repeat",)]
+    assert dict(pipeline.bad) == {"counter_repeat": 1}
+
+
+@pytest.mark.parametrize("encoding", ["utf-8-sig", "utf-16"])
+def test_a_dbc_with_a_byte_order_mark_is_read_in_the_encoding_it_declares(
+    tmp_path: Path, encoding: str
+) -> None:
+    """An editor's "UTF-8 with BOM" or Windows' "Unicode" DBC: once "not a valid DBC"."""
+    text = (STRANGER / "motorola_psi.dbc").read_text(encoding="cp1252")
+    (tmp_path / "motorola_psi.dbc").write_bytes(text.encode(encoding))
+    (tmp_path / "machine.toml").write_text((STRANGER / "motorola_psi.toml").read_text())
+    config, database = load_machine_config(tmp_path / "machine.toml")
+    assert database.get_message_by_name("STATE").get_signal_by_name("OilTemp").unit == "\u00b0C"
+    copy = load_database_bytes(text.encode(encoding), "rec.mcap:dbc")  # a recording's copy
+    assert copy.get_message_by_name("STATE").get_signal_by_name("OilTemp").unit == "\u00b0C"
+    (estimate,) = (
+        Pipeline.from_config(config, database)
+        .process(RawFrame(1.0, HUB_FRONT_ID, True, _hub_frame(0, 15000, 1000)))
+        .estimates
+    )
+    assert estimate.force_raw_N == pytest.approx(eq4_N(1500 * PSI_PA, 100 * PSI_PA), rel=1e-9)
+
+
+def test_units_marked_gauge_are_pressure_units_and_come_out_in_pa() -> None:
+    """The DBC's "psi(g)" (a chamber) and "PSIG" (a pressure on no leg): once the first
+    stopped the config and the second went to Zenoh and MCAP in psi."""
+    pipeline, config, _ = _pipeline("motorola_psi.toml", compiled=True)
+    assert config.legs["FL"].piston.unit == "psi(g)"
+    assert config.unit_factors["ACCU"] == {"pAccu": pytest.approx(PSI_PA, rel=1e-12)}
+    accu = pipeline.process(RawFrame(1.0, 0x601, False, (30000).to_bytes(2, "big")))
+    assert accu.decoded is not None
+    assert accu.decoded.signals["pAccu"] == pytest.approx(3000.0 * PSI_PA, rel=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("unit", "pa"),
+    [("psig", PSI_PA), ("bar(g)", 1e5), ("barg", 1e5), ("kPa gauge", 1e3), ("MPa (g)", 1e6)]
+    + [("bara", None), ("psia", None), ("kg", None), ("g", None)],
+)
+def test_gauge_marks_and_absolute_units(unit: str, pa: float | None) -> None:
+    factor = pressure_factor_to_Pa(unit)
+    assert factor == (None if pa is None else pytest.approx(pa, rel=1e-12))
+
+
+def _page(page: int, cap_raw: int, ann_raw: int, tail: bytes) -> bytes:
+    """A MUXHUB payload: page, MPa pressures at 0.001, and bytes 5..7 (counter, CRC)."""
+    return bytes([page]) + cap_raw.to_bytes(2, "little") + ann_raw.to_bytes(2, "little") + tail
+
+
+def _page0(counter: int, cap_raw: int, ann_raw: int) -> bytes:
+    data = _page(0, cap_raw, ann_raw, bytes([counter, 0]))
+    return data + bytes([Crc8SaeJ1850.calc(data)])
+
+
+def test_a_counter_and_crc_on_one_multiplexer_page_are_checked_on_its_frames() -> None:
+    """Once a page without the counter raised KeyError out of the pipeline, and the CRC
+    was checked (failed) on frames that do not carry it."""
+    pipeline, _, _ = _pipeline("mux_pages.toml", compiled=True)  # cantools decodes it
+    frames = [
+        _page0(7, 12500, 1250),
+        _page(1, 10000, 2000, bytes([0x12, 0x34, 0x56])),  # no counter, no CRC
+        _page0(8, 12500, 1250),
+        _page(1, 10000, 2000, bytes([0xAB, 0xCD, 0xEF])),
+        _page0(8, 12500, 1250),  # repeated counter
+        _page0(9, 12500, 1250)[:7] + b"\x00",  # bad CRC
+    ]
+    estimates = [
+        pipeline.process(RawFrame(1.0 + 0.005 * i, 0x300, False, data)).estimates
+        for i, data in enumerate(frames)
+    ]
+    assert [(e.leg, e.reasons) for (e,) in estimates] == [
+        ("bank-0", ()),
+        ("bank-1", ()),
+        ("bank-0", ()),
+        ("bank-1", ()),
+        ("bank-0", ("counter_repeat",)),
+        ("bank-0", ("crc",)),
+    ]
+    assert estimates[0][0].force_raw_N == pytest.approx(eq4_N(12.5e6, 1.25e6), rel=1e-12)
+    assert estimates[1][0].force_raw_N == pytest.approx(eq4_N(10e6, 2e6), rel=1e-12)
+    assert dict(pipeline.bad) == {"counter_repeat": 1, "crc": 1}
+
+
+STABILITY = """
+[stability]
+rotation = "POSE.Rot"
+fold = "POSE.Fold"
+bridge_length_m = 6.0
+hinge_m = 3.0
+[stability.bases.front]
+axis_m = [0.0, 0.0]
+feet_m = { FL = [1.5, 0.0] }
+[stability.bases.rear]
+axis_m = [0.0, 0.0]
+feet_m = { RL = [-1.5, 0.0] }
+"""
+
+
+def test_bridge_angles_in_degrees_spelled_as_dbcs_do_are_taken(tmp_path: Path) -> None:
+    """ "°" (Vector's) and "Deg": once only "deg" was taken, and the DBC had to change."""
+    (tmp_path / "motorola_psi.dbc").write_bytes((STRANGER / "motorola_psi.dbc").read_bytes())
+    text = (STRANGER / "motorola_psi.toml").read_text() + STABILITY
+    (tmp_path / "machine.toml").write_text(text)
+    config, _ = load_machine_config(tmp_path / "machine.toml")
+    assert config.stability is not None and str(config.stability.fold) == "POSE.Fold"
+    (tmp_path / "machine.toml").write_text(text.replace('"POSE.Fold"', '"HUB_REAR.RL_pRod"'))
+    with pytest.raises(ConfigError) as refused:
+        load_machine_config(tmp_path / "machine.toml")
+    assert str(refused.value) == (
+        f"{tmp_path / 'machine.toml'}: stability.fold: HUB_REAR.RL_pRod must be in degrees "
+        "in the DBC (deg, \u00b0, degree), got 'Bar'"
+    )
