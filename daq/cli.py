@@ -21,6 +21,7 @@ SUBCOMMAND_MODULES = (
     "daq.calibrate.command",
     "daq.dashboard.cli",
     "daq.export_command",
+    "daq.init_command",
     "daq.monitor.cli",
     "daq.recover_command",
     "daq.replay_command",

@@ -92,6 +92,17 @@ def is_j1939(message: Message) -> bool:
     return message.protocol == "j1939" and bool(message.is_extended_frame)
 
 
+#: The most data a classic CAN frame carries.
+CLASSIC_MAX_BYTES = 8
+
+
+def is_fd_message(message: Message) -> bool:
+    """``message`` is sent as CAN FD frames: the DBC says so (``VFrameFormat``
+    ``StandardCAN_FD``/``ExtendedCAN_FD``), or it is longer than a classic frame can be
+    (a DBC that leaves the frame format out, or names a classic one)."""
+    return bool(message.is_fd) or message.length > CLASSIC_MAX_BYTES
+
+
 def j1939_pgn(frame_id: int) -> int:
     """The PGN of a 29-bit J1939 frame ID (PDU1: the destination address is not part of it)."""
     return int(pgn_from_frame_id(frame_id))  # type: ignore[no-untyped-call]
@@ -111,6 +122,7 @@ class _MessageCodec:
         # cantools' properties, read once: the per-frame path reads plain attributes.
         self.name: str = message.name
         self.length: int = message.length
+        self.is_fd = is_fd_message(message)
         self.to_si = dict(to_si)
         self.compiled = CompiledMessage.compile(message, to_si) if compiled else None
         self.protection = protection
@@ -156,9 +168,7 @@ class _MessageCodec:
         if self.counter_signal is not None:
             value = signals.get(self.counter_signal)
             if value is not None:
-                counter_value = (
-                    self._counter_codes[value] if isinstance(value, str) else int(value)
-                )
+                counter_value = self._counter_codes[value] if isinstance(value, str) else int(value)
                 counter = self._counters.get(source_address) or self._counter(source_address)
         crc = self.crc
         if (
@@ -294,7 +304,7 @@ class FrameDecoder:
                     codec = by_address.get(arbitration_id & 0xFF, by_address[None])
                     self._j1939_ids[arbitration_id] = codec
             source_address = arbitration_id & 0xFF if codec is not None else None
-        if is_fd and (codec is None or not codec.message.is_fd):
+        if is_fd and (codec is None or not codec.is_fd):
             raise FdFrameError(arbitration_id, "CAN FD frame of no FD message in the DBC")
         if codec is None:
             raise UnknownFrameError(arbitration_id, "ID not in the DBC")

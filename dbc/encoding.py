@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 from cantools.database.can import Database
 
-from dbc.decoding import SignalValue, UnitFactors, is_j1939
+from dbc.decoding import SignalValue, UnitFactors, is_fd_message, is_j1939
 from dbc.machine import MachineConfig
 from dbc.protection import CrcCheck, Protection
 
@@ -96,5 +96,5 @@ class FrameEncoder:
                 raise ValueError(f"{message_name} is not a J1939 message: no source address")
             frame_id = (frame_id & ~0xFF) | source_address
         return EncodedFrame(
-            frame_id, bool(message.is_extended_frame), bytes(data), bool(message.is_fd)
+            frame_id, bool(message.is_extended_frame), bytes(data), is_fd_message(message)
         )

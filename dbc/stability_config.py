@@ -37,6 +37,8 @@ STABILITY_KEYS = (
 BASE_KEYS = ("axis_m", "feet_m")
 #: Default of ``warning_margin_m``.
 WARNING_MARGIN_M = 0.3
+#: How DBCs spell degrees (lower case, blanks stripped): Vector's tools write "°".
+DEGREE_UNITS = ("deg", "°", "degree", "degrees")
 
 
 @dataclass(frozen=True)
@@ -69,9 +71,11 @@ def parse_stability(
     refs = {}
     for key in ("rotation", "fold"):
         refs[key] = signal(table, key)
-        if unit(refs[key]) != "deg":
+        if (unit(refs[key]) or "").strip().lower() not in DEGREE_UNITS:
             raise table.error(
-                key, f"{refs[key]} must be in deg in the DBC, got {unit(refs[key])!r}"
+                key,
+                f"{refs[key]} must be in degrees in the DBC (deg, °, degree), "
+                f"got {unit(refs[key])!r}",
             )
     warning_m = table.number("warning_margin_m", WARNING_MARGIN_M)
     if warning_m < 0:

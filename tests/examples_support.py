@@ -21,11 +21,9 @@ from dbc.samples import SKEW_ROUNDING_S
 from estimator.geometry import LegGeometry
 from tests.helpers import ROOT
 
-#: The default service config and every example shipped under deploy/examples/.
-EXAMPLE_CONFIGS = (
-    ROOT / "deploy" / "portal-daq.example.toml",
-    *sorted((ROOT / "deploy" / "examples").glob("*/portal-daq.toml")),
-)
+#: Every example shipped (daq/examples/, deploy/examples/ links to it): the default
+#: service config and the other machines.
+EXAMPLE_CONFIGS = tuple(sorted((ROOT / "daq" / "examples").glob("*/portal-daq.toml")))
 
 #: Pa per DBC unit, written out here rather than taken from dbc.units.
 PA_PER_UNIT = {"Pa": 1.0, "kPa": 1.0e3, "MPa": 1.0e6, "bar": 1.0e5}
@@ -35,8 +33,8 @@ SERVICE_TABLES = ("bus", "zenoh", "publish", "recording")
 
 
 def example_id(path: Path) -> str:
-    """``default`` for deploy/portal-daq.example.toml, else the example's folder name."""
-    return "default" if path.parent.name == "deploy" else path.parent.name
+    """The example's folder name (``default``: deploy/portal-daq.example.toml)."""
+    return path.parent.name
 
 
 def eq4_N(p_piston_Pa: float, p_rod_Pa: float, leg: LegGeometry) -> float:

@@ -4,16 +4,21 @@ the DBC's layout (not by the project's encoder), forces checked against eq. (4) 
 out here from the config's numbers, in SI."""
 
 import math
+import struct
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
+from cantools.autosar.end_to_end import compute_profile5_crc
 from cantools.database.can import Database
+from cantools.j1939 import frame_id_pack
 from crccheck.crc import Crc8SaeJ1850
 
 from daq.frames import RawFrame
 from daq.pipeline import Pipeline
 from dbc.database import load_database_bytes
 from dbc.decoding import FrameDecoder
+from dbc.errors import ConfigError
 from dbc.machine import MachineConfig, load_machine_config
 from dbc.units import pressure_factor_to_Pa
 
@@ -164,3 +169,104 @@ def test_a_counter_and_crc_on_one_multiplexer_page_are_checked_on_its_frames() -
     assert estimates[0][0].force_raw_N == pytest.approx(eq4_N(12.5e6, 1.25e6), rel=1e-12)
     assert estimates[1][0].force_raw_N == pytest.approx(eq4_N(10e6, 2e6), rel=1e-12)
     assert dict(pipeline.bad) == {"counter_repeat": 1, "crc": 1}
+
+
+STABILITY = """
+[stability]
+rotation = "POSE.Rot"
+fold = "POSE.Fold"
+bridge_length_m = 6.0
+hinge_m = 3.0
+[stability.bases.front]
+axis_m = [0.0, 0.0]
+feet_m = { FL = [1.5, 0.0] }
+[stability.bases.rear]
+axis_m = [0.0, 0.0]
+feet_m = { RL = [-1.5, 0.0] }
+"""
+
+
+def test_bridge_angles_in_degrees_spelled_as_dbcs_do_are_taken(tmp_path: Path) -> None:
+    """ "°" (Vector's) and "Deg": once only "deg" was taken, and the DBC had to change."""
+    (tmp_path / "motorola_psi.dbc").write_bytes((STRANGER / "motorola_psi.dbc").read_bytes())
+    text = (STRANGER / "motorola_psi.toml").read_text() + STABILITY
+    (tmp_path / "machine.toml").write_text(text)
+    config, _ = load_machine_config(tmp_path / "machine.toml")
+    assert config.stability is not None and str(config.stability.fold) == "POSE.Fold"
+    (tmp_path / "machine.toml").write_text(text.replace('"POSE.Fold"', '"HUB_REAR.RL_pRod"'))
+    with pytest.raises(ConfigError) as refused:
+        load_machine_config(tmp_path / "machine.toml")
+    assert str(refused.value) == (
+        f"{tmp_path / 'machine.toml'}: stability.fold: HUB_REAR.RL_pRod must be in degrees "
+        "in the DBC (deg, \u00b0, degree), got 'Bar'"
+    )
+
+
+def _fd_page(page: int, counter: int, cap_MPa: float, ann_MPa: float) -> bytes:
+    """A HUB_FD payload: page, float32 pressures, counter, then the E2E profile 5 CRC of
+    them and data ID 0x1234, low byte first (cantools' CRC is of a payload's bytes 2..)."""
+    data = bytes([page]) + struct.pack("<ff", cap_MPa, ann_MPa) + bytes([counter])
+    crc = compute_profile5_crc(b"\x00\x00" + data, 0x1234)  # over the bytes after its own
+    return data + crc.to_bytes(2, "little")
+
+
+def test_a_message_longer_than_a_classic_frame_takes_fd_frames() -> None:
+    """HUB_FD is 12 bytes and the DBC names no frame format: its frames can only be CAN FD
+    (every one was counted fd_frame and dropped)."""
+    pipeline, _, database = _pipeline("fd_float.toml", compiled=True)
+    assert not database.get_message_by_name("HUB_FD").is_fd  # as cantools reads the DBC
+    pages = [(0, 12.5, 1.25), (1, 10.0, 2.0), (0, math.nan, 1.25), (1, 10.0, math.inf)]
+    estimates = [
+        pipeline.process(
+            RawFrame(1.0 + 0.005 * i, 0x300, False, _fd_page(page, i, p, r), is_fd=True)
+        ).estimates[0]
+        for i, (page, p, r) in enumerate(pages)
+    ]
+    assert [(e.leg, e.valid) for e in estimates] == [
+        ("A", True),
+        ("B", True),
+        ("A", False),
+        ("B", False),
+    ]
+    assert estimates[0].force_raw_N == pytest.approx(eq4_N(12.5e6, 1.25e6), rel=1e-12)
+    assert estimates[1].force_raw_N == pytest.approx(eq4_N(10e6, 2e6), rel=1e-12)
+    assert estimates[2].reasons == estimates[3].reasons == ("range",)
+    assert not pipeline.bad
+
+
+def _press_a(priority: int, destination: int, source: int, counter: int, raw: int) -> RawFrame:
+    """A PRESS_A frame (PGN 0xED00, PDU1) as a transducer sends it: 0.05 kPa/bit, Diag "ok",
+    the counter in byte 3, CRC-8 SAE J1850 of bytes 0..6 in byte 7."""
+    frame_id = frame_id_pack(priority, 0, 0, 0xED, destination, source)
+    data = raw.to_bytes(2, "little") + bytes([0, counter, 0, 0, 0])
+    return RawFrame(0.0, frame_id, True, data + bytes([Crc8SaeJ1850.calc(data)]))
+
+
+def test_j1939_pdu1_transducers_whatever_priority_and_destination() -> None:
+    """Held up: PGN 0xED00 from 0x30..0x33 at priority 3 to 0x27 (the DBC: 6, to 0xFE),
+    each transducer's own counter, "kPa " with a blank, a value-table code."""
+    pipeline, _, _ = _pipeline("j1939_propa.toml", compiled=True)
+    filters = pipeline.decoder.receive_filters
+    estimates = []
+    t_s = 1.0
+    for counter in range(3):
+        for source, kPa in ((0x31, 800.0), (0x30, 2800.0), (0x32, 2500.0), (0x33, 600.0)):
+            frame = _press_a(3, 0x27, source, counter, round(kPa / 0.05))
+            assert any(frame.arbitration_id & f.can_mask == f.can_id & f.can_mask for f in filters)
+            result = pipeline.process(replace(frame, t_s=t_s))
+            estimates += [(e.leg, e.force_raw_N, e.reasons) for e in result.estimates]
+            t_s += 0.001
+        t_s += 0.016
+    assert (
+        estimates
+        == [
+            ("left-front", pytest.approx(eq4_N(2.8e6, 0.8e6), rel=1e-12), ()),
+            ("right-front", pytest.approx(eq4_N(2.5e6, 0.6e6), rel=1e-12), ()),
+        ]
+        * 3
+    )
+    result = pipeline.process(replace(_press_a(6, 0xFE, 0x30, 3, 0xFFFF), t_s=t_s))
+    (estimate,) = result.estimates
+    assert math.isnan(estimate.p_piston_Pa) and estimate.reasons == ("range",)
+    result = pipeline.process(replace(_press_a(6, 0xFE, 0x34, 0, 100), t_s=t_s))
+    assert result.estimates == () and dict(pipeline.bad) == {"unmapped_source": 1}

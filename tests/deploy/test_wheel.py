@@ -85,3 +85,24 @@ def test_portal_sim_and_plot_run_from_another_directory(venv: Path) -> None:
     listed = run(venv / "bin" / "portal-daq", "--help", cwd=elsewhere)
     assert listed.returncode == 0
     assert all(f"  {name} " in listed.stdout for name in ("run", "replay", "report"))
+
+
+def test_init_writes_an_example_the_installed_service_takes(venv: Path) -> None:
+    """A user with the wheel alone gets the J1939 machine's config, DBC and Zenoh file,
+    and the simulator and replay take them from there (the estimates of every leg)."""
+    elsewhere = venv.parent / "elsewhere-init"
+    elsewhere.mkdir(exist_ok=True)
+    init = run(venv / "bin" / "portal-daq", "init", "j1939", "--example", "j1939", cwd=elsewhere)
+    assert init.returncode == 0, init.stderr
+    written = sorted(p.name for p in (elsewhere / "j1939").iterdir())
+    assert written == ["portal-daq.toml", "transducers_j1939.dbc", "zenoh.json5"]
+    config = Path("j1939") / "portal-daq.toml"
+    sim = run(venv / "bin" / "portal-sim", "--config", config, "--interface", "virtual",
+              "--as-fast-as-possible", "--rtol", "1e-3", "--duration", "0.3",
+              "--frames-log", "j1939.log", cwd=elsewhere)  # fmt: skip
+    assert sim.returncode == 0, sim.stderr
+    replayed = run(venv / "bin" / "portal-daq", "replay", "j1939.log", "--config", config,
+                   cwd=elsewhere)  # fmt: skip
+    assert replayed.returncode == 0, replayed.stderr
+    legs = {line.split(",")[0] for line in replayed.stdout.splitlines()[1:]}
+    assert legs == {"SB1_F1", "SB1_F2", "SB1_F3", "SB2_F1", "SB2_F2", "SB2_F3"}

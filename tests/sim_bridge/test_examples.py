@@ -29,8 +29,8 @@ from tests.examples_support import EXAMPLE_CONFIGS, ROOT, SentFrames, example_id
 from tests.sim_bridge.synthetic import make_playout, make_result, write_export
 
 PLAYED_S = 1.0
-J1939 = ROOT / "deploy" / "examples" / "j1939" / "portal-daq.toml"
-E2E = ROOT / "deploy" / "examples" / "e2e" / "portal-daq.toml"
+J1939 = ROOT / "daq" / "examples" / "j1939" / "portal-daq.toml"
+E2E = ROOT / "daq" / "examples" / "e2e" / "portal-daq.toml"
 
 
 def test_both_examples_are_shipped() -> None:

@@ -1,6 +1,6 @@
 """Each shipped machine example end to end on a real vcan0: bridge -> service -> Zenoh.
 
-For the default config and every ``deploy/examples/*/portal-daq.toml``: the service runs
+For every shipped example (``daq/examples/*/portal-daq.toml``): the service runs
 with the example's machine tables on vcan0, ``python -m sim_bridge`` plays the first
 seconds of the model's cycle onto vcan0 while ``candump -L`` records what went out, and
 every ``leg/<LEG>/ground`` estimate the service publishes must be eq. (4) of the

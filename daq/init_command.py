@@ -1,0 +1,82 @@
+"""``portal-daq init [DIR] [--example NAME]``: write an example configuration to start from.
+
+The examples ship inside the package (``daq/examples/<name>/``; ``deploy/`` links to
+them), so whoever installed the wheel gets the same files as a clone of the repository:
+the service + machine TOML, the Zenoh configuration it names and, for the machines
+with a DBC of their own, that DBC. Existing files are never overwritten without
+``--force``: nothing is written then, and the one line on stderr names them.
+"""
+
+import argparse
+import sys
+from collections.abc import Sequence
+from importlib import resources
+from importlib.resources.abc import Traversable
+from pathlib import Path
+
+from daq.subcommand import PROG, Subcommand, fail
+
+#: The examples, one folder each.
+EXAMPLES = resources.files("daq") / "examples"
+#: The file of every example that ``portal-daq run --config`` takes.
+CONFIG_NAME = "portal-daq.toml"
+
+
+def example_names() -> list[str]:
+    """The shipped examples, sorted (``default`` is the prototype's own DBC)."""
+    return sorted(entry.name for entry in EXAMPLES.iterdir() if entry.is_dir())
+
+
+def example_files(name: str) -> list[Traversable]:
+    """The files of example ``name``, sorted by name."""
+    return sorted((entry for entry in (EXAMPLES / name).iterdir() if entry.is_file()),
+                  key=lambda entry: entry.name)  # fmt: skip
+
+
+def write_example(name: str, directory: Path, *, force: bool = False) -> list[Path]:
+    """Copy example ``name`` into ``directory`` (created); the paths written.
+
+    Raises ``FileExistsError`` naming the files that exist (none is written) unless
+    ``force``, and ``OSError`` when the directory cannot be written.
+    """
+    files = example_files(name)
+    targets = [directory / entry.name for entry in files]
+    existing = [str(target) for target in targets if target.exists()]
+    if existing and not force:
+        raise FileExistsError(f"{', '.join(existing)} exist; --force overwrites them")
+    directory.mkdir(parents=True, exist_ok=True)
+    for entry, target in zip(files, targets, strict=True):
+        target.write_bytes(entry.read_bytes())
+    return targets
+
+
+def init_main(args: Sequence[str]) -> int:
+    names = example_names()
+    parser = argparse.ArgumentParser(
+        prog=f"{PROG} init",
+        description="Write an example service + machine configuration (with the Zenoh "
+        "configuration it names and its DBC) into a directory, to edit and then run with "
+        f"`{PROG} run --config DIR/{CONFIG_NAME}`. Examples: default (this prototype's "
+        "DBC), j1939 (one J1939 transducer per chamber), e2e (AUTOSAR E2E protected frames).",
+    )
+    parser.add_argument("directory", nargs="?", type=Path, default=Path("."),
+                        help="where to write (created; default: here)")  # fmt: skip
+    parser.add_argument("--example", choices=names, default="default", help="which machine")
+    parser.add_argument("--force", action="store_true", help="overwrite existing files")
+    options = parser.parse_args(args)
+    try:
+        written = write_example(options.example, options.directory, force=options.force)
+    except FileExistsError as exc:
+        return fail(exc, 2)
+    except OSError as exc:
+        return fail(f"{options.directory}: cannot write the example: {exc.strerror or exc}", 1)
+    config = options.directory / CONFIG_NAME
+    sys.stderr.write(
+        f"{PROG}: wrote {', '.join(str(path) for path in written)}\n"
+        f"{PROG}: edit [bus] channel, [recording] directory and the machine tables, then "
+        f"`{PROG} run --config {config}` (`{PROG} replay LOG --config {config}` for a CAN log)\n"
+    )
+    return 0
+
+
+SUBCOMMAND = Subcommand("init", "write an example configuration to start from", init_main)

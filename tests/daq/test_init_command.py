@@ -1,0 +1,83 @@
+"""``portal-daq init``: the shipped examples, written where the user wants them, loadable
+as they are, and never over a file the user already has."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from daq.cli import main
+from daq.init_command import example_names
+from daq.service_config import load_service_config
+from tests.helpers import ROOT
+
+
+def test_every_example_of_the_repository_ships() -> None:
+    assert example_names() == ["default", "e2e", "j1939"]
+    # deploy/ links to the packaged files: one copy of each
+    assert (ROOT / "deploy" / "portal-daq.example.toml").resolve() == (
+        ROOT / "daq" / "examples" / "default" / "portal-daq.toml"
+    )
+
+
+@pytest.mark.parametrize("name", ["default", "e2e", "j1939"])
+def test_an_example_is_written_and_loads_from_where_it_was_written(
+    name: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    target = tmp_path / "new" / name
+    assert main(["init", str(target), "--example", name]) == 0
+    config_path = target / "portal-daq.toml"
+    config = load_service_config(config_path)
+    # the Zenoh file it names is the one written beside it, not the package's
+    assert config.zenoh.config_file == target / "zenoh.json5"
+    assert config.zenoh.config_file.read_bytes() == (ROOT / "deploy" / "zenoh.json5").read_bytes()
+    shipped = ROOT / "deploy" / "examples" / name
+    assert sorted(p.name for p in target.iterdir()) == sorted(p.name for p in shipped.iterdir())
+    for written in target.iterdir():
+        assert written.read_bytes() == (shipped / written.name).read_bytes()
+    err = capsys.readouterr().err
+    assert f"portal-daq run --config {config_path}" in err
+
+
+def test_the_machine_with_its_own_dbc_gets_that_dbc(tmp_path: Path) -> None:
+    assert main(["init", str(tmp_path), "--example", "j1939"]) == 0
+    config = load_service_config(tmp_path / "portal-daq.toml")
+    assert config.machine.dbc_path == tmp_path / "transducers_j1939.dbc"
+    assert len(config.machine.legs) == 6
+
+
+def test_existing_files_are_kept_unless_forced(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["init", str(tmp_path)]) == 0
+    mine = tmp_path / "portal-daq.toml"
+    mine.write_text("# my machine\n")
+    (tmp_path / "zenoh.json5").unlink()
+    capsys.readouterr()
+    assert main(["init", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"{mine} exist" in err and "--force" in err
+    # nothing written, not even the file that was missing
+    assert mine.read_text() == "# my machine\n"
+    assert not (tmp_path / "zenoh.json5").exists()
+    assert main(["init", str(tmp_path), "--force"]) == 0
+    assert mine.read_bytes() == (ROOT / "deploy" / "portal-daq.example.toml").read_bytes()
+
+
+def test_an_unwritable_directory_is_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    a_file = tmp_path / "file"
+    a_file.write_text("")
+    assert main(["init", str(a_file / "sub")]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith(f"portal-daq: {a_file / 'sub'}: cannot write the example")
+    assert err.count("\n") == 1
+
+
+def test_an_unknown_example_is_a_usage_error(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as exit_info:
+        main(["init", "--example", "nope"])
+    assert exit_info.value.code == 2
+    assert "invalid choice: 'nope'" in capsys.readouterr().err
