@@ -147,12 +147,15 @@ def replay(
     return rows
 
 
-def recording_results(files: Sequence[Path], machine: Machine) -> Iterator[FrameResult]:
-    """What one fresh pipeline makes of every frame of ``files``: CAN logs chained in the
-    order given, or the MCAP files of one run in its order."""
+def recording_results(
+    files: Sequence[Path], machine: Machine, pipeline: Pipeline | None = None
+) -> Iterator[FrameResult]:
+    """What one fresh pipeline (or ``pipeline``, whose counters the caller reads after)
+    makes of every frame of ``files``: CAN logs chained in the order given, or the MCAP
+    files of one run in its order."""
     if is_can_log(files[0]):
-        return results(Pipeline.from_config(*machine), chained_log_frames(files))
-    return run_results(files, machine)
+        return results(pipeline or Pipeline.from_config(*machine), chained_log_frames(files))
+    return run_results(files, machine, pipeline)
 
 
 def is_can_log(path: Path) -> bool:
@@ -326,10 +329,12 @@ def run_estimates(files: Sequence[Path], machine: Machine | None) -> Iterator[Le
         yield from result.estimates
 
 
-def run_results(files: Sequence[Path], machine: Machine | None) -> Iterator[FrameResult]:
-    """What the pipeline makes of every frame of MCAP ``files`` (one run, in order)."""
+def run_results(
+    files: Sequence[Path], machine: Machine | None, pipeline: Pipeline | None = None
+) -> Iterator[FrameResult]:
+    """What the pipeline (a fresh one unless given) makes of every frame of MCAP
+    ``files`` (one run, in order)."""
     attachments: dict[str, bytes] = {}
-    pipeline: Pipeline | None = None
     for item in run_items(files, attachments):
         if pipeline is None:
             pipeline = Pipeline.from_config(*(machine or embedded_machine(attachments, files[0])))

@@ -410,3 +410,38 @@ def test_a_stray_byte_in_a_candump_line_names_the_frame_before_it(tmp_path: Path
     log.write_bytes(good.encode() + b"(1750000004.000000) can0 100#00\xff\xfe\n" + good.encode())
     with pytest.raises(RecordingError, match="unreadable after frame 400: "):
         list(can_log_frames(log))
+
+
+def test_the_report_counts_j1939_frames_from_an_unmapped_source_address(tmp_path: Path) -> None:
+    # Transducers replaced by ones of other source addresses: replay said "unmapped_source
+    # 4", the report "bad frames by kind: none" beside "leg estimates 0".
+    from daq.mcap_file import CONFIG_ATTACHMENT, DBC_ATTACHMENT, McapFile, RecordBatch
+    from daq.pipeline import Pipeline
+    from daq.report.loading import load_recording
+    from tests.helpers import ROOT
+
+    config_path = ROOT / "deploy/examples/j1939/portal-daq.toml"
+    log = tmp_path / "new_transducers.log"
+    log.write_text(
+        "".join(
+            f"({1_796_150_000 + k / 100:.6f}) can0 18FF20{source:02X}#0807002800000000\n"
+            for k in range(4)
+            for source in (0x21, 0x22, 0x31)  # SB1_F1's piston and rod; 0x31 mapped nowhere
+        )
+    )
+    machine = load_machine_config(config_path)
+    recording = tmp_path / "new_transducers.mcap"
+    pipeline = Pipeline.from_config(*machine)
+    with open(recording, "wb") as stream, McapFile(stream, machine[1]) as mcap:
+        mcap.start(
+            {
+                CONFIG_ATTACHMENT: config_path.read_bytes(),
+                DBC_ATTACHMENT: machine[0].dbc_path.read_bytes(),
+            }
+        )
+        batch = [pipeline.process(frame) for frame in can_log_frames(log)]
+        mcap.write_batch(RecordBatch.of(batch, signals=False))
+    assert pipeline.bad == {"unmapped_source": 4}
+    for loaded in (load_recording(log, config_path), load_recording(recording)):
+        assert loaded.counts.bad == {"unmapped_source": 4}
+        assert loaded.counts.estimates == 4  # SB1_F1, one per piston frame
