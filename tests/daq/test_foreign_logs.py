@@ -445,3 +445,40 @@ def test_the_report_counts_j1939_frames_from_an_unmapped_source_address(tmp_path
     for loaded in (load_recording(log, config_path), load_recording(recording)):
         assert loaded.counts.bad == {"unmapped_source": 4}
         assert loaded.counts.estimates == 4  # SB1_F1, one per piston frame
+
+
+def test_a_blf_log_not_closed_or_cut_is_read_to_its_last_object_with_a_warning(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # python-can read a BLF whose logger died (header never filled in) or that was cut
+    # silently, or stopped with exit 1 where the cut fell in an object's header; a
+    # damaged object was a BLFParseError traceback.
+    from daq.replay_command import replay_main
+
+    whole = tmp_path / "whole.blf"
+    with can.BLFWriter(whole) as writer:  # two containers (of 128 KiB before zlib)
+        for k in range(4000):
+            writer.on_message_received(
+                can.Message(timestamp=1_750_000_000 + k / 100, arbitration_id=0x7F0, data=bytes(8))
+            )
+    data = whole.read_bytes()
+    second = data.index(b"LOBJ", data.index(b"LOBJ") + 4)  # the second container
+    assert len(list(can_log_frames(whole))) == 4000 and "cut short" not in caplog.text
+    counts = []
+    for name, content in (("cut_in_header.blf", data[: second + 8]), ("cut.blf", data[:-100])):
+        cut = tmp_path / name
+        cut.write_bytes(content)
+        counts.append(count := len(list(can_log_frames(cut))))
+        assert 0 < count < 4000
+        assert caplog.records[-1].getMessage() == (
+            f"{cut} is cut short (its header gives {len(data)} bytes, the file has "
+            f"{len(content)}: not closed): read up to frame {count}"
+        )
+    damaged = tmp_path / "damaged.blf"
+    damaged.write_bytes(data[:second] + b"XXXX" + data[second + 4 :])
+    assert replay_main([str(damaged), "--config", str(EXAMPLE_CONFIG), "--out", "/dev/null"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [
+        f"portal-daq: {damaged}: unreadable after frame {counts[0]}: "
+        "BLFParseError (no BLF object begins where one should: a damaged file)"
+    ], err
