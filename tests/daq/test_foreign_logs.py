@@ -482,3 +482,17 @@ def test_a_blf_log_not_closed_or_cut_is_read_to_its_last_object_with_a_warning(
         f"portal-daq: {damaged}: unreadable after frame {counts[0]}: "
         "BLFParseError (no BLF object begins where one should: a damaged file)"
     ], err
+
+
+def test_a_log_whose_frames_all_have_one_time_stamp_is_reported(tmp_path: Path) -> None:
+    # A logger that stamps nothing (one time for every frame): the cycle has no duration,
+    # no time just before its end; the time axis' NaN limit was a ValueError traceback.
+    from daq.report.command import report_main
+
+    log = sim_log(tmp_path)
+    lines = log.read_text().splitlines()
+    stamped = tmp_path / "one_stamp.log"
+    stamped.write_text("".join(f"(1796150000.000000){l[l.index(')') + 1 :]}\n" for l in lines))
+    out = tmp_path / "r"
+    assert report_main([str(stamped), "--config", str(EXAMPLE_CONFIG), "--out", str(out)]) == 0
+    assert "duration</td><td class=text>0.00 s" in (out / "report.html").read_text()
