@@ -150,13 +150,17 @@ def replay(
 
 
 def recording_results(
-    files: Sequence[Path], machine: Machine, pipeline: Pipeline | None = None
+    files: Sequence[Path],
+    machine: Machine,
+    pipeline: Pipeline | None = None,
+    channel: str | None = None,
 ) -> Iterator[FrameResult]:
     """What one fresh pipeline (or ``pipeline``, whose counters the caller reads after)
-    makes of every frame of ``files``: CAN logs chained in the order given, or the MCAP
-    files of one run in its order."""
+    makes of every frame of ``files``: CAN logs chained in the order given (of
+    ``channel`` only, when given), or the MCAP files of one run in its order."""
     if is_can_log(files[0]):
-        return results(pipeline or Pipeline.from_config(*machine), chained_log_frames(files))
+        frames = chained_log_frames(files, channel)
+        return results(pipeline or Pipeline.from_config(*machine), frames)
     return run_results(files, machine, pipeline)
 
 

@@ -65,9 +65,11 @@ def _open(path: Path) -> IO[bytes]:
         raise RecordingError(path, f"cannot open it: {exc.strerror or exc}") from exc
 
 
-def load_recording(paths: Path | Sequence[Path], config_path: Path | None = None) -> Recording:
+def load_recording(
+    paths: Path | Sequence[Path], config_path: Path | None = None, channel: str | None = None
+) -> Recording:
     """Read a recording (a file, or the files or directory of one run) into a
-    :class:`Recording`.
+    :class:`Recording`; of CAN logs, only ``channel``'s frames when it is given.
 
     Raises :class:`~daq.errors.RecordingError` (unreadable, several runs), or
     :class:`~daq.errors.ConfigError` / :class:`~daq.errors.DbcError` (a bad
@@ -76,7 +78,9 @@ def load_recording(paths: Path | Sequence[Path], config_path: Path | None = None
     given = [paths] if isinstance(paths, Path) else paths
     logs = expand(given)
     if any(is_can_log(path) for path in logs):
-        return _log_recording(logs, config_path)
+        return _log_recording(logs, config_path, channel)
+    if channel is not None:
+        raise ConfigError("--channel", "", "picks a CAN log's bus; a service recording has one")
     files = run_files(given)
     first = files[0]
     machine: Machine | None = load_machine_config(config_path) if config_path else None
@@ -134,7 +138,9 @@ def load_recording(paths: Path | Sequence[Path], config_path: Path | None = None
     )
 
 
-def _log_recording(files: Sequence[Path], config_path: Path | None) -> Recording:
+def _log_recording(
+    files: Sequence[Path], config_path: Path | None, channel: str | None
+) -> Recording:
     """CAN logs of other tools (candump, ASC, BLF, ...), chained as replay chains them,
     through the pipeline of ``config_path``: everything derived from their frames."""
     if config_path is None:
@@ -143,7 +149,7 @@ def _log_recording(files: Sequence[Path], config_path: Path | None) -> Recording
     config = machine[0]
     collector = RecordingCollector()
     pipeline = Pipeline.from_config(*machine)
-    for result in recording_results(files, machine, pipeline):
+    for result in recording_results(files, machine, pipeline, channel):
         collector.add_frames((result.frame,))
         collector.derive(result, bad=True, signals=True, estimates=True)
     collector.count_bad(UNMAPPED_SOURCE, pipeline.bad[UNMAPPED_SOURCE])

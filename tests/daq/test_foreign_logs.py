@@ -496,3 +496,27 @@ def test_a_log_whose_frames_all_have_one_time_stamp_is_reported(tmp_path: Path) 
     out = tmp_path / "r"
     assert report_main([str(stamped), "--config", str(EXAMPLE_CONFIG), "--out", str(out)]) == 0
     assert "duration</td><td class=text>0.00 s" in (out / "report.html").read_text()
+
+
+def test_the_report_of_a_log_of_two_buses_takes_one_channel(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    # The warning said "pick one with --channel", which only replay had.
+    from daq.report.command import report_main
+    from daq.report.loading import load_recording
+
+    log = sim_log(tmp_path)
+    lines = log.read_text().splitlines()
+    two = tmp_path / "two_buses.log"
+    other = [l.replace(" vcan0 ", " vcan1 ").replace("#", "#FF", 1) for l in lines[:50]]
+    two.write_text("\n".join(lines + other) + "\n")  # can1: the same IDs, other lengths
+    both = load_recording(two, EXAMPLE_CONFIG)
+    assert both.counts.frames == len(lines) + 50 and both.counts.bad == {"wrong_dlc": 50}
+    assert "pick one with --channel" in caplog.text
+    one = load_recording(two, EXAMPLE_CONFIG, "vcan0")
+    assert one.counts.frames == len(lines) and one.counts.bad == {}
+    assert one.counts.estimates == both.counts.estimates
+    out = tmp_path / "r"
+    args = [str(two), "--config", str(EXAMPLE_CONFIG), "--out", str(out), "--channel"]
+    assert report_main([*args, "vcan0"]) == 0
+    assert report_main([*args, "can9"]) == 1
