@@ -439,19 +439,25 @@ def _in_frames_of(message: Message, signal_name: str, mux_ids: tuple[int, ...] |
 
 def _source_address(table: TomlTable, message: Message, database: Database) -> int | None:
     """The pinned J1939 sender: the configured one; for a message that shares its PGN with
-    others (one DBC message per sender) the address in its own ID; else None (any)."""
+    others (one DBC message per sender) the address in its own ID; else None (any).
+
+    A 29-bit message the DBC does not mark J1939 (``VFrameFormat`` ``J1939PG``; cantools,
+    for one, writes no frame format) becomes one here, in ``database``, when a chamber
+    pins a sender of it: only a J1939 ID has a source address.
+    """
     if "source_address" not in table:
         if is_j1939(message) and _shares_pgn(message, database):
             return int(message.frame_id & 0xFF)
         return None
-    if not is_j1939(message):
+    if not message.is_extended_frame:
         raise table.error(
             "source_address",
-            f"{message.name} is not a J1939 message (VFrameFormat J1939PG in the DBC)",
+            f"{message.name} is not a J1939 message: its 11-bit ID has no source address",
         )
     address = table.integer("source_address")
     if not 0 <= address <= 253:
         raise table.error("source_address", f"must be a J1939 address 0..253, got {address}")
+    message.protocol = "j1939"
     return address
 
 
