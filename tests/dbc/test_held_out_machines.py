@@ -286,3 +286,15 @@ def test_a_29_bit_message_pinned_to_senders_is_matched_as_j1939_without_the_dbc_
     expected = pytest.approx(eq4_N(12.5e6, 1.25e6), rel=1e-12)
     assert estimates == [("one", expected, ()), ("two", expected, ())]
     assert not pipeline.bad
+
+
+def test_a_j1939_code_above_the_dbcs_range_is_no_pressure() -> None:
+    """PRESS_A.Press is [0|3212.75] kPa (J1939: 0..0xFAFF); 0xFE00, J1939's "error", is
+    named by no value table: once it was a valid 3.2512 MPa, now the chamber is NaN."""
+    pipeline, _, _ = _pipeline("j1939_propa.toml", compiled=True)
+    rod_at_max = pipeline.process(replace(_press_a(6, 0xFE, 0x31, 0, 0xFAFF), t_s=1.0))
+    (estimate,) = pipeline.process(replace(_press_a(6, 0xFE, 0x30, 0, 0xFE00), t_s=1.001)).estimates
+    assert rod_at_max.decoded is not None  # the decoded signal stays the DBC's number
+    assert rod_at_max.decoded.signals["Press"] == pytest.approx(3212.75e3)
+    assert math.isnan(estimate.p_piston_Pa) and estimate.reasons == ("range",)
+    assert estimate.p_rod_Pa == pytest.approx(3212.75e3)  # the range's end is inside it
