@@ -270,3 +270,31 @@ def test_j1939_pdu1_transducers_whatever_priority_and_destination() -> None:
     assert math.isnan(estimate.p_piston_Pa) and estimate.reasons == ("range",)
     result = pipeline.process(replace(_press_a(6, 0xFE, 0x34, 0, 100), t_s=t_s))
     assert result.estimates == () and dict(pipeline.bad) == {"unmapped_source": 1}
+
+
+def test_a_29_bit_message_pinned_to_senders_is_matched_as_j1939_without_the_dbc_saying_so() -> None:
+    """cantools writes a J1939 message without VFrameFormat J1939PG: a chamber's
+    source_address was refused ("not a J1939 message"); it now makes the message J1939."""
+    pipeline, config, database = _pipeline("cantools_j1939.toml", compiled=True)
+    assert config.legs["two"].rod.source_address == 0x43
+    estimates = []
+    for i, source in enumerate((0x41, 0x40, 0x43, 0x42)):
+        frame_id = frame_id_pack(3, 0, 0, 0xFF, 0x3A, source)  # the DBC's ID: priority 6
+        data = (12500 if source % 2 == 0 else 1250).to_bytes(2, "little") + bytes(6)
+        result = pipeline.process(RawFrame(1.0 + 0.001 * i, frame_id, True, data))
+        estimates += [(e.leg, e.force_raw_N, e.reasons) for e in result.estimates]
+    expected = pytest.approx(eq4_N(12.5e6, 1.25e6), rel=1e-12)
+    assert estimates == [("one", expected, ()), ("two", expected, ())]
+    assert not pipeline.bad
+
+
+def test_a_j1939_code_above_the_dbcs_range_is_no_pressure() -> None:
+    """PRESS_A.Press is [0|3212.75] kPa (J1939: 0..0xFAFF); 0xFE00, J1939's "error", is
+    named by no value table: once it was a valid 3.2512 MPa, now the chamber is NaN."""
+    pipeline, _, _ = _pipeline("j1939_propa.toml", compiled=True)
+    rod_at_max = pipeline.process(replace(_press_a(6, 0xFE, 0x31, 0, 0xFAFF), t_s=1.0))
+    (estimate,) = pipeline.process(replace(_press_a(6, 0xFE, 0x30, 0, 0xFE00), t_s=1.001)).estimates
+    assert rod_at_max.decoded is not None  # the decoded signal stays the DBC's number
+    assert rod_at_max.decoded.signals["Press"] == pytest.approx(3212.75e3)
+    assert math.isnan(estimate.p_piston_Pa) and estimate.reasons == ("range",)
+    assert estimate.p_rod_Pa == pytest.approx(3212.75e3)  # the range's end is inside it
