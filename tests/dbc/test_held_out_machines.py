@@ -298,3 +298,20 @@ def test_a_j1939_code_above_the_dbcs_range_is_no_pressure() -> None:
     assert rod_at_max.decoded.signals["Press"] == pytest.approx(3212.75e3)
     assert math.isnan(estimate.p_piston_Pa) and estimate.reasons == ("range",)
     assert estimate.p_rod_Pa == pytest.approx(3212.75e3)  # the range's end is inside it
+
+
+def test_frames_the_held_out_dbc_cannot_use_are_counted_by_kind() -> None:
+    """Held up: a 6-byte message padded to 8, a short one, an 11-bit frame with a 29-bit
+    message's number, an unknown ID, an FD frame of a classic message."""
+    pipeline, _, _ = _pipeline("motorola_psi.toml", compiled=True)
+    good = _hub_frame(0, 15000, 1000)
+    frames = [
+        RawFrame(1.0, HUB_FRONT_ID, True, good + b"\x00\x00"),
+        RawFrame(1.0, HUB_FRONT_ID, True, good[:5]),
+        RawFrame(1.0, HUB_FRONT_ID & 0x7FF, False, good),
+        RawFrame(1.0, 0x1FFFFFFF, True, good),
+        RawFrame(1.0, HUB_FRONT_ID, True, good, is_fd=True),
+    ]
+    kinds = [pipeline.process(frame).error_kind for frame in frames]
+    assert kinds == ["wrong_dlc", "wrong_dlc", "unknown_id", "unknown_id", "fd_frame"]
+    assert pipeline.frames == 5 and sum(pipeline.bad.values()) == 5
