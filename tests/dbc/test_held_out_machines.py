@@ -315,3 +315,33 @@ def test_frames_the_held_out_dbc_cannot_use_are_counted_by_kind() -> None:
     kinds = [pipeline.process(frame).error_kind for frame in frames]
     assert kinds == ["wrong_dlc", "wrong_dlc", "unknown_id", "unknown_id", "fd_frame"]
     assert pipeline.frames == 5 and sum(pipeline.bad.values()) == 5
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "reason"),
+    [
+        (
+            "BO_ 2164195330 HUB_REAR",
+            "BO_ 2164195329 HUB_REAR",
+            "HUB_FRONT has the frame ID 0xFF0001 of HUB_REAR too in the DBC: their frames "
+            "cannot be told apart",
+        ),
+        (
+            "BO_ 2164195330 HUB_REAR",
+            "BO_ 2164195330 HUB_FRONT",
+            "the DBC has two messages named HUB_FRONT: rename one",
+        ),
+    ],
+)
+def test_a_message_whose_id_or_name_another_has_too_stops_the_config(
+    tmp_path: Path, old: str, new: str, reason: str
+) -> None:
+    """cantools keeps the last of two such messages: HUB_REAR's legs read HUB_FRONT's
+    frames (a silently wrong force), or FL's signals were "not in" HUB_FRONT."""
+    text = (STRANGER / "motorola_psi.dbc").read_text(encoding="cp1252")
+    assert old in text
+    (tmp_path / "motorola_psi.dbc").write_text(text.replace(old, new), encoding="cp1252")
+    (tmp_path / "machine.toml").write_text((STRANGER / "motorola_psi.toml").read_text())
+    with pytest.raises(ConfigError) as refused:
+        load_machine_config(tmp_path / "machine.toml")
+    assert refused.value.key == "legs.FL.piston" and refused.value.reason == reason
