@@ -38,6 +38,8 @@ class ReportOptions:
     cluster: str | None = None
     #: Campaign: local processes (None: one per CPU; 1: this process).
     workers: int | None = None
+    #: CAN logs: only this channel's frames (as python-can names it); None: all.
+    channel: str | None = None
 
     @property
     def directory(self) -> Path:
@@ -68,6 +70,11 @@ def parse_report_args(args: Sequence[str]) -> ReportOptions:
     parser.add_argument(
         "--config", type=Path, help="machine config (default: the one embedded in the file)"
     )
+    parser.add_argument(
+        "--channel",
+        help="CAN logs: report only this channel's frames (candump: can0; ASC/BLF: 0 for the "
+        "first)",
+    )
     campaign = parser.add_argument_group(
         "campaign", "one table and summary page over many recordings (runs of the service)"
     )
@@ -91,6 +98,8 @@ def parse_report_args(args: Sequence[str]) -> ReportOptions:
         parser.error("--cluster and --workers go with --campaign")
     if options.cluster and options.workers:
         parser.error("--workers counts local processes: not with --cluster")
+    if options.campaign and options.channel:
+        parser.error("--channel picks a CAN log's bus: not with --campaign (service recordings)")
     return ReportOptions(
         tuple(options.recording),
         options.out,
@@ -98,6 +107,7 @@ def parse_report_args(args: Sequence[str]) -> ReportOptions:
         campaign=options.campaign,
         cluster=options.cluster,
         workers=options.workers,
+        channel=options.channel,
     )
 
 
@@ -107,7 +117,7 @@ def report(options: ReportOptions) -> list[Path]:
     from daq.report.loading import load_recording
     from daq.report.output import write_report
 
-    recording = load_recording(options.recording, options.config_path)
+    recording = load_recording(options.recording, options.config_path, options.channel)
     return write_report(analyse(recording), options.directory)
 
 

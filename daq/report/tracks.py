@@ -298,6 +298,12 @@ class RecordingCollector:
             for estimate in result.estimates:
                 self.add_estimate(leg_ground(estimate), derived=True)
 
+    def count_bad(self, kind: str, count: int) -> None:
+        """Frames a replay left unused with no error of their own (``unmapped_source``:
+        a leg's J1939 PGN from a source address no chamber maps)."""
+        if count:
+            self._bad[kind] += count
+
     def add(self, topic: str, data: bytes) -> None:
         """One recorded JSON message; topics a report does not use are skipped (and
         ``/can/raw`` batches go to :meth:`add_frames`)."""
