@@ -345,3 +345,24 @@ def test_a_message_whose_id_or_name_another_has_too_stops_the_config(
     with pytest.raises(ConfigError) as refused:
         load_machine_config(tmp_path / "machine.toml")
     assert refused.value.key == "legs.FL.piston" and refused.value.reason == reason
+
+
+def test_a_j1939_group_shorter_than_8_bytes_takes_its_frames_padded_to_8(tmp_path: Path) -> None:
+    """XDCR_PRESSURE written as the 3 bytes it uses: J1939 transducers pad it to 8 with
+    0xFF (J1939-21), and each such frame was counted wrong_dlc."""
+    text = (STRANGER / "cantools_j1939.dbc").read_text()
+    assert "XDCR_PRESSURE: 8 Xdcr" in text
+    (tmp_path / "cantools_j1939.dbc").write_text(
+        text.replace("XDCR_PRESSURE: 8", "XDCR_PRESSURE: 3")
+    )
+    (tmp_path / "machine.toml").write_text((STRANGER / "cantools_j1939.toml").read_text())
+    config, database = load_machine_config(tmp_path / "machine.toml")
+    pipeline = Pipeline.from_config(config, database)
+    rod = (1250).to_bytes(2, "little") + b"\x19"
+    piston = (12500).to_bytes(2, "little") + b"\x19"
+    pipeline.process(RawFrame(1.0, 0x18FF3A41, True, rod + b"\xff" * 5))
+    result = pipeline.process(RawFrame(1.001, 0x18FF3A40, True, piston))  # unpadded too
+    assert result.estimates[0].force_raw_N == pytest.approx(eq4_N(12.5e6, 1.25e6), rel=1e-12)
+    assert result.decoded is not None and result.decoded.signals["Temp"] == 25
+    short = pipeline.process(RawFrame(1.002, 0x18FF3A41, True, rod + b"\xff" * 4))
+    assert short.error_kind == "wrong_dlc" and dict(pipeline.bad) == {"wrong_dlc": 1}
