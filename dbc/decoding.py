@@ -94,6 +94,8 @@ def is_j1939(message: Message) -> bool:
 
 #: The most data a classic CAN frame carries.
 CLASSIC_MAX_BYTES = 8
+#: What a J1939 frame of a parameter group of up to 8 bytes carries (padded with 0xFF).
+J1939_FRAME_BYTES = 8
 
 
 def is_fd_message(message: Message) -> bool:
@@ -123,6 +125,13 @@ class _MessageCodec:
         self.name: str = message.name
         self.length: int = message.length
         self.is_fd = is_fd_message(message)
+        # J1939 sends a parameter group shorter than 8 bytes padded to 8 (J1939-21; the
+        # padding is 0xFF): such a frame is the DBC's bytes and the padding.
+        self.padded_length = (
+            J1939_FRAME_BYTES
+            if is_j1939(message) and message.length < J1939_FRAME_BYTES
+            else message.length
+        )
         self.to_si = dict(to_si)
         self.compiled = CompiledMessage.compile(message, to_si) if compiled else None
         self.protection = protection
@@ -153,9 +162,11 @@ class _MessageCodec:
     ) -> DecodedFrame:
         name = self.name
         if len(data) != self.length:
-            raise FrameLengthError(
-                arbitration_id, f"{name} has DLC {len(data)}, the DBC says {self.length}"
-            )
+            if len(data) != self.padded_length:
+                raise FrameLengthError(
+                    arbitration_id, f"{name} has DLC {len(data)}, the DBC says {self.length}"
+                )
+            data = data[: self.length]
         signals = (
             self.compiled.decode(data)
             if self.compiled is not None

@@ -588,10 +588,25 @@ def _attach_leg_status(
 
 
 def _message(table: TomlTable, key: str, name: str, database: Database) -> Message:
+    """The DBC's message ``name``; one whose name or ID another message has too is an
+    error (cantools keeps the last: the config would read another message's frames)."""
     try:
-        return database.get_message_by_name(name)
+        message = database.get_message_by_name(name)
     except KeyError:
         raise table.error(key, f"no message {name!r} in the DBC") from None
+    wire = (message.frame_id, bool(message.is_extended_frame))
+    for other in database.messages:
+        if other is message:
+            continue
+        if other.name == name:
+            raise table.error(key, f"the DBC has two messages named {name}: rename one")
+        if (other.frame_id, bool(other.is_extended_frame)) == wire:
+            raise table.error(
+                key,
+                f"{name} has the frame ID 0x{message.frame_id:X} of {other.name} too in the "
+                "DBC: their frames cannot be told apart",
+            )
+    return message
 
 
 def _check_senders(

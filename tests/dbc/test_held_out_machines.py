@@ -298,3 +298,71 @@ def test_a_j1939_code_above_the_dbcs_range_is_no_pressure() -> None:
     assert rod_at_max.decoded.signals["Press"] == pytest.approx(3212.75e3)
     assert math.isnan(estimate.p_piston_Pa) and estimate.reasons == ("range",)
     assert estimate.p_rod_Pa == pytest.approx(3212.75e3)  # the range's end is inside it
+
+
+def test_frames_the_held_out_dbc_cannot_use_are_counted_by_kind() -> None:
+    """Held up: a 6-byte message padded to 8, a short one, an 11-bit frame with a 29-bit
+    message's number, an unknown ID, an FD frame of a classic message."""
+    pipeline, _, _ = _pipeline("motorola_psi.toml", compiled=True)
+    good = _hub_frame(0, 15000, 1000)
+    frames = [
+        RawFrame(1.0, HUB_FRONT_ID, True, good + b"\x00\x00"),
+        RawFrame(1.0, HUB_FRONT_ID, True, good[:5]),
+        RawFrame(1.0, HUB_FRONT_ID & 0x7FF, False, good),
+        RawFrame(1.0, 0x1FFFFFFF, True, good),
+        RawFrame(1.0, HUB_FRONT_ID, True, good, is_fd=True),
+    ]
+    kinds = [pipeline.process(frame).error_kind for frame in frames]
+    assert kinds == ["wrong_dlc", "wrong_dlc", "unknown_id", "unknown_id", "fd_frame"]
+    assert pipeline.frames == 5 and sum(pipeline.bad.values()) == 5
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "reason"),
+    [
+        (
+            "BO_ 2164195330 HUB_REAR",
+            "BO_ 2164195329 HUB_REAR",
+            "HUB_FRONT has the frame ID 0xFF0001 of HUB_REAR too in the DBC: their frames "
+            "cannot be told apart",
+        ),
+        (
+            "BO_ 2164195330 HUB_REAR",
+            "BO_ 2164195330 HUB_FRONT",
+            "the DBC has two messages named HUB_FRONT: rename one",
+        ),
+    ],
+)
+def test_a_message_whose_id_or_name_another_has_too_stops_the_config(
+    tmp_path: Path, old: str, new: str, reason: str
+) -> None:
+    """cantools keeps the last of two such messages: HUB_REAR's legs read HUB_FRONT's
+    frames (a silently wrong force), or FL's signals were "not in" HUB_FRONT."""
+    text = (STRANGER / "motorola_psi.dbc").read_text(encoding="cp1252")
+    assert old in text
+    (tmp_path / "motorola_psi.dbc").write_text(text.replace(old, new), encoding="cp1252")
+    (tmp_path / "machine.toml").write_text((STRANGER / "motorola_psi.toml").read_text())
+    with pytest.raises(ConfigError) as refused:
+        load_machine_config(tmp_path / "machine.toml")
+    assert refused.value.key == "legs.FL.piston" and refused.value.reason == reason
+
+
+def test_a_j1939_group_shorter_than_8_bytes_takes_its_frames_padded_to_8(tmp_path: Path) -> None:
+    """XDCR_PRESSURE written as the 3 bytes it uses: J1939 transducers pad it to 8 with
+    0xFF (J1939-21), and each such frame was counted wrong_dlc."""
+    text = (STRANGER / "cantools_j1939.dbc").read_text()
+    assert "XDCR_PRESSURE: 8 Xdcr" in text
+    (tmp_path / "cantools_j1939.dbc").write_text(
+        text.replace("XDCR_PRESSURE: 8", "XDCR_PRESSURE: 3")
+    )
+    (tmp_path / "machine.toml").write_text((STRANGER / "cantools_j1939.toml").read_text())
+    config, database = load_machine_config(tmp_path / "machine.toml")
+    pipeline = Pipeline.from_config(config, database)
+    rod = (1250).to_bytes(2, "little") + b"\x19"
+    piston = (12500).to_bytes(2, "little") + b"\x19"
+    pipeline.process(RawFrame(1.0, 0x18FF3A41, True, rod + b"\xff" * 5))
+    result = pipeline.process(RawFrame(1.001, 0x18FF3A40, True, piston))  # unpadded too
+    assert result.estimates[0].force_raw_N == pytest.approx(eq4_N(12.5e6, 1.25e6), rel=1e-12)
+    assert result.decoded is not None and result.decoded.signals["Temp"] == 25
+    short = pipeline.process(RawFrame(1.002, 0x18FF3A41, True, rod + b"\xff" * 4))
+    assert short.error_kind == "wrong_dlc" and dict(pipeline.bad) == {"wrong_dlc": 1}
