@@ -146,6 +146,8 @@ def replay(
             pipeline.bad.total(),
             ", ".join(f"{kind} {n}" for kind, n in sorted(pipeline.bad.items())),
         )
+    if pipeline.frames == 0:  # an empty log (a logger stopped at once): say so
+        logger.warning("%s: no CAN frame in it: the CSV has its header only", files[0])
     return rows
 
 

@@ -520,3 +520,14 @@ def test_the_report_of_a_log_of_two_buses_takes_one_channel(
     args = [str(two), "--config", str(EXAMPLE_CONFIG), "--out", str(out), "--channel"]
     assert report_main([*args, "vcan0"]) == 0
     assert report_main([*args, "can9"]) == 1
+
+
+def test_an_empty_log_replays_to_a_header_with_a_warning(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    log = tmp_path / "empty.log"
+    log.write_text("")
+    out = io.StringIO()
+    assert replay(log, out, EXAMPLE_CONFIG) == 0
+    assert out.getvalue().count("\n") == 1
+    assert f"{log}: no CAN frame in it: the CSV has its header only" in caplog.text
