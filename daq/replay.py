@@ -298,6 +298,7 @@ class LogLines:
         self._file = file
         #: Why reading stopped before the end of the file (None: it did not).
         self.cut: str | None = None
+        self._started = False
 
     def __iter__(self) -> "LogLines":
         return self
@@ -308,8 +309,11 @@ class LogLines:
         try:
             line = next(self._file)
         except (EOFError, zlib.error, gzip.BadGzipFile) as exc:  # a gzipped log cut short
+            if not self._started:  # none at all: not gzip ("Not a gzipped file")
+                raise ValueError(str(exc)) from exc
             self.cut = str(exc)
             raise StopIteration from exc
+        self._started = True
         if not line.endswith("\n"):
             self.cut = f"its last line has no line end: {line.strip()[:60]!r}, left out"
             raise StopIteration

@@ -97,6 +97,7 @@ def test_candump_error_frames_keep_to_the_channel_asked_and_are_counted(
         ("garbage.db", b"garbage\n" * 100, "unreadable after frame 0: file is not a database"),
         ("missing.db", None, "cannot read it as a CAN log"),
         ("cycle.txt", b"(1.0) can0 100#00\n", 'unknown log format ".txt"'),
+        ("plain.log.gz", b"(1.0) can0 100#00\n", "unreadable after frame 0: Not a gzipped file"),
         (  # a CSV of other columns (our own replay's, say)
             "estimates.csv",
             b"leg,t,force_N,force_raw_N,pressure_Pa,p_piston_Pa,p_rod_Pa,contact,valid\n"
