@@ -594,19 +594,27 @@ def _message(table: TomlTable, key: str, name: str, database: Database) -> Messa
         message = database.get_message_by_name(name)
     except KeyError:
         raise table.error(key, f"no message {name!r} in the DBC") from None
-    wire = (message.frame_id, bool(message.is_extended_frame))
+    wire = _wire(message)
     for other in database.messages:
         if other is message:
             continue
         if other.name == name:
             raise table.error(key, f"the DBC has two messages named {name}: rename one")
-        if (other.frame_id, bool(other.is_extended_frame)) == wire:
+        if _wire(other) == wire:
+            what = "PGN and source address" if is_j1939(message) else "frame ID"
             raise table.error(
                 key,
-                f"{name} has the frame ID 0x{message.frame_id:X} of {other.name} too in the "
-                "DBC: their frames cannot be told apart",
+                f"{name} has the {what} of {other.name} too in the DBC (0x{message.frame_id:X}, "
+                f"0x{other.frame_id:X}): their frames cannot be told apart",
             )
     return message
+
+
+def _wire(message: Message) -> tuple[int, ...]:
+    """What tells a message's frames on the bus: its ID, or a J1939 PGN and sender."""
+    if is_j1939(message):
+        return (1, j1939_pgn(message.frame_id), message.frame_id & 0xFF)
+    return (0, message.frame_id, int(bool(message.is_extended_frame)))
 
 
 def _check_senders(

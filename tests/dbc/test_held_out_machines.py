@@ -325,8 +325,8 @@ def test_frames_the_held_out_dbc_cannot_use_are_counted_by_kind() -> None:
         (
             "BO_ 2164195330 HUB_REAR",
             "BO_ 2164195329 HUB_REAR",
-            "HUB_FRONT has the frame ID 0xFF0001 of HUB_REAR too in the DBC: their frames "
-            "cannot be told apart",
+            "HUB_FRONT has the frame ID of HUB_REAR too in the DBC (0xFF0001, 0xFF0001): "
+            "their frames cannot be told apart",
         ),
         (
             "BO_ 2164195330 HUB_REAR",
@@ -347,6 +347,21 @@ def test_a_message_whose_id_or_name_another_has_too_stops_the_config(
     with pytest.raises(ConfigError) as refused:
         load_machine_config(tmp_path / "machine.toml")
     assert refused.value.key == "legs.FL.piston" and refused.value.reason == reason
+
+
+def test_two_j1939_messages_of_one_pgn_and_sender_stop_the_config(tmp_path: Path) -> None:
+    """One group twice for one sender, at two priorities (two DBCs merged): the decoder
+    kept the last for that sender's frames."""
+    text = (STRANGER / "j1939_propa.dbc").read_text()
+    twin = 'BO_ 2364407806 PRESS_A_P3: 8 Xdcr\n SG_ P3 : 0|16@1+ (0.01,0) [0|0] "bar" DAQ\n'
+    (tmp_path / "j1939_propa.dbc").write_text(text.replace("BA_DEF_ ", twin + "\nBA_DEF_ ", 1))
+    (tmp_path / "machine.toml").write_text((STRANGER / "j1939_propa.toml").read_text())
+    with pytest.raises(ConfigError) as refused:
+        load_machine_config(tmp_path / "machine.toml")
+    assert refused.value.reason == (
+        "PRESS_A has the PGN and source address of PRESS_A_P3 too in the DBC (0x18EDFFFE, "
+        "0xCEDFFFE): their frames cannot be told apart"
+    )
 
 
 def test_a_j1939_group_shorter_than_8_bytes_takes_its_frames_padded_to_8(tmp_path: Path) -> None:
