@@ -18,6 +18,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from daq.errors import EmptyRecordingError
 from daq.subcommand import Subcommand
 from dbc.errors import ConfigError, DbcError, PortalDaqError
 
@@ -131,7 +132,10 @@ def campaign_report(options: ReportOptions) -> list[Path]:
     given = [options.recording] if isinstance(options.recording, Path) else options.recording
     found = runs(given)
     rows = campaign(found, options.config_path, cluster=options.cluster, workers=options.workers)
-    return write_campaign(rows, options.directory, len(found))
+    reported = len({row.recording for row in rows})
+    if not rows:
+        raise EmptyRecordingError(given[0], f"none of its {len(found)} recordings holds data")
+    return write_campaign(rows, options.directory, reported, len(found) - reported)
 
 
 def report_main(args: Sequence[str]) -> int:

@@ -32,7 +32,7 @@ from typing import IO
 
 from daq.can_batch import ENCODING as BATCH_ENCODING
 from daq.can_batch import recorded_frames
-from daq.errors import RecordingError
+from daq.errors import EmptyRecordingError, RecordingError
 from daq.mcap_file import RAW_TOPIC
 from daq.mcap_reading import RecordedAttachment, RecordedMessage, RecordingStream
 from daq.pipeline import UNMAPPED_SOURCE, Pipeline
@@ -109,7 +109,7 @@ def load_recording(
         complete = complete and reader.complete
     if collector.frames == 0 and not collector.has_estimates:
         truth = f" ({collector.truth_samples} simulation truth samples only)"
-        raise RecordingError(
+        raise EmptyRecordingError(
             first if len(files) == 1 else first.parent,
             "holds no CAN frames (/can/raw) and no leg estimates: nothing to report"
             + (truth if collector.truth_samples else ""),
@@ -154,7 +154,7 @@ def _log_recording(
         collector.derive(result, bad=True, signals=True, estimates=True)
     collector.count_bad(UNMAPPED_SOURCE, pipeline.bad[UNMAPPED_SOURCE])
     if collector.frames == 0:
-        raise RecordingError(files[0], "holds no CAN frames: nothing to report")
+        raise EmptyRecordingError(files[0], "holds no CAN frames: nothing to report")
     return collector.recording(_name(files), config, machine_id=config.machine_id, recomputed=True)
 
 

@@ -236,3 +236,35 @@ def test_a_clock_that_steps_gives_the_rows_of_a_steady_one(
             )
         # the last stretch keeps its wall-clock times
         assert rows[-1].peak_t_s == pytest.approx(steady[-1].peak_t_s, abs=1e-6)
+
+
+def test_a_recording_that_holds_nothing_is_left_out_of_the_campaign(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], caplog: pytest.LogCaptureFixture
+) -> None:
+    """A power cut just after the recorder opened a file leaves (once recovered at the
+    next start) a whole file of header and attachments only; one such file among a
+    season's stopped the campaign ("nothing to report", exit 1)."""
+    from daq.mcap_file import CONFIG_ATTACHMENT, McapFile
+    from daq.report.command import report_main
+    from tests.helpers import EXAMPLE_CONFIG, example_machine
+
+    season = tmp_path / "season"
+    season.mkdir()
+    record(season / "a_cycle.mcap", seconds=2.5)
+    with (
+        open(season / "b_empty.mcap", "wb") as stream,
+        McapFile(stream, example_machine()[1]) as mcap,
+    ):
+        mcap.start({CONFIG_ATTACHMENT: EXAMPLE_CONFIG.read_bytes()}, run=run_metadata("m", "e", 0))
+    out = tmp_path / "out"
+    assert report_main(["--campaign", str(season), "--workers", "1", "--out", str(out)]) == 0
+    with open(out / "campaign.csv") as table:
+        assert {row["recording"] for row in csv.DictReader(table)} == {"a_cycle.mcap"}
+    page = (out / "campaign.html").read_text()
+    assert "Campaign report: 1 recordings" in page
+    assert "1 more recordings hold nothing (no frame, no estimate): left out." in page
+    assert "b_empty.mcap: holds no CAN frames" in caplog.text and "left out" in caplog.text
+    (season / "a_cycle.mcap").unlink()
+    assert report_main(["--campaign", str(season), "--workers", "1", "--out", str(out)]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1] == f"portal-daq: {season}: none of its 1 recordings holds data", err
