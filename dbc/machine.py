@@ -25,7 +25,7 @@ from dbc import DEFAULT_DBC_PATH
 from dbc.database import load_database
 from dbc.decoding import is_j1939, j1939_pgn
 from dbc.errors import ConfigError
-from dbc.protection import CRC_ALGORITHMS, DEFAULT_CRC_ALGORITHM, Protection
+from dbc.protection import CRC_ALGORITHMS, DEFAULT_CRC_ALGORITHM, Protection, counter_modulo
 from dbc.stability_config import StabilityConfig, parse_stability
 from dbc.toml_table import TomlTable
 from dbc.units import ACCEPTED_PRESSURE_UNITS, pressure_factor_to_Pa
@@ -705,7 +705,7 @@ def _protection(name: str, table: TomlTable, database: Database) -> Protection:
     data_id = _data_id(table, algorithm.data_id_layout)
     max_delta = table.integer("max_delta_counter", 2)
     if counter is not None:
-        modulo = 2 ** signals[counter].length
+        modulo = counter_modulo(message, counter)
         if not 1 <= max_delta < modulo:
             raise table.error(
                 "max_delta_counter", f"must be 1..{modulo - 1} for {counter}, got {max_delta}"

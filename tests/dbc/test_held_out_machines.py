@@ -383,3 +383,15 @@ def test_a_j1939_group_shorter_than_8_bytes_takes_its_frames_padded_to_8(tmp_pat
     assert result.decoded is not None and result.decoded.signals["Temp"] == 25
     short = pipeline.process(RawFrame(1.002, 0x18FF3A41, True, rod + b"\xff" * 4))
     assert short.error_kind == "wrong_dlc" and dict(pipeline.bad) == {"wrong_dlc": 1}
+
+
+def test_a_counter_the_dbc_declares_0_to_14_wraps_from_14_to_0() -> None:
+    """RL_Alive is [0|14] (AUTOSAR E2E profile 1 counts so): 14 -> 0 is one step (it was
+    a lost frame at every wrap), and 15, a value it never takes, is a counter fault."""
+    pipeline, _, _ = _pipeline("motorola_psi.toml", compiled=True)
+    reasons = []
+    for i, counter in enumerate((13, 14, 0, 1, 15, 3)):
+        frame = RawFrame(1.0 + 0.02 * i, 0x00FF0002, True, _hub_frame(counter, 1500, 200))
+        reasons += [e.reasons for e in pipeline.process(frame).estimates]
+    assert reasons == [(), (), (), (), ("counter",), ()]
+    assert pipeline.frames_lost == 0 and dict(pipeline.bad) == {"counter": 1}
