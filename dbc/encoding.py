@@ -13,7 +13,7 @@ from cantools.database.can import Database
 
 from dbc.decoding import SignalValue, UnitFactors, is_fd_message, is_j1939
 from dbc.machine import MachineConfig
-from dbc.protection import CrcCheck, Protection
+from dbc.protection import CrcCheck, Protection, counter_modulo
 
 
 @dataclass(frozen=True, slots=True)
@@ -77,7 +77,7 @@ class FrameEncoder:
             key = (message_name, source_address)
             if counter is None:
                 counter = self._counters.get(key, -1) + 1
-            counter %= 2 ** message.get_signal_by_name(protection.counter).length
+            counter %= counter_modulo(message, protection.counter)
             self._counters[key] = counter
             values[protection.counter] = counter
         if protection is not None and protection.crc is not None:

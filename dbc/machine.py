@@ -25,7 +25,7 @@ from dbc import DEFAULT_DBC_PATH
 from dbc.database import load_database
 from dbc.decoding import is_j1939, j1939_pgn
 from dbc.errors import ConfigError
-from dbc.protection import CRC_ALGORITHMS, DEFAULT_CRC_ALGORITHM, Protection
+from dbc.protection import CRC_ALGORITHMS, DEFAULT_CRC_ALGORITHM, Protection, counter_modulo
 from dbc.stability_config import StabilityConfig, parse_stability
 from dbc.toml_table import TomlTable
 from dbc.units import ACCEPTED_PRESSURE_UNITS, pressure_factor_to_Pa
@@ -594,19 +594,27 @@ def _message(table: TomlTable, key: str, name: str, database: Database) -> Messa
         message = database.get_message_by_name(name)
     except KeyError:
         raise table.error(key, f"no message {name!r} in the DBC") from None
-    wire = (message.frame_id, bool(message.is_extended_frame))
+    wire = _wire(message)
     for other in database.messages:
         if other is message:
             continue
         if other.name == name:
             raise table.error(key, f"the DBC has two messages named {name}: rename one")
-        if (other.frame_id, bool(other.is_extended_frame)) == wire:
+        if _wire(other) == wire:
+            what = "PGN and source address" if is_j1939(message) else "frame ID"
             raise table.error(
                 key,
-                f"{name} has the frame ID 0x{message.frame_id:X} of {other.name} too in the "
-                "DBC: their frames cannot be told apart",
+                f"{name} has the {what} of {other.name} too in the DBC (0x{message.frame_id:X}, "
+                f"0x{other.frame_id:X}): their frames cannot be told apart",
             )
     return message
+
+
+def _wire(message: Message) -> tuple[int, ...]:
+    """What tells a message's frames on the bus: its ID, or a J1939 PGN and sender."""
+    if is_j1939(message):
+        return (1, j1939_pgn(message.frame_id), message.frame_id & 0xFF)
+    return (0, message.frame_id, int(bool(message.is_extended_frame)))
 
 
 def _check_senders(
@@ -697,7 +705,7 @@ def _protection(name: str, table: TomlTable, database: Database) -> Protection:
     data_id = _data_id(table, algorithm.data_id_layout)
     max_delta = table.integer("max_delta_counter", 2)
     if counter is not None:
-        modulo = 2 ** signals[counter].length
+        modulo = counter_modulo(message, counter)
         if not 1 <= max_delta < modulo:
             raise table.error(
                 "max_delta_counter", f"must be 1..{modulo - 1} for {counter}, got {max_delta}"

@@ -125,6 +125,8 @@ def test_units_marked_gauge_are_pressure_units_and_come_out_in_pa() -> None:
 @pytest.mark.parametrize(
     ("unit", "pa"),
     [("psig", PSI_PA), ("bar(g)", 1e5), ("barg", 1e5), ("kPa gauge", 1e3), ("MPa (g)", 1e6)]
+    + [("N/mm\u00b2", 1e6), ("n/mm2", 1e6), ("hPa", 100.0), ("kgf/cm\u00b2", 98066.5)]
+    + [("KG/CM2 (g)", 9.80665 / 1e-4)]
     + [("bara", None), ("psia", None), ("kg", None), ("g", None)],
 )
 def test_gauge_marks_and_absolute_units(unit: str, pa: float | None) -> None:
@@ -323,8 +325,8 @@ def test_frames_the_held_out_dbc_cannot_use_are_counted_by_kind() -> None:
         (
             "BO_ 2164195330 HUB_REAR",
             "BO_ 2164195329 HUB_REAR",
-            "HUB_FRONT has the frame ID 0xFF0001 of HUB_REAR too in the DBC: their frames "
-            "cannot be told apart",
+            "HUB_FRONT has the frame ID of HUB_REAR too in the DBC (0xFF0001, 0xFF0001): "
+            "their frames cannot be told apart",
         ),
         (
             "BO_ 2164195330 HUB_REAR",
@@ -347,6 +349,21 @@ def test_a_message_whose_id_or_name_another_has_too_stops_the_config(
     assert refused.value.key == "legs.FL.piston" and refused.value.reason == reason
 
 
+def test_two_j1939_messages_of_one_pgn_and_sender_stop_the_config(tmp_path: Path) -> None:
+    """One group twice for one sender, at two priorities (two DBCs merged): the decoder
+    kept the last for that sender's frames."""
+    text = (STRANGER / "j1939_propa.dbc").read_text()
+    twin = 'BO_ 2364407806 PRESS_A_P3: 8 Xdcr\n SG_ P3 : 0|16@1+ (0.01,0) [0|0] "bar" DAQ\n'
+    (tmp_path / "j1939_propa.dbc").write_text(text.replace("BA_DEF_ ", twin + "\nBA_DEF_ ", 1))
+    (tmp_path / "machine.toml").write_text((STRANGER / "j1939_propa.toml").read_text())
+    with pytest.raises(ConfigError) as refused:
+        load_machine_config(tmp_path / "machine.toml")
+    assert refused.value.reason == (
+        "PRESS_A has the PGN and source address of PRESS_A_P3 too in the DBC (0x18EDFFFE, "
+        "0xCEDFFFE): their frames cannot be told apart"
+    )
+
+
 def test_a_j1939_group_shorter_than_8_bytes_takes_its_frames_padded_to_8(tmp_path: Path) -> None:
     """XDCR_PRESSURE written as the 3 bytes it uses: J1939 transducers pad it to 8 with
     0xFF (J1939-21), and each such frame was counted wrong_dlc."""
@@ -366,3 +383,15 @@ def test_a_j1939_group_shorter_than_8_bytes_takes_its_frames_padded_to_8(tmp_pat
     assert result.decoded is not None and result.decoded.signals["Temp"] == 25
     short = pipeline.process(RawFrame(1.002, 0x18FF3A41, True, rod + b"\xff" * 4))
     assert short.error_kind == "wrong_dlc" and dict(pipeline.bad) == {"wrong_dlc": 1}
+
+
+def test_a_counter_the_dbc_declares_0_to_14_wraps_from_14_to_0() -> None:
+    """RL_Alive is [0|14] (AUTOSAR E2E profile 1 counts so): 14 -> 0 is one step (it was
+    a lost frame at every wrap), and 15, a value it never takes, is a counter fault."""
+    pipeline, _, _ = _pipeline("motorola_psi.toml", compiled=True)
+    reasons = []
+    for i, counter in enumerate((13, 14, 0, 1, 15, 3)):
+        frame = RawFrame(1.0 + 0.02 * i, 0x00FF0002, True, _hub_frame(counter, 1500, 200))
+        reasons += [e.reasons for e in pipeline.process(frame).estimates]
+    assert reasons == [(), (), (), (), ("counter",), ()]
+    assert pipeline.frames_lost == 0 and dict(pipeline.bad) == {"counter": 1}
