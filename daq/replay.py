@@ -20,6 +20,7 @@ rotations too.
 
 import csv
 import gzip
+import itertools
 import json
 import logging
 import sqlite3
@@ -134,11 +135,19 @@ def replay(
     machine = load_machine_config(config_path) if config_path is not None else None
     files = expand([paths] if isinstance(paths, Path) else paths)
     if all(path.suffix.lower() == MCAP_SUFFIX for path in files):
-        return write_csv(run_estimates(run_files(files), machine), out)
-    if machine is None:
+        run = run_files(files)
+        attachments: dict[str, bytes] = {}
+        items = run_items(run, attachments)
+        first = next(items, None)  # the first file's attachments are read by then
+        if first is None:
+            return write_csv((), out)
+        pipeline = Pipeline.from_config(*(machine or embedded_machine(attachments, run[0])))
+        rows = write_csv(estimates(pipeline, itertools.chain((first,), items)), out)
+    elif machine is None:
         raise ConfigError(files[0], "", "replaying a CAN log needs --config (the machine config)")
-    pipeline = Pipeline.from_config(*machine)
-    rows = write_csv(estimates(pipeline, chained_log_frames(files, channel)), out)
+    else:
+        pipeline = Pipeline.from_config(*machine)
+        rows = write_csv(estimates(pipeline, chained_log_frames(files, channel)), out)
     if pipeline.bad:
         logger.warning(
             "%d frames, %d of them not used (%s)",
@@ -349,13 +358,6 @@ def _open(path: Path) -> IO[bytes]:
         return open(path, "rb")
     except OSError as exc:
         raise RecordingError(path, f"cannot open it: {exc.strerror or exc}") from exc
-
-
-def run_estimates(files: Sequence[Path], machine: Machine | None) -> Iterator[LegEstimate]:
-    """The estimates of MCAP ``files`` (one run, in order) chained through one pipeline;
-    ``machine`` None: the configuration embedded in the first file."""
-    for result in run_results(files, machine):
-        yield from result.estimates
 
 
 def run_results(

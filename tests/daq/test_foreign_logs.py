@@ -413,7 +413,9 @@ def test_a_stray_byte_in_a_candump_line_names_the_frame_before_it(tmp_path: Path
         list(can_log_frames(log))
 
 
-def test_the_report_counts_j1939_frames_from_an_unmapped_source_address(tmp_path: Path) -> None:
+def test_the_report_counts_j1939_frames_from_an_unmapped_source_address(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
     # Transducers replaced by ones of other source addresses: replay said "unmapped_source
     # 4", the report "bad frames by kind: none" beside "leg estimates 0".
     from daq.mcap_file import CONFIG_ATTACHMENT, DBC_ATTACHMENT, McapFile, RecordBatch
@@ -446,6 +448,9 @@ def test_the_report_counts_j1939_frames_from_an_unmapped_source_address(tmp_path
     for loaded in (load_recording(log, config_path), load_recording(recording)):
         assert loaded.counts.bad == {"unmapped_source": 4}
         assert loaded.counts.estimates == 4  # SB1_F1, one per piston frame
+    # replay of the recording counts them too, as replay of a CAN log did (it said nothing)
+    assert replay(recording, io.StringIO()) == 4
+    assert "12 frames, 4 of them not used (unmapped_source 4)" in caplog.text
 
 
 def test_a_blf_log_not_closed_or_cut_is_read_to_its_last_object_with_a_warning(
