@@ -4,6 +4,7 @@ PortalDaqError (dbc.errors)
 ├── BusError           the CAN bus cannot be opened or read (retried, never fatal)
 ├── ZenohError         the Zenoh session cannot be opened (fatal at start)
 └── RecordingError     an MCAP recording cannot be written or read
+    └── EmptyRecordingError   it holds no CAN frame and no leg estimate: nothing to report
 """
 
 from pathlib import Path
@@ -37,3 +38,8 @@ class RecordingError(PortalDaqError):
         self.path = str(path)
         self.reason = reason
         super().__init__(f"{self.path}: {reason}")
+
+
+class EmptyRecordingError(RecordingError):
+    """A recording (or CAN log) that holds no CAN frame and no leg estimate, e.g. a file
+    the recorder had just opened when the power went: nothing to report."""

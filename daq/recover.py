@@ -24,7 +24,7 @@ from mcap.writer import Writer
 
 from daq.errors import RecordingError
 from daq.mcap_file import COMPRESSION
-from daq.mcap_reading import RecordsToTheCut
+from daq.mcap_reading import RecordsToTheCut, summary_channels
 
 logger = logging.getLogger(__name__)
 
@@ -41,6 +41,8 @@ class Recovered:
     metadata: int
     #: The record that could not be read, e.g. ``EndOfFile``; None if the footer was read.
     stopped_by: str | None
+    #: Chunks skipped in the middle of the file (CRC or compression failed).
+    damaged_chunks: int = 0
 
 
 def is_cut_short(path: Path) -> bool:
@@ -74,6 +76,9 @@ def recover(
     messages = attachments = metadata = 0
     footer = False
     started = False
+    # a whole file's summary names every channel, also one whose chunk is damaged
+    summary_schemas, summary_channels_ = summary_channels(source)
+    known: list[Schema | Channel] = [*summary_schemas.values(), *summary_channels_.values()]
     records = RecordsToTheCut(source, name)
     for record in records:
         if isinstance(record, Header):
@@ -83,12 +88,10 @@ def recover(
         if not started:  # no readable header: start one anyway
             writer.start()
             started = True
-        if isinstance(record, Schema):
-            schemas[record.id] = writer.register_schema(record.name, record.encoding, record.data)
-        elif isinstance(record, Channel) and record.schema_id in schemas:
-            channels[record.id] = writer.register_channel(
-                record.topic, record.message_encoding, schemas[record.schema_id], record.metadata
-            )
+        while known:  # after the header
+            _register(writer, known.pop(0), schemas, channels)
+        if isinstance(record, Schema | Channel):
+            _register(writer, record, schemas, channels)
         elif isinstance(record, Message) and record.channel_id in channels:
             writer.add_message(
                 channels[record.channel_id],
@@ -112,7 +115,20 @@ def recover(
         writer.start()
     writer.finish()  # type: ignore[no-untyped-call]
     stopped_by = records.stopped_by or (None if footer else "no footer")
-    return Recovered(messages, attachments, metadata, stopped_by)
+    return Recovered(messages, attachments, metadata, stopped_by, records.damaged_chunks)
+
+
+def _register(
+    writer: Writer, record: Schema | Channel, schemas: dict[int, int], channels: dict[int, int]
+) -> None:
+    """Register ``record`` (of the source's ids) with ``writer``, once per id."""
+    if isinstance(record, Schema):
+        if record.id not in schemas:
+            schemas[record.id] = writer.register_schema(record.name, record.encoding, record.data)
+    elif record.id not in channels and record.schema_id in schemas:
+        channels[record.id] = writer.register_channel(
+            record.topic, record.message_encoding, schemas[record.schema_id], record.metadata
+        )
 
 
 def recover_file(path: Path, out: Path | None = None, *, compression: str = "zstd") -> Recovered:

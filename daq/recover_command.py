@@ -36,10 +36,12 @@ def recover_main(args: Sequence[str]) -> int:
     except PortalDaqError as exc:
         return fail(exc, 1)
     cut = f"; stopped at the cut ({result.stopped_by})" if result.stopped_by else ""
+    if result.damaged_chunks:
+        cut += f"; {result.damaged_chunks} damaged chunks skipped"
     sys.stderr.write(
         f"{PROG}: recovered {result.messages} messages, {result.attachments} attachments{cut}\n"
     )
-    return LOSSY_STATUS if result.stopped_by else 0
+    return LOSSY_STATUS if result.stopped_by or result.damaged_chunks else 0
 
 
 SUBCOMMAND = Subcommand(

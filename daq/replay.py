@@ -31,6 +31,7 @@ from pathlib import Path
 from typing import IO, Any, TextIO, cast
 
 import can
+from can.io.blf import BLFParseError
 from can.io.generic import MessageReader, TextIOMessageReader
 from can.io.player import MESSAGE_READERS
 from cantools.database.can import Database
@@ -65,7 +66,7 @@ CSV_COLUMNS = (
 Machine = tuple[MachineConfig, Database]
 
 #: What python-can's log parsers raise for a file they cannot read (SQLite's for ``.db``).
-_READER_ERRORS = (ValueError, IndexError, KeyError, struct.error, sqlite3.Error)
+_READER_ERRORS = (ValueError, IndexError, KeyError, struct.error, sqlite3.Error, BLFParseError)
 
 #: EDL in the flags of an ASC ``CANFD`` line (and of a BLF CAN FD message): an FD frame.
 _EDL = 1 << 12
@@ -75,6 +76,7 @@ _EDL = 1 << 12
 _LINE_FORMATS = {
     ".log": " (a candump -L line is '(TIME) INTERFACE ID#DATA')",
     ".csv": " (python-can's CSV: timestamp,arbitration_id,extended,remote,error,dlc,data)",
+    ".blf": " (no BLF object begins where one should: a damaged file)",
 }
 
 
@@ -144,15 +146,24 @@ def replay(
             pipeline.bad.total(),
             ", ".join(f"{kind} {n}" for kind, n in sorted(pipeline.bad.items())),
         )
+    if pipeline.frames == 0:  # an empty log (a logger stopped at once): say so
+        logger.warning("%s: no CAN frame in it: the CSV has its header only", files[0])
     return rows
 
 
-def recording_results(files: Sequence[Path], machine: Machine) -> Iterator[FrameResult]:
-    """What one fresh pipeline makes of every frame of ``files``: CAN logs chained in the
-    order given, or the MCAP files of one run in its order."""
+def recording_results(
+    files: Sequence[Path],
+    machine: Machine,
+    pipeline: Pipeline | None = None,
+    channel: str | None = None,
+) -> Iterator[FrameResult]:
+    """What one fresh pipeline (or ``pipeline``, whose counters the caller reads after)
+    makes of every frame of ``files``: CAN logs chained in the order given (of
+    ``channel`` only, when given), or the MCAP files of one run in its order."""
     if is_can_log(files[0]):
-        return results(Pipeline.from_config(*machine), chained_log_frames(files))
-    return run_results(files, machine)
+        frames = chained_log_frames(files, channel)
+        return results(pipeline or Pipeline.from_config(*machine), frames)
+    return run_results(files, machine, pipeline)
 
 
 def is_can_log(path: Path) -> bool:
@@ -193,8 +204,8 @@ def can_log_frames(path: Path, channel: str | None = None) -> Iterator[RawFrame]
     come from more than one (a logger on two buses). A frame without a channel (python-can
     gives none to a candump error frame) is kept whatever ``channel`` is. The times of an
     ASC log with ``timestamps relative`` (each the step since the event before) are
-    summed from its start. A text log cut short is read up to its last whole line
-    (:class:`LogLines`), with a warning."""
+    summed from its start. A log cut short is read up to its last whole line
+    (:class:`LogLines`) or BLF object (:func:`blf_cut`), with a warning."""
     if not path.is_file():  # python-can's SQLite reader would create it
         raise RecordingError(path, "cannot read it as a CAN log: no such file")
     try:
@@ -204,6 +215,7 @@ def can_log_frames(path: Path, channel: str | None = None) -> Iterator[RawFrame]
     count = 0
     channels: set[str] = set()
     elapsed_s = 0.0
+    cut = None
     with reader:
         try:
             for message in reader:
@@ -224,10 +236,14 @@ def can_log_frames(path: Path, channel: str | None = None) -> Iterator[RawFrame]
                 if channel is None or name in (None, channel):
                     yield from_can_message(message)
         except _READER_ERRORS as exc:
-            hint = _LINE_FORMATS.get(path.suffix.lower(), "")
-            raise RecordingError(path, f"unreadable after frame {count}: {exc}{hint}") from exc
-    if lines is not None and lines.cut is not None:
-        logger.warning("%s is cut short (%s): read up to frame %d", path, lines.cut, count)
+            cut = blf_cut(path, reader)
+            if cut is None:
+                hint = _LINE_FORMATS.get(path.suffix.lower(), "")
+                reason = f"{str(exc) or type(exc).__name__}{hint}"  # BLFParseError(): nothing
+                raise RecordingError(path, f"unreadable after frame {count}: {reason}") from exc
+    cut = cut or (lines.cut if lines is not None else blf_cut(path, reader))
+    if cut is not None:
+        logger.warning("%s is cut short (%s): read up to frame %d", path, cut, count)
     if channel is not None and channel not in channels:
         raise RecordingError(
             path, f"no frame on channel {channel!r}; its channels: {', '.join(sorted(channels))}"
@@ -258,6 +274,18 @@ def _log_reader(path: Path) -> tuple[MessageReader, "LogLines | None"]:
         raise
 
 
+def blf_cut(path: Path, reader: MessageReader) -> str | None:
+    """Why a BLF log is cut short, None if it is not: its header's file size (written when
+    the logger closes the file) is not the file's. python-can reads it silently up to its
+    last whole object."""
+    if not isinstance(reader, can.BLFReader) or path.suffix.lower() != ".blf":
+        return None
+    size = path.stat().st_size
+    if reader.file_size == size:
+        return None
+    return f"its header gives {reader.file_size} bytes, the file has {size}: not closed"
+
+
 class LogLines:
     """The lines of a text CAN log, as python-can's readers take a file, up to a cut.
 
@@ -270,6 +298,7 @@ class LogLines:
         self._file = file
         #: Why reading stopped before the end of the file (None: it did not).
         self.cut: str | None = None
+        self._started = False
 
     def __iter__(self) -> "LogLines":
         return self
@@ -280,8 +309,11 @@ class LogLines:
         try:
             line = next(self._file)
         except (EOFError, zlib.error, gzip.BadGzipFile) as exc:  # a gzipped log cut short
+            if not self._started:  # none at all: not gzip ("Not a gzipped file")
+                raise ValueError(str(exc)) from exc
             self.cut = str(exc)
             raise StopIteration from exc
+        self._started = True
         if not line.endswith("\n"):
             self.cut = f"its last line has no line end: {line.strip()[:60]!r}, left out"
             raise StopIteration
@@ -326,10 +358,12 @@ def run_estimates(files: Sequence[Path], machine: Machine | None) -> Iterator[Le
         yield from result.estimates
 
 
-def run_results(files: Sequence[Path], machine: Machine | None) -> Iterator[FrameResult]:
-    """What the pipeline makes of every frame of MCAP ``files`` (one run, in order)."""
+def run_results(
+    files: Sequence[Path], machine: Machine | None, pipeline: Pipeline | None = None
+) -> Iterator[FrameResult]:
+    """What the pipeline (a fresh one unless given) makes of every frame of MCAP
+    ``files`` (one run, in order)."""
     attachments: dict[str, bytes] = {}
-    pipeline: Pipeline | None = None
     for item in run_items(files, attachments):
         if pipeline is None:
             pipeline = Pipeline.from_config(*(machine or embedded_machine(attachments, files[0])))

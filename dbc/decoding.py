@@ -92,6 +92,19 @@ def is_j1939(message: Message) -> bool:
     return message.protocol == "j1939" and bool(message.is_extended_frame)
 
 
+#: The most data a classic CAN frame carries.
+CLASSIC_MAX_BYTES = 8
+#: What a J1939 frame of a parameter group of up to 8 bytes carries (padded with 0xFF).
+J1939_FRAME_BYTES = 8
+
+
+def is_fd_message(message: Message) -> bool:
+    """``message`` is sent as CAN FD frames: the DBC says so (``VFrameFormat``
+    ``StandardCAN_FD``/``ExtendedCAN_FD``), or it is longer than a classic frame can be
+    (a DBC that leaves the frame format out, or names a classic one)."""
+    return bool(message.is_fd) or message.length > CLASSIC_MAX_BYTES
+
+
 def j1939_pgn(frame_id: int) -> int:
     """The PGN of a 29-bit J1939 frame ID (PDU1: the destination address is not part of it)."""
     return int(pgn_from_frame_id(frame_id))  # type: ignore[no-untyped-call]
@@ -111,6 +124,14 @@ class _MessageCodec:
         # cantools' properties, read once: the per-frame path reads plain attributes.
         self.name: str = message.name
         self.length: int = message.length
+        self.is_fd = is_fd_message(message)
+        # J1939 sends a parameter group shorter than 8 bytes padded to 8 (J1939-21; the
+        # padding is 0xFF): such a frame is the DBC's bytes and the padding.
+        self.padded_length = (
+            J1939_FRAME_BYTES
+            if is_j1939(message) and message.length < J1939_FRAME_BYTES
+            else message.length
+        )
         self.to_si = dict(to_si)
         self.compiled = CompiledMessage.compile(message, to_si) if compiled else None
         self.protection = protection
@@ -141,9 +162,11 @@ class _MessageCodec:
     ) -> DecodedFrame:
         name = self.name
         if len(data) != self.length:
-            raise FrameLengthError(
-                arbitration_id, f"{name} has DLC {len(data)}, the DBC says {self.length}"
-            )
+            if len(data) != self.padded_length:
+                raise FrameLengthError(
+                    arbitration_id, f"{name} has DLC {len(data)}, the DBC says {self.length}"
+                )
+            data = data[: self.length]
         signals = (
             self.compiled.decode(data)
             if self.compiled is not None
@@ -292,7 +315,7 @@ class FrameDecoder:
                     codec = by_address.get(arbitration_id & 0xFF, by_address[None])
                     self._j1939_ids[arbitration_id] = codec
             source_address = arbitration_id & 0xFF if codec is not None else None
-        if is_fd and (codec is None or not codec.message.is_fd):
+        if is_fd and (codec is None or not codec.is_fd):
             raise FdFrameError(arbitration_id, "CAN FD frame of no FD message in the DBC")
         if codec is None:
             raise UnknownFrameError(arbitration_id, "ID not in the DBC")

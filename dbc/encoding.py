@@ -11,9 +11,9 @@ from dataclasses import dataclass
 
 from cantools.database.can import Database
 
-from dbc.decoding import SignalValue, UnitFactors, is_j1939
+from dbc.decoding import SignalValue, UnitFactors, is_fd_message, is_j1939
 from dbc.machine import MachineConfig
-from dbc.protection import CrcCheck, Protection
+from dbc.protection import CrcCheck, Protection, counter_modulo
 
 
 @dataclass(frozen=True, slots=True)
@@ -77,7 +77,7 @@ class FrameEncoder:
             key = (message_name, source_address)
             if counter is None:
                 counter = self._counters.get(key, -1) + 1
-            counter %= 2 ** message.get_signal_by_name(protection.counter).length
+            counter %= counter_modulo(message, protection.counter)
             self._counters[key] = counter
             values[protection.counter] = counter
         if protection is not None and protection.crc is not None:
@@ -96,5 +96,5 @@ class FrameEncoder:
                 raise ValueError(f"{message_name} is not a J1939 message: no source address")
             frame_id = (frame_id & ~0xFF) | source_address
         return EncodedFrame(
-            frame_id, bool(message.is_extended_frame), bytes(data), bool(message.is_fd)
+            frame_id, bool(message.is_extended_frame), bytes(data), is_fd_message(message)
         )

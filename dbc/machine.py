@@ -19,13 +19,13 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from cantools.database.can import Database, Message
+from cantools.database.can import Database, Message, Signal
 
 from dbc import DEFAULT_DBC_PATH
 from dbc.database import load_database
 from dbc.decoding import is_j1939, j1939_pgn
 from dbc.errors import ConfigError
-from dbc.protection import CRC_ALGORITHMS, DEFAULT_CRC_ALGORITHM, Protection
+from dbc.protection import CRC_ALGORITHMS, DEFAULT_CRC_ALGORITHM, Protection, counter_modulo
 from dbc.stability_config import StabilityConfig, parse_stability
 from dbc.toml_table import TomlTable
 from dbc.units import ACCEPTED_PRESSURE_UNITS, pressure_factor_to_Pa
@@ -138,6 +138,10 @@ class ChamberSignal:
     cycle_time_s: float
     #: The multiplexer values of the frames that carry the signal; None: every frame.
     mux_ids: tuple[int, ...] | None = None
+    #: The DBC signal's physical range ``[min|max]`` in Pa, half a step wider (rounding);
+    #: a value outside it is none the DBC allows (J1939's error and "not available" codes
+    #: lie above a declared range). Unbounded where the DBC gives none.
+    range_Pa: tuple[float, float] = (-math.inf, math.inf)
 
     def __str__(self) -> str:
         where = f"{self.message}.{self.signal}"
@@ -422,7 +426,21 @@ def _chamber(
         status=status,
         cycle_time_s=_cycle_time_s(chamber, signal_key, message),
         mux_ids=_mux_ids(message, signal_name),
+        range_Pa=_range_Pa(signal, unit),
     )
+
+
+def _range_Pa(signal: Signal, unit: str) -> tuple[float, float]:
+    """The signal's ``[min|max]`` in Pa, widened by half a step (none: unbounded; cantools
+    reads the DBC's ``[0|0]`` as none)."""
+    low, high = signal.minimum, signal.maximum
+    if low is None or high is None or not low < high:
+        return (-math.inf, math.inf)
+    factor = pressure_factor_to_Pa(unit)
+    assert factor is not None  # checked by the caller
+    margin = 0.5 * abs(signal.scale) if not signal.is_float else 0.0
+    margin += 1e-9 * max(abs(low), abs(high))
+    return ((low - margin) * factor, (high + margin) * factor)
 
 
 def _mux_ids(message: Message, signal_name: str) -> tuple[int, ...] | None:
@@ -439,19 +457,25 @@ def _in_frames_of(message: Message, signal_name: str, mux_ids: tuple[int, ...] |
 
 def _source_address(table: TomlTable, message: Message, database: Database) -> int | None:
     """The pinned J1939 sender: the configured one; for a message that shares its PGN with
-    others (one DBC message per sender) the address in its own ID; else None (any)."""
+    others (one DBC message per sender) the address in its own ID; else None (any).
+
+    A 29-bit message the DBC does not mark J1939 (``VFrameFormat`` ``J1939PG``; cantools,
+    for one, writes no frame format) becomes one here, in ``database``, when a chamber
+    pins a sender of it: only a J1939 ID has a source address.
+    """
     if "source_address" not in table:
         if is_j1939(message) and _shares_pgn(message, database):
             return int(message.frame_id & 0xFF)
         return None
-    if not is_j1939(message):
+    if not message.is_extended_frame:
         raise table.error(
             "source_address",
-            f"{message.name} is not a J1939 message (VFrameFormat J1939PG in the DBC)",
+            f"{message.name} is not a J1939 message: its 11-bit ID has no source address",
         )
     address = table.integer("source_address")
     if not 0 <= address <= 253:
         raise table.error("source_address", f"must be a J1939 address 0..253, got {address}")
+    message.protocol = "j1939"
     return address
 
 
@@ -564,10 +588,33 @@ def _attach_leg_status(
 
 
 def _message(table: TomlTable, key: str, name: str, database: Database) -> Message:
+    """The DBC's message ``name``; one whose name or ID another message has too is an
+    error (cantools keeps the last: the config would read another message's frames)."""
     try:
-        return database.get_message_by_name(name)
+        message = database.get_message_by_name(name)
     except KeyError:
         raise table.error(key, f"no message {name!r} in the DBC") from None
+    wire = _wire(message)
+    for other in database.messages:
+        if other is message:
+            continue
+        if other.name == name:
+            raise table.error(key, f"the DBC has two messages named {name}: rename one")
+        if _wire(other) == wire:
+            what = "PGN and source address" if is_j1939(message) else "frame ID"
+            raise table.error(
+                key,
+                f"{name} has the {what} of {other.name} too in the DBC (0x{message.frame_id:X}, "
+                f"0x{other.frame_id:X}): their frames cannot be told apart",
+            )
+    return message
+
+
+def _wire(message: Message) -> tuple[int, ...]:
+    """What tells a message's frames on the bus: its ID, or a J1939 PGN and sender."""
+    if is_j1939(message):
+        return (1, j1939_pgn(message.frame_id), message.frame_id & 0xFF)
+    return (0, message.frame_id, int(bool(message.is_extended_frame)))
 
 
 def _check_senders(
@@ -658,7 +705,7 @@ def _protection(name: str, table: TomlTable, database: Database) -> Protection:
     data_id = _data_id(table, algorithm.data_id_layout)
     max_delta = table.integer("max_delta_counter", 2)
     if counter is not None:
-        modulo = 2 ** signals[counter].length
+        modulo = counter_modulo(message, counter)
         if not 1 <= max_delta < modulo:
             raise table.error(
                 "max_delta_counter", f"must be 1..{modulo - 1} for {counter}, got {max_delta}"

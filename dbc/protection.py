@@ -243,6 +243,9 @@ class CounterCheck:
 
     def update(self, counter: int, t_s: float = math.nan) -> CounterResult:
         """Judge ``counter`` of a frame at frame time ``t_s`` (NaN: time not judged)."""
+        if not 0 <= counter < self.modulo:  # a value it never takes (profile 1's 15)
+            self._last = None
+            return CounterResult(COUNTER_JUMP, 0)
         last, self._last = self._last, counter
         last_t_s, self._last_t_s = self._last_t_s, t_s
         if last is None or t_s - last_t_s > self.resync_after_s:
@@ -255,6 +258,30 @@ class CounterCheck:
         if delta <= self.max_delta:
             return CounterResult(None, delta - 1)
         return CounterResult(COUNTER_JUMP, delta - 1)
+
+
+def counter_modulo(message: Message, counter: str) -> int:
+    """How many values the rolling counter ``counter`` of ``message`` takes: all its bits
+    can hold, or fewer where the DBC declares a range ``[0|max]`` below that (AUTOSAR E2E
+    profile 1 counts 0..14: ``[0|14]``), so the wrap from max to 0 is one step.
+
+    >>> from cantools.database import load_string
+    >>> db = load_string('BO_ 1 M: 1 A\\n SG_ C : 0|4@1+ (1,0) [0|14] "" A\\n', "dbc")
+    >>> counter_modulo(db.get_message_by_name("M"), "C")
+    15
+    """
+    signal = message.get_signal_by_name(counter)
+    modulo: int = 2**signal.length
+    low, high = signal.minimum, signal.maximum
+    if (
+        low == 0
+        and high is not None
+        and float(high).is_integer()
+        and 1 <= high < modulo - 1
+        and (signal.scale, signal.offset) == (1, 0)
+    ):
+        return int(high) + 1
+    return modulo
 
 
 @dataclass(frozen=True, slots=True)
@@ -296,7 +323,7 @@ class Protection:
         """A fresh counter check for ``message``; None without a counter."""
         if self.counter is None:
             return None
-        modulo = 2 ** message.get_signal_by_name(self.counter).length
+        modulo = counter_modulo(message, self.counter)
         # A whole turn of the counter: longer silent, it cannot count what was lost.
         cycle_ms = message.cycle_time
         resync_after_s = modulo * cycle_ms / 1000.0 if cycle_ms else math.inf

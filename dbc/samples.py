@@ -35,6 +35,9 @@ class _Paired:
     rod: str
     source_address: int | None
     statuses: tuple[StatusCheck, ...]
+    #: The DBC's ranges of the two signals, Pa (:attr:`ChamberSignal.range_Pa`).
+    piston_range_Pa: tuple[float, float]
+    rod_range_Pa: tuple[float, float]
 
 
 @dataclass(frozen=True, slots=True)
@@ -75,7 +78,15 @@ class LegSampler:
                     dict.fromkeys(s for s in (piston.status, rod.status) if s is not None)
                 )
                 self._paired.setdefault(piston.message, []).append(
-                    _Paired(leg.name, piston.signal, rod.signal, piston.source_address, statuses)
+                    _Paired(
+                        leg.name,
+                        piston.signal,
+                        rod.signal,
+                        piston.source_address,
+                        statuses,
+                        piston.range_Pa,
+                        rod.range_Pa,
+                    )
                 )
                 continue
             for chamber in TRIGGERS:
@@ -108,8 +119,8 @@ class LegSampler:
                 leg.leg,
                 LegSample(
                     t_s,
-                    _pressure_Pa(signals[leg.piston]),
-                    _pressure_Pa(signals[leg.rod]),
+                    _pressure_Pa(signals[leg.piston], leg.piston_range_Pa),
+                    _pressure_Pa(signals[leg.rod], leg.rod_range_Pa),
                     _with_status(faults, leg.statuses, signals) if leg.statuses else faults,
                 ),
             )
@@ -130,7 +141,9 @@ class LegSampler:
             status = route.signal.status
             chamber_faults = _with_status(faults, (status,) if status else (), signals)
             self._latest[(route.leg.name, route.chamber)] = _Reading(
-                t_s, _pressure_Pa(signals[route.signal.signal]), chamber_faults
+                t_s,
+                _pressure_Pa(signals[route.signal.signal], route.signal.range_Pa),
+                chamber_faults,
             )
         return samples + [self._sample(route.leg) for route in matched if route.triggers]
 
@@ -155,10 +168,14 @@ class LegSampler:
         self._latest.clear()
 
 
-def _pressure_Pa(value: SignalValue) -> float:
-    """A decoded chamber pressure; NaN for a value-table name in its place (a transducer's
-    "not available" or "error" code), which the estimator judges out of range."""
-    return math.nan if isinstance(value, str) else float(value)
+def _pressure_Pa(value: SignalValue, range_Pa: tuple[float, float]) -> float:
+    """A decoded chamber pressure; NaN, which the estimator judges out of range, for a
+    code the DBC says is no pressure: a value-table name in its place (a transducer's "not
+    available" or "error"), or a value outside the signal's range (such a code unnamed)."""
+    if isinstance(value, str):
+        return math.nan
+    p_Pa = float(value)
+    return p_Pa if range_Pa[0] <= p_Pa <= range_Pa[1] else math.nan
 
 
 def _with_status(

@@ -31,10 +31,18 @@ PRESSURE_UNITS_TO_PA: dict[str, float] = {
     "mbar": 1.0e2,
     # 1 lbf / in2 = 4.4482216152605 N / 0.00064516 m2 (exact by the definitions of lb and in).
     "psi": 6894.757293168361,
+    "hpa": 1.0e2,
+    "n/mm2": 1.0e6,
+    "n/mm²": 1.0e6,
+    # 1 kgf / cm2 = 9.80665 N / 1e-4 m2 (standard gravity; "kg/cm2" on older gauges).
+    "kgf/cm2": 98066.5,
+    "kgf/cm²": 98066.5,
+    "kg/cm2": 98066.5,
+    "kg/cm²": 98066.5,
 }
 
 #: The accepted units as a person writes them, for error messages.
-ACCEPTED_PRESSURE_UNITS = "Pa, kPa, MPa, bar, mbar, psi"
+ACCEPTED_PRESSURE_UNITS = "Pa, kPa, MPa, bar, mbar, psi, hPa, N/mm2, kgf/cm2"
 
 
 #: Marks of a gauge unit after the unit's name (longest first), e.g. "psig", "bar(g)".

@@ -24,6 +24,7 @@ from typing import IO, Any
 import can
 from can.io.generic import MessageWriter
 
+from dbc.decoding import is_fd_message
 from dbc.encoding import FrameEncoder
 from dbc.errors import ConfigError, PortalDaqError
 from dbc.machine import MachineConfig, load_machine_config
@@ -213,7 +214,10 @@ def main(options: BridgeOptions) -> int:
     legs = list(config.legs)
     feet_m2 = {leg: config.legs[leg].geometry.A_foot_m2 for leg in legs}
     with ExitStack() as stack:
-        fd = any(database.get_message_by_name(builder.target(s)[0]).is_fd for s in builder.messages)
+        fd = any(
+            is_fd_message(database.get_message_by_name(builder.target(s)[0]))
+            for s in builder.messages
+        )
         bus = stack.enter_context(_open_bus(options.interface, options.channel, fd))
         sinks: list[TruthSink] = []
         if options.truth_csv is not None:

@@ -18,6 +18,7 @@ median and its largest magnitude over the cycle (NaN without the machine's
 configuration, or without one complete instant).
 """
 
+import logging
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, fields
@@ -25,10 +26,13 @@ from pathlib import Path
 
 import numpy as np
 
+from daq.errors import EmptyRecordingError
 from daq.report.content import analyse
 from daq.report.cycles import Cycle
 from daq.report.loading import load_recording
 from daq.report.tracks import FloatArray, LegTrack, Recording
+
+logger = logging.getLogger(__name__)
 
 NAN = math.nan
 
@@ -65,9 +69,15 @@ COLUMNS = tuple(f.name for f in fields(CampaignRow))
 
 
 def run_rows(files: Sequence[Path], config_path: Path | None = None) -> list[CampaignRow]:
-    """The rows of one recording (the files of one run); raises as
+    """The rows of one recording (the files of one run); none of one that holds nothing
+    (a file cut right after it was opened: a season has some); else raises as
     :func:`~daq.report.loading.load_recording` does."""
-    return campaign_rows(load_recording(list(files), config_path))
+    try:
+        recording = load_recording(list(files), config_path)
+    except EmptyRecordingError as exc:
+        logger.warning("%s: left out of the campaign", exc)
+        return []
+    return campaign_rows(recording)
 
 
 def campaign_rows(recording: Recording) -> list[CampaignRow]:

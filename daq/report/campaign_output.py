@@ -137,15 +137,19 @@ def peaks_picture(rows: Sequence[CampaignRow]) -> Picture:
     )
 
 
-def render_campaign_page(rows: Sequence[CampaignRow], picture: Picture, runs: int) -> str:
+def render_campaign_page(
+    rows: Sequence[CampaignRow], picture: Picture, runs: int, empty: int = 0
+) -> str:
     machines = sorted({r.machine_id for r in rows})
     cycles = len({(r.recording, r.cycle_start_s) for r in rows})
     made = f"{datetime.now(UTC):%Y-%m-%d %H:%M} UTC"
+    left_out = f" {empty} more recordings hold nothing (no frame, no estimate): left out."
+    left_out *= bool(empty)
     return f"""<!doctype html>
 <html lang="en"><head><meta charset="utf-8"><title>portal-daq campaign report</title>
 <style>{STYLE}</style></head><body>
 <h1>Campaign report: {runs} recordings, {len(machines)} machines, {cycles} cycles</h1>
-<p class=note>Machines: {html.escape(", ".join(machines))}. Made {made}. The full table
+<p class=note>Machines: {html.escape(", ".join(machines))}. Made {made}.{left_out} The full table
 (per recording, cycle and foot) is <a href="{CSV_NAME}">{CSV_NAME}</a>.</p>
 <h2>Recordings</h2>
 {
@@ -194,7 +198,9 @@ def _cycle(count: int) -> str:
     return "whole recording" if count < 0 else f"cycle {count}"
 
 
-def write_campaign(rows: Sequence[CampaignRow], out_dir: Path, runs: int) -> list[Path]:
+def write_campaign(
+    rows: Sequence[CampaignRow], out_dir: Path, runs: int, empty: int = 0
+) -> list[Path]:
     """Write the CSV, the picture and the page into ``out_dir`` (created); page last."""
     out_dir.mkdir(parents=True, exist_ok=True)
     picture = peaks_picture(rows)
@@ -203,5 +209,5 @@ def write_campaign(rows: Sequence[CampaignRow], out_dir: Path, runs: int) -> lis
     image = out_dir / PEAKS_NAME
     image.write_bytes(picture.png)
     page = out_dir / PAGE_NAME
-    page.write_text(render_campaign_page(rows, picture, runs), encoding="utf-8")
+    page.write_text(render_campaign_page(rows, picture, runs, empty), encoding="utf-8")
     return [table, image, page]

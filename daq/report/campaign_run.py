@@ -14,7 +14,9 @@ and keeps the runs' order, so the table is the same whichever executor ran it.
   ``concurrent.futures`` interface. The paths are read by the workers: give paths
   as the workers see them (the data stays where it lives; only rows travel back).
 
-A failure on one recording stops the campaign with that recording's error.
+A failure on one recording stops the campaign with that recording's error; a recording
+that holds nothing (no frame, no estimate) is left out with a warning
+(:func:`~daq.report.campaign.run_rows`).
 """
 
 import logging

@@ -18,6 +18,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from daq.errors import EmptyRecordingError
 from daq.subcommand import Subcommand
 from dbc.errors import ConfigError, DbcError, PortalDaqError
 
@@ -38,6 +39,8 @@ class ReportOptions:
     cluster: str | None = None
     #: Campaign: local processes (None: one per CPU; 1: this process).
     workers: int | None = None
+    #: CAN logs: only this channel's frames (as python-can names it); None: all.
+    channel: str | None = None
 
     @property
     def directory(self) -> Path:
@@ -68,6 +71,11 @@ def parse_report_args(args: Sequence[str]) -> ReportOptions:
     parser.add_argument(
         "--config", type=Path, help="machine config (default: the one embedded in the file)"
     )
+    parser.add_argument(
+        "--channel",
+        help="CAN logs: report only this channel's frames (candump: can0; ASC/BLF: 0 for the "
+        "first)",
+    )
     campaign = parser.add_argument_group(
         "campaign", "one table and summary page over many recordings (runs of the service)"
     )
@@ -91,6 +99,8 @@ def parse_report_args(args: Sequence[str]) -> ReportOptions:
         parser.error("--cluster and --workers go with --campaign")
     if options.cluster and options.workers:
         parser.error("--workers counts local processes: not with --cluster")
+    if options.campaign and options.channel:
+        parser.error("--channel picks a CAN log's bus: not with --campaign (service recordings)")
     return ReportOptions(
         tuple(options.recording),
         options.out,
@@ -98,6 +108,7 @@ def parse_report_args(args: Sequence[str]) -> ReportOptions:
         campaign=options.campaign,
         cluster=options.cluster,
         workers=options.workers,
+        channel=options.channel,
     )
 
 
@@ -107,7 +118,7 @@ def report(options: ReportOptions) -> list[Path]:
     from daq.report.loading import load_recording
     from daq.report.output import write_report
 
-    recording = load_recording(options.recording, options.config_path)
+    recording = load_recording(options.recording, options.config_path, options.channel)
     return write_report(analyse(recording), options.directory)
 
 
@@ -121,7 +132,10 @@ def campaign_report(options: ReportOptions) -> list[Path]:
     given = [options.recording] if isinstance(options.recording, Path) else options.recording
     found = runs(given)
     rows = campaign(found, options.config_path, cluster=options.cluster, workers=options.workers)
-    return write_campaign(rows, options.directory, len(found))
+    reported = len({row.recording for row in rows})
+    if not rows:
+        raise EmptyRecordingError(given[0], f"none of its {len(found)} recordings holds data")
+    return write_campaign(rows, options.directory, reported, len(found) - reported)
 
 
 def report_main(args: Sequence[str]) -> int:

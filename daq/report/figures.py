@@ -84,7 +84,10 @@ def _set_time_axis(axes: Axes, content: ReportContent) -> None:
     end = content.time.at(content.recording.end_t_s)
     if content.time.in_cycle:  # the longest cycle's end
         end = max(content.time.before(c.end_s) for c in content.cycles)
-    axes.set_xlim(min(0.0, content.time.at(content.recording.start_t_s)), max(end, 1e-3))
+    start = min(0.0, content.time.at(content.recording.start_t_s))
+    # NaN: a cycle of no duration (every frame of one time stamp) has no time just before its end
+    start, end = (t if math.isfinite(t) else 0.0 for t in (start, end))
+    axes.set_xlim(start, max(end, start + 1e-3))
 
 
 def _phases(axes: Axes, content: ReportContent, labels: bool) -> None:

@@ -32,9 +32,10 @@ from typing import IO
 
 from daq.can_batch import ENCODING as BATCH_ENCODING
 from daq.can_batch import recorded_frames
-from daq.errors import RecordingError
+from daq.errors import EmptyRecordingError, RecordingError
 from daq.mcap_file import RAW_TOPIC
 from daq.mcap_reading import RecordedAttachment, RecordedMessage, RecordingStream
+from daq.pipeline import UNMAPPED_SOURCE, Pipeline
 from daq.recording_run import expand, run_files
 from daq.replay import Machine, embedded_machine, is_can_log, recording_results, run_results
 from daq.report.tracks import Recording, RecordingCollector
@@ -64,9 +65,11 @@ def _open(path: Path) -> IO[bytes]:
         raise RecordingError(path, f"cannot open it: {exc.strerror or exc}") from exc
 
 
-def load_recording(paths: Path | Sequence[Path], config_path: Path | None = None) -> Recording:
+def load_recording(
+    paths: Path | Sequence[Path], config_path: Path | None = None, channel: str | None = None
+) -> Recording:
     """Read a recording (a file, or the files or directory of one run) into a
-    :class:`Recording`.
+    :class:`Recording`; of CAN logs, only ``channel``'s frames when it is given.
 
     Raises :class:`~daq.errors.RecordingError` (unreadable, several runs), or
     :class:`~daq.errors.ConfigError` / :class:`~daq.errors.DbcError` (a bad
@@ -75,7 +78,9 @@ def load_recording(paths: Path | Sequence[Path], config_path: Path | None = None
     given = [paths] if isinstance(paths, Path) else paths
     logs = expand(given)
     if any(is_can_log(path) for path in logs):
-        return _log_recording(logs, config_path)
+        return _log_recording(logs, config_path, channel)
+    if channel is not None:
+        raise ConfigError("--channel", "", "picks a CAN log's bus; a service recording has one")
     files = run_files(given)
     first = files[0]
     machine: Machine | None = load_machine_config(config_path) if config_path else None
@@ -104,7 +109,7 @@ def load_recording(paths: Path | Sequence[Path], config_path: Path | None = None
         complete = complete and reader.complete
     if collector.frames == 0 and not collector.has_estimates:
         truth = f" ({collector.truth_samples} simulation truth samples only)"
-        raise RecordingError(
+        raise EmptyRecordingError(
             first if len(files) == 1 else first.parent,
             "holds no CAN frames (/can/raw) and no leg estimates: nothing to report"
             + (truth if collector.truth_samples else ""),
@@ -121,8 +126,11 @@ def load_recording(paths: Path | Sequence[Path], config_path: Path | None = None
             what = "leg estimates recorded; recomputing" if recomputed else "signals; deriving"
             raise ConfigError(first, "", f"no {what} them needs --config")
         logger.info("%s: deriving what was not recorded from /can/raw", first)
-        for result in run_results(files, machine):
+        pipeline = Pipeline.from_config(*machine)
+        for result in run_results(files, machine, pipeline):
             collector.derive(result, bad=batches, signals=derive_signals, estimates=recomputed)
+        if batches:
+            collector.count_bad(UNMAPPED_SOURCE, pipeline.bad[UNMAPPED_SOURCE])
     config: MachineConfig | None = machine[0] if machine is not None else None
     machine_id = config.machine_id if config else machine_id_from_name(first) or first.stem
     return collector.recording(
@@ -130,7 +138,9 @@ def load_recording(paths: Path | Sequence[Path], config_path: Path | None = None
     )
 
 
-def _log_recording(files: Sequence[Path], config_path: Path | None) -> Recording:
+def _log_recording(
+    files: Sequence[Path], config_path: Path | None, channel: str | None
+) -> Recording:
     """CAN logs of other tools (candump, ASC, BLF, ...), chained as replay chains them,
     through the pipeline of ``config_path``: everything derived from their frames."""
     if config_path is None:
@@ -138,11 +148,13 @@ def _log_recording(files: Sequence[Path], config_path: Path | None) -> Recording
     machine = load_machine_config(config_path)
     config = machine[0]
     collector = RecordingCollector()
-    for result in recording_results(files, machine):
+    pipeline = Pipeline.from_config(*machine)
+    for result in recording_results(files, machine, pipeline, channel):
         collector.add_frames((result.frame,))
         collector.derive(result, bad=True, signals=True, estimates=True)
+    collector.count_bad(UNMAPPED_SOURCE, pipeline.bad[UNMAPPED_SOURCE])
     if collector.frames == 0:
-        raise RecordingError(files[0], "holds no CAN frames: nothing to report")
+        raise EmptyRecordingError(files[0], "holds no CAN frames: nothing to report")
     return collector.recording(_name(files), config, machine_id=config.machine_id, recomputed=True)
 
 

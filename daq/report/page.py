@@ -85,6 +85,7 @@ def header_rows(content: ReportContent) -> list[tuple[str, str]]:
         ("first frame", _time(recording.start_t_s)),
         ("last frame", _time(recording.end_t_s)),
         ("duration", f"{recording.duration_s:.2f} s"),
+        ("clock steps back (or set from before 2000)", _steps(counts.clock_steps)),
         ("frames", str(counts.frames)),
         (
             "frames lost before processing",
@@ -101,6 +102,10 @@ def header_rows(content: ReportContent) -> list[tuple[str, str]]:
         ("simulation truth samples", str(counts.truth_samples)),
         ("cycles", str(len(content.cycles))),
     ]
+
+
+def _steps(count: int) -> str:
+    return f"{count} (the times before each joined to the times after)" if count else "0"
 
 
 def _gaps(count: int, lost_s: float) -> str:

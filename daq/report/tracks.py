@@ -7,13 +7,16 @@ bad frames, which a recording of batches does not store, and estimates when none
 recorded), and builds a :class:`Recording`. Opening the file is
 :mod:`daq.report.loading`'s job.
 
-All times are frame times, Unix seconds (``t_s``). A recorded ``null`` (NaN) stays NaN.
+All times are frame times, Unix seconds (``t_s``), on one time line that never runs back
+(:mod:`daq.report.timeline`: a clock that stepped back, or was set from 1970, joins its
+stretches in the order they were recorded; unchanged when it did not). A recorded
+``null`` (NaN) stays NaN.
 """
 
 import json
 from collections import Counter, defaultdict
 from collections.abc import Iterable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -25,6 +28,7 @@ from daq.mcap_reading import json_items
 from daq.payloads import leg_ground
 from daq.payloads import signals as signals_payload
 from daq.pipeline import FrameResult
+from daq.report.timeline import Timeline
 from dbc.machine import MachineConfig
 from dbc.protection import COUNTER_JUMP, CRC_FAULT
 
@@ -205,6 +209,9 @@ class RecordingCounts:
     #: and the seconds they lost.
     recording_gaps: int = 0
     recording_lost_s: float = 0.0
+    #: Steps back of the frame times (and a clock set from before 2000): the times
+    #: before each were moved to join the times after it (:mod:`daq.report.timeline`).
+    clock_steps: int = 0
 
 
 @dataclass(frozen=True)
@@ -250,6 +257,11 @@ class RecordingCollector:
         self._gaps: list[float] = []
         self._first_s = float("inf")
         self._last_s = float("-inf")
+        #: The time lines of the frames as recorded, of the frames as a replay gives them
+        #: (:meth:`derive`), and of each recorded topic's own frame times.
+        self._frames_line = Timeline()
+        self._derived_line = Timeline()
+        self._lines: defaultdict[str, Timeline] = defaultdict(Timeline)
 
     @property
     def has_estimates(self) -> bool:
@@ -271,19 +283,26 @@ class RecordingCollector:
         """Raw frames of a ``/can/raw`` batch (what they decode to comes from :meth:`derive`)."""
         for frame in frames:
             self._frames += 1
-            self._seen(frame.t_s)
+            self._seen(self._frames_line.advance(frame.t_s))
 
     def derive(self, result: FrameResult, *, bad: bool, signals: bool, estimates: bool) -> None:
         """What a replay of one raw frame gave, as far as the recording lacks it: the kind
         of a bad frame (``bad``), the decoded signals with their CRC and counter checks
         (``signals``), the leg estimates (``estimates``)."""
+        self._derived_line.advance(result.frame.t_s)
         if bad and result.error is not None:
             self._bad[result.error.kind] += 1
         if signals and result.decoded is not None:
-            self._add_signals(result.decoded.message, signals_payload(result.decoded))
+            self._add_signals(result.decoded.message, signals_payload(result.decoded), derived=True)
         if estimates:
             for estimate in result.estimates:
-                self.add_estimate(leg_ground(estimate))
+                self.add_estimate(leg_ground(estimate), derived=True)
+
+    def count_bad(self, kind: str, count: int) -> None:
+        """Frames a replay left unused with no error of their own (``unmapped_source``:
+        a leg's J1939 PGN from a source address no chamber maps)."""
+        if count:
+            self._bad[kind] += count
 
     def add(self, topic: str, data: bytes) -> None:
         """One recorded JSON message; topics a report does not use are skipped (and
@@ -291,7 +310,7 @@ class RecordingCollector:
         if topic == RAW_TOPIC:  # a recording made before batches: one JSON frame
             raw = json.loads(data)
             self._frames += 1
-            self._seen(raw["t"])
+            self._seen(self._frames_line.advance(_number(raw["t"])))
             if raw.get("error") is not None:
                 self._bad[raw["error"]] += 1
         elif topic.startswith(SIGNALS_PREFIX):
@@ -300,7 +319,8 @@ class RecordingCollector:
             for estimate in json_items(data):
                 self.add_estimate(estimate)
         elif topic == TRUTH_TOPIC:
-            self._truth.append(TruthTrack.row(json.loads(data)))
+            t_s, forces = TruthTrack.row(json.loads(data))
+            self._truth.append((self._time(t_s, TRUTH_TOPIC), forces))
         elif topic == BUS_TOPIC:
             event = json.loads(data)
             lost = {key: event.get(key, 0) for key in ("kernel_dropped", "rx_dropped")}
@@ -310,7 +330,14 @@ class RecordingCollector:
             lost_s = _number(json.loads(data).get("lost_s"))
             self._gaps.append(lost_s if lost_s == lost_s else 0.0)
 
-    def _add_signals(self, message: str, payload: Mapping[str, Any]) -> None:
+    def _time(self, t_s: float, stream: str, *, derived: bool = False) -> float:
+        """``t_s`` on the report's time line: a replayed frame's on the replay's, a
+        recorded message's on its topic's (each topic is in processing order)."""
+        return self._derived_line.at(t_s) if derived else self._lines[stream].advance(t_s)
+
+    def _add_signals(
+        self, message: str, payload: Mapping[str, Any], *, derived: bool = False
+    ) -> None:
         self._messages[message] += 1
         if "faults" in payload:
             self._bad.update(str(fault) for fault in payload["faults"])
@@ -321,12 +348,15 @@ class RecordingCollector:
             self._bad[COUNTER_JUMP] += 1
         state = StateTrack.row(payload) if SIGNALS_PREFIX + message == STATE_TOPIC else None
         if state is not None:
-            self._state.append(state)
+            self._state.append((self._time(state[0], STATE_TOPIC, derived=derived), *state[1:]))
 
-    def add_estimate(self, payload: dict[str, Any]) -> None:
-        """One leg estimate in the shape of :func:`daq.payloads.leg_ground`."""
-        self._legs[payload["leg"]].append(LegTrack.row(payload))
-        self._seen(payload["t"])
+    def add_estimate(self, payload: dict[str, Any], *, derived: bool = False) -> None:
+        """One leg estimate in the shape of :func:`daq.payloads.leg_ground`; ``derived``:
+        of the frame :meth:`derive` was given."""
+        row = LegTrack.row(payload)
+        t_s = self._time(row[0], LEG_PREFIX + payload["leg"], derived=derived)
+        self._legs[payload["leg"]].append((t_s, *row[1:]))
+        self._seen(t_s)
         self._invalid.update(payload["reasons"])
 
     def _seen(self, t_s: Any) -> None:
@@ -346,16 +376,28 @@ class RecordingCollector:
     ) -> Recording:
         legs = list(machine.legs) if machine is not None else []
         legs += sorted(leg for leg in self._legs if leg not in legs)
+        # The last stretch keeps its wall-clock times (the frames' line, else a topic's).
+        line = (
+            self._frames_line
+            if self._frames
+            else max(self._lines.values(), key=lambda line: line.steps, default=self._frames_line)
+        )
+        shift_s = line.offset_s
         first, last = (self._first_s, self._last_s) if self._last_s >= self._first_s else (0, 0)
+        state, truth = StateTrack.of(self._state), TruthTrack.of(self._truth)
         return Recording(
             name=name,
             machine_id=machine_id,
             machine=machine,
-            start_t_s=float(first),
-            end_t_s=float(last),
-            legs={leg: LegTrack.of(leg, self._legs.get(leg, ())) for leg in legs},
-            state=StateTrack.of(self._state),
-            truth=TruthTrack.of(self._truth),
+            start_t_s=float(first) - shift_s,
+            end_t_s=float(last) - shift_s,
+            legs={
+                leg: replace(track, t_s=track.t_s - shift_s)
+                for leg in legs
+                for track in (LegTrack.of(leg, self._legs.get(leg, ())),)
+            },
+            state=replace(state, t_s=state.t_s - shift_s),
+            truth=replace(truth, t_s=truth.t_s - shift_s),
             counts=RecordingCounts(
                 frames=self._frames,
                 messages=dict(sorted(self._messages.items())),
@@ -369,6 +411,7 @@ class RecordingCollector:
                 rx_dropped=self._dropped["rx_dropped"],
                 recording_gaps=len(self._gaps),
                 recording_lost_s=sum(self._gaps),
+                clock_steps=line.steps,
             ),
             recomputed=recomputed,
             complete=complete,

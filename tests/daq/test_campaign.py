@@ -14,6 +14,7 @@ import csv
 import math
 import subprocess
 import sys
+from collections.abc import Callable
 from dataclasses import astuple, replace
 from pathlib import Path
 
@@ -26,7 +27,7 @@ from daq.report.campaign_run import campaign
 from daq.report.content import analyse
 from daq.report.loading import load_recording
 from sim_bridge.faults import FaultConfig
-from tests.daq.test_report_recordings import CYCLE_S, FAULTS, record
+from tests.daq.test_report_recordings import CYCLE_S, FAULTS, T0_S, record
 from tests.helpers import LEGS, ROOT
 
 ROTATE_S = 2.505  # between two 10 ms instants
@@ -188,3 +189,82 @@ def test_campaign_usage_errors(
     result = run_cli(str(recordings), *args)
     assert result.returncode == status
     assert message in result.stderr and "Traceback" not in result.stderr
+
+
+@pytest.mark.parametrize(
+    ("clock", "moved_s"),
+    [
+        # NTP steps a clock that ran 0.7 s ahead back, in the middle of cycle 1
+        (lambda t_s: T0_S + t_s + (0.7 if t_s < 2.9 else 0.0), 0.0),
+        # a machine without a real-time clock: 1970 (since boot) until NTP sets it
+        (lambda t_s: 60.0 + t_s if t_s < 1.3 else T0_S + t_s, 0.0),
+        # a clock 30 s behind, set forward at 1.3 s: a step forward is kept (a gap)
+        (lambda t_s: T0_S + t_s - (30.0 if t_s < 1.3 else 0.0), 30.0),
+    ],
+    ids=["ntp_step_back", "set_from_1970", "step_forward"],
+)
+def test_a_clock_that_steps_gives_the_rows_of_a_steady_one(
+    tmp_path: Path, clock: Callable[[float], float], moved_s: float
+) -> None:
+    """Sorted by time, a step back interleaved two stretches of the run: cycle 1 was cut
+    into hundreds of 10 ms cycles with the wrong peaks and times above the limit; a clock
+    set from 1970 made cycle 0 last 56 years. The stretches are joined in the order they
+    were recorded (the recorded estimates, and a CAN log's recomputed ones)."""
+    from daq.export import write_frames
+    from tests.helpers import EXAMPLE_CONFIG, recorded_raw_frames
+
+    steady = campaign_rows(load_recording(record(tmp_path / "steady.mcap", seconds=5.0)))
+    stepped = record(tmp_path / "stepped.mcap", seconds=5.0, clock=clock)
+    log = tmp_path / "stepped.log"
+    write_frames(recorded_raw_frames(stepped), log, "candump")
+    for recording in (load_recording(stepped), load_recording(log, EXAMPLE_CONFIG)):
+        assert recording.counts.clock_steps == (0 if moved_s else 1)
+        rows = campaign_rows(recording)
+        assert [(r.cycle, r.leg, r.estimates) for r in rows] == [
+            (r.cycle, r.leg, r.estimates) for r in steady
+        ]
+        for row, expected in zip(rows, steady, strict=True):
+            assert row.peak_pressure_Pa == expected.peak_pressure_Pa
+            assert row.invalid_fraction == expected.invalid_fraction
+            # joined by one period: as steady; a step forward stays, a gap: it adds up to
+            # the stale time (30 ms) above the limit where a period added 10 ms
+            duration_s = expected.cycle_duration_s + (moved_s if row.cycle == 0 else 0.0)
+            assert row.cycle_duration_s == pytest.approx(duration_s, abs=1e-6)
+            tolerance_s = 0.021 if moved_s else 1e-6
+            assert row.time_above_limit_s == pytest.approx(
+                expected.time_above_limit_s, abs=tolerance_s
+            )
+        # the last stretch keeps its wall-clock times
+        assert rows[-1].peak_t_s == pytest.approx(steady[-1].peak_t_s, abs=1e-6)
+
+
+def test_a_recording_that_holds_nothing_is_left_out_of_the_campaign(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], caplog: pytest.LogCaptureFixture
+) -> None:
+    """A power cut just after the recorder opened a file leaves (once recovered at the
+    next start) a whole file of header and attachments only; one such file among a
+    season's stopped the campaign ("nothing to report", exit 1)."""
+    from daq.mcap_file import CONFIG_ATTACHMENT, McapFile
+    from daq.report.command import report_main
+    from tests.helpers import EXAMPLE_CONFIG, example_machine
+
+    season = tmp_path / "season"
+    season.mkdir()
+    record(season / "a_cycle.mcap", seconds=2.5)
+    with (
+        open(season / "b_empty.mcap", "wb") as stream,
+        McapFile(stream, example_machine()[1]) as mcap,
+    ):
+        mcap.start({CONFIG_ATTACHMENT: EXAMPLE_CONFIG.read_bytes()}, run=run_metadata("m", "e", 0))
+    out = tmp_path / "out"
+    assert report_main(["--campaign", str(season), "--workers", "1", "--out", str(out)]) == 0
+    with open(out / "campaign.csv") as table:
+        assert {row["recording"] for row in csv.DictReader(table)} == {"a_cycle.mcap"}
+    page = (out / "campaign.html").read_text()
+    assert "Campaign report: 1 recordings" in page
+    assert "1 more recordings hold nothing (no frame, no estimate): left out." in page
+    assert "b_empty.mcap: holds no CAN frames" in caplog.text and "left out" in caplog.text
+    (season / "a_cycle.mcap").unlink()
+    assert report_main(["--campaign", str(season), "--workers", "1", "--out", str(out)]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1] == f"portal-daq: {season}: none of its 1 recordings holds data", err

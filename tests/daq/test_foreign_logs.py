@@ -97,6 +97,7 @@ def test_candump_error_frames_keep_to_the_channel_asked_and_are_counted(
         ("garbage.db", b"garbage\n" * 100, "unreadable after frame 0: file is not a database"),
         ("missing.db", None, "cannot read it as a CAN log"),
         ("cycle.txt", b"(1.0) can0 100#00\n", 'unknown log format ".txt"'),
+        ("plain.log.gz", b"(1.0) can0 100#00\n", "unreadable after frame 0: Not a gzipped file"),
         (  # a CSV of other columns (our own replay's, say)
             "estimates.csv",
             b"leg,t,force_N,force_raw_N,pressure_Pa,p_piston_Pa,p_rod_Pa,contact,valid\n"
@@ -410,3 +411,124 @@ def test_a_stray_byte_in_a_candump_line_names_the_frame_before_it(tmp_path: Path
     log.write_bytes(good.encode() + b"(1750000004.000000) can0 100#00\xff\xfe\n" + good.encode())
     with pytest.raises(RecordingError, match="unreadable after frame 400: "):
         list(can_log_frames(log))
+
+
+def test_the_report_counts_j1939_frames_from_an_unmapped_source_address(tmp_path: Path) -> None:
+    # Transducers replaced by ones of other source addresses: replay said "unmapped_source
+    # 4", the report "bad frames by kind: none" beside "leg estimates 0".
+    from daq.mcap_file import CONFIG_ATTACHMENT, DBC_ATTACHMENT, McapFile, RecordBatch
+    from daq.pipeline import Pipeline
+    from daq.report.loading import load_recording
+    from tests.helpers import ROOT
+
+    config_path = ROOT / "deploy/examples/j1939/portal-daq.toml"
+    log = tmp_path / "new_transducers.log"
+    log.write_text(
+        "".join(
+            f"({1_796_150_000 + k / 100:.6f}) can0 18FF20{source:02X}#0807002800000000\n"
+            for k in range(4)
+            for source in (0x21, 0x22, 0x31)  # SB1_F1's piston and rod; 0x31 mapped nowhere
+        )
+    )
+    machine = load_machine_config(config_path)
+    recording = tmp_path / "new_transducers.mcap"
+    pipeline = Pipeline.from_config(*machine)
+    with open(recording, "wb") as stream, McapFile(stream, machine[1]) as mcap:
+        mcap.start(
+            {
+                CONFIG_ATTACHMENT: config_path.read_bytes(),
+                DBC_ATTACHMENT: machine[0].dbc_path.read_bytes(),
+            }
+        )
+        batch = [pipeline.process(frame) for frame in can_log_frames(log)]
+        mcap.write_batch(RecordBatch.of(batch, signals=False))
+    assert pipeline.bad == {"unmapped_source": 4}
+    for loaded in (load_recording(log, config_path), load_recording(recording)):
+        assert loaded.counts.bad == {"unmapped_source": 4}
+        assert loaded.counts.estimates == 4  # SB1_F1, one per piston frame
+
+
+def test_a_blf_log_not_closed_or_cut_is_read_to_its_last_object_with_a_warning(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # python-can read a BLF whose logger died (header never filled in) or that was cut
+    # silently, or stopped with exit 1 where the cut fell in an object's header; a
+    # damaged object was a BLFParseError traceback.
+    from daq.replay_command import replay_main
+
+    whole = tmp_path / "whole.blf"
+    with can.BLFWriter(whole) as writer:  # two containers (of 128 KiB before zlib)
+        for k in range(4000):
+            writer.on_message_received(
+                can.Message(timestamp=1_750_000_000 + k / 100, arbitration_id=0x7F0, data=bytes(8))
+            )
+    data = whole.read_bytes()
+    second = data.index(b"LOBJ", data.index(b"LOBJ") + 4)  # the second container
+    assert len(list(can_log_frames(whole))) == 4000 and "cut short" not in caplog.text
+    counts = []
+    for name, content in (("cut_in_header.blf", data[: second + 8]), ("cut.blf", data[:-100])):
+        cut = tmp_path / name
+        cut.write_bytes(content)
+        counts.append(count := len(list(can_log_frames(cut))))
+        assert 0 < count < 4000
+        assert caplog.records[-1].getMessage() == (
+            f"{cut} is cut short (its header gives {len(data)} bytes, the file has "
+            f"{len(content)}: not closed): read up to frame {count}"
+        )
+    damaged = tmp_path / "damaged.blf"
+    damaged.write_bytes(data[:second] + b"XXXX" + data[second + 4 :])
+    assert replay_main([str(damaged), "--config", str(EXAMPLE_CONFIG), "--out", "/dev/null"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [
+        f"portal-daq: {damaged}: unreadable after frame {counts[0]}: "
+        "BLFParseError (no BLF object begins where one should: a damaged file)"
+    ], err
+
+
+def test_a_log_whose_frames_all_have_one_time_stamp_is_reported(tmp_path: Path) -> None:
+    # A logger that stamps nothing (one time for every frame): the cycle has no duration,
+    # no time just before its end; the time axis' NaN limit was a ValueError traceback.
+    from daq.report.command import report_main
+
+    log = sim_log(tmp_path)
+    lines = log.read_text().splitlines()
+    stamped = tmp_path / "one_stamp.log"
+    stamped.write_text("".join(f"(1796150000.000000){l[l.index(')') + 1 :]}\n" for l in lines))
+    out = tmp_path / "r"
+    assert report_main([str(stamped), "--config", str(EXAMPLE_CONFIG), "--out", str(out)]) == 0
+    assert "duration</td><td class=text>0.00 s" in (out / "report.html").read_text()
+
+
+def test_the_report_of_a_log_of_two_buses_takes_one_channel(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    # The warning said "pick one with --channel", which only replay had.
+    from daq.report.command import report_main
+    from daq.report.loading import load_recording
+
+    log = sim_log(tmp_path)
+    lines = log.read_text().splitlines()
+    two = tmp_path / "two_buses.log"
+    other = [l.replace(" vcan0 ", " vcan1 ").replace("#", "#FF", 1) for l in lines[:50]]
+    two.write_text("\n".join(lines + other) + "\n")  # can1: the same IDs, other lengths
+    both = load_recording(two, EXAMPLE_CONFIG)
+    assert both.counts.frames == len(lines) + 50 and both.counts.bad == {"wrong_dlc": 50}
+    assert "pick one with --channel" in caplog.text
+    one = load_recording(two, EXAMPLE_CONFIG, "vcan0")
+    assert one.counts.frames == len(lines) and one.counts.bad == {}
+    assert one.counts.estimates == both.counts.estimates
+    out = tmp_path / "r"
+    args = [str(two), "--config", str(EXAMPLE_CONFIG), "--out", str(out), "--channel"]
+    assert report_main([*args, "vcan0"]) == 0
+    assert report_main([*args, "can9"]) == 1
+
+
+def test_an_empty_log_replays_to_a_header_with_a_warning(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    log = tmp_path / "empty.log"
+    log.write_text("")
+    out = io.StringIO()
+    assert replay(log, out, EXAMPLE_CONFIG) == 0
+    assert out.getvalue().count("\n") == 1
+    assert f"{log}: no CAN frame in it: the CSV has its header only" in caplog.text

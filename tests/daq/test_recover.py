@@ -153,3 +153,48 @@ def test_sigkilled_recording_is_recovered_by_the_cli_and_at_restart(tmp_path: Pa
         reader = make_reader(file)
         messages = list(reader.iter_messages(topics=["/sim/truth"]))
         assert len(messages) == SAMPLES and len(list(reader.iter_attachments())) == 2
+
+
+def _chunks(data: bytes) -> list[tuple[int, int]]:
+    """(offset, length) of each chunk record of an MCAP file (opcode 0x06)."""
+    import struct
+
+    found, at = [], 8
+    while data[at] != 0x02:  # up to the footer
+        length = struct.unpack_from("<Q", data, at + 1)[0]
+        if data[at] == 0x06:
+            found.append((at, length))
+        at += 9 + length
+    return found
+
+
+def test_a_damaged_chunk_costs_its_own_messages_only(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A flipped bit on the storage in the first chunk (which holds the channels) and in
+    one in the middle: reading stopped at the first one, so replay, report and export
+    saw nothing of the file and `recover` in place threw away all that came after it."""
+    from daq.cli import main
+    from tests.daq.test_report_recordings import record
+    from tests.helpers import recorded_raw_frames
+
+    whole = record(tmp_path / "whole.mcap", seconds=3.0, chunk_size=16 * 1024)
+    data = bytearray(whole.read_bytes())
+    chunks = _chunks(bytes(data))
+    assert len(chunks) > 6
+    for at, length in (chunks[0], chunks[len(chunks) // 2]):
+        data[at + 9 + length - 40] ^= 0xFF  # inside the compressed records
+    damaged = tmp_path / "damaged.mcap"
+    damaged.write_bytes(bytes(data))
+    frames = recorded_raw_frames(whole)
+    left = recorded_raw_frames(damaged)
+    assert len(frames) * 0.6 < len(left) < len(frames)
+    assert set(left) < set(frames) and left == sorted(left, key=frames.index)
+    assert main(["recover", str(damaged)]) == 3
+    err = capsys.readouterr().err
+    assert "damaged chunk skipped" in err and err.rstrip().endswith("2 damaged chunks skipped")
+    with open(damaged, "rb") as file:  # now whole: indexes and summary
+        summary = make_reader(file).get_summary()
+        assert summary is not None and summary.statistics is not None
+        assert summary.statistics.message_count > 0
+    assert recorded_raw_frames(damaged) == left

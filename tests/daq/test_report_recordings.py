@@ -12,6 +12,7 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -53,9 +54,11 @@ def record(
     chunk_size: int = 1024 * 1024,
     run: dict[str, str] | None = None,
     after_s: float = 0.0,
+    clock: Callable[[float], float] | None = None,
 ) -> Path:
     """A service recording of ``seconds`` of the synthetic cycle, looping; with ``run``
-    metadata, and only the frames from ``after_s`` on (a later file of a run)."""
+    metadata, and only the frames from ``after_s`` on (a later file of a run); ``clock``:
+    the frame time of each time since the start (default ``T0_S`` + it)."""
     config, database = example_machine()
     result = make_result(duration_s=CYCLE_S)
     playout = make_playout(result, faults)
@@ -69,14 +72,14 @@ def record(
         mcap.start(attachments if embed_config else {}, T0_S, run)
         last_row = None
         for instant in instants(schedule(playout.cycles, end_sim_ns=round(seconds * 1e9))):
-            t_s = T0_S + instant.sim_t_ns / 1e9
+            t_s = T0_S + instant.sim_t_ns / 1e9 if clock is None else clock(instant.sim_t_ns / 1e9)
             position, outgoing = playout.frames(instant)
             for item in outgoing:
                 if item.message == "MACHINE_STATE" and not machine_state:
                     continue
                 frame = RawFrame(t_s, item.frame.arbitration_id, False, item.frame.data)
                 processed = pipeline.process(frame)  # before after_s: as in an earlier file
-                if t_s >= T0_S + after_s:
+                if instant.sim_t_ns >= after_s * 1e9:
                     mcap.write_result(processed)
             if truth and (position.cycle, position.row) != last_row:
                 last_row = (position.cycle, position.row)

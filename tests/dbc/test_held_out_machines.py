@@ -4,10 +4,14 @@ the DBC's layout (not by the project's encoder), forces checked against eq. (4) 
 out here from the config's numbers, in SI."""
 
 import math
+import struct
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
+from cantools.autosar.end_to_end import compute_profile5_crc
 from cantools.database.can import Database
+from cantools.j1939 import frame_id_pack
 from crccheck.crc import Crc8SaeJ1850
 
 from daq.frames import RawFrame
@@ -121,6 +125,8 @@ def test_units_marked_gauge_are_pressure_units_and_come_out_in_pa() -> None:
 @pytest.mark.parametrize(
     ("unit", "pa"),
     [("psig", PSI_PA), ("bar(g)", 1e5), ("barg", 1e5), ("kPa gauge", 1e3), ("MPa (g)", 1e6)]
+    + [("N/mm\u00b2", 1e6), ("n/mm2", 1e6), ("hPa", 100.0), ("kgf/cm\u00b2", 98066.5)]
+    + [("KG/CM2 (g)", 9.80665 / 1e-4)]
     + [("bara", None), ("psia", None), ("kg", None), ("g", None)],
 )
 def test_gauge_marks_and_absolute_units(unit: str, pa: float | None) -> None:
@@ -196,3 +202,196 @@ def test_bridge_angles_in_degrees_spelled_as_dbcs_do_are_taken(tmp_path: Path) -
         f"{tmp_path / 'machine.toml'}: stability.fold: HUB_REAR.RL_pRod must be in degrees "
         "in the DBC (deg, \u00b0, degree), got 'Bar'"
     )
+
+
+def _fd_page(page: int, counter: int, cap_MPa: float, ann_MPa: float) -> bytes:
+    """A HUB_FD payload: page, float32 pressures, counter, then the E2E profile 5 CRC of
+    them and data ID 0x1234, low byte first (cantools' CRC is of a payload's bytes 2..)."""
+    data = bytes([page]) + struct.pack("<ff", cap_MPa, ann_MPa) + bytes([counter])
+    crc = compute_profile5_crc(b"\x00\x00" + data, 0x1234)  # over the bytes after its own
+    return data + crc.to_bytes(2, "little")
+
+
+def test_a_message_longer_than_a_classic_frame_takes_fd_frames() -> None:
+    """HUB_FD is 12 bytes and the DBC names no frame format: its frames can only be CAN FD
+    (every one was counted fd_frame and dropped)."""
+    pipeline, _, database = _pipeline("fd_float.toml", compiled=True)
+    assert not database.get_message_by_name("HUB_FD").is_fd  # as cantools reads the DBC
+    pages = [(0, 12.5, 1.25), (1, 10.0, 2.0), (0, math.nan, 1.25), (1, 10.0, math.inf)]
+    estimates = [
+        pipeline.process(
+            RawFrame(1.0 + 0.005 * i, 0x300, False, _fd_page(page, i, p, r), is_fd=True)
+        ).estimates[0]
+        for i, (page, p, r) in enumerate(pages)
+    ]
+    assert [(e.leg, e.valid) for e in estimates] == [
+        ("A", True),
+        ("B", True),
+        ("A", False),
+        ("B", False),
+    ]
+    assert estimates[0].force_raw_N == pytest.approx(eq4_N(12.5e6, 1.25e6), rel=1e-12)
+    assert estimates[1].force_raw_N == pytest.approx(eq4_N(10e6, 2e6), rel=1e-12)
+    assert estimates[2].reasons == estimates[3].reasons == ("range",)
+    assert not pipeline.bad
+
+
+def _press_a(priority: int, destination: int, source: int, counter: int, raw: int) -> RawFrame:
+    """A PRESS_A frame (PGN 0xED00, PDU1) as a transducer sends it: 0.05 kPa/bit, Diag "ok",
+    the counter in byte 3, CRC-8 SAE J1850 of bytes 0..6 in byte 7."""
+    frame_id = frame_id_pack(priority, 0, 0, 0xED, destination, source)
+    data = raw.to_bytes(2, "little") + bytes([0, counter, 0, 0, 0])
+    return RawFrame(0.0, frame_id, True, data + bytes([Crc8SaeJ1850.calc(data)]))
+
+
+def test_j1939_pdu1_transducers_whatever_priority_and_destination() -> None:
+    """Held up: PGN 0xED00 from 0x30..0x33 at priority 3 to 0x27 (the DBC: 6, to 0xFE),
+    each transducer's own counter, "kPa " with a blank, a value-table code."""
+    pipeline, _, _ = _pipeline("j1939_propa.toml", compiled=True)
+    filters = pipeline.decoder.receive_filters
+    estimates = []
+    t_s = 1.0
+    for counter in range(3):
+        for source, kPa in ((0x31, 800.0), (0x30, 2800.0), (0x32, 2500.0), (0x33, 600.0)):
+            frame = _press_a(3, 0x27, source, counter, round(kPa / 0.05))
+            assert any(frame.arbitration_id & f.can_mask == f.can_id & f.can_mask for f in filters)
+            result = pipeline.process(replace(frame, t_s=t_s))
+            estimates += [(e.leg, e.force_raw_N, e.reasons) for e in result.estimates]
+            t_s += 0.001
+        t_s += 0.016
+    assert (
+        estimates
+        == [
+            ("left-front", pytest.approx(eq4_N(2.8e6, 0.8e6), rel=1e-12), ()),
+            ("right-front", pytest.approx(eq4_N(2.5e6, 0.6e6), rel=1e-12), ()),
+        ]
+        * 3
+    )
+    result = pipeline.process(replace(_press_a(6, 0xFE, 0x30, 3, 0xFFFF), t_s=t_s))
+    (estimate,) = result.estimates
+    assert math.isnan(estimate.p_piston_Pa) and estimate.reasons == ("range",)
+    result = pipeline.process(replace(_press_a(6, 0xFE, 0x34, 0, 100), t_s=t_s))
+    assert result.estimates == () and dict(pipeline.bad) == {"unmapped_source": 1}
+
+
+def test_a_29_bit_message_pinned_to_senders_is_matched_as_j1939_without_the_dbc_saying_so() -> None:
+    """cantools writes a J1939 message without VFrameFormat J1939PG: a chamber's
+    source_address was refused ("not a J1939 message"); it now makes the message J1939."""
+    pipeline, config, database = _pipeline("cantools_j1939.toml", compiled=True)
+    assert config.legs["two"].rod.source_address == 0x43
+    estimates = []
+    for i, source in enumerate((0x41, 0x40, 0x43, 0x42)):
+        frame_id = frame_id_pack(3, 0, 0, 0xFF, 0x3A, source)  # the DBC's ID: priority 6
+        data = (12500 if source % 2 == 0 else 1250).to_bytes(2, "little") + bytes(6)
+        result = pipeline.process(RawFrame(1.0 + 0.001 * i, frame_id, True, data))
+        estimates += [(e.leg, e.force_raw_N, e.reasons) for e in result.estimates]
+    expected = pytest.approx(eq4_N(12.5e6, 1.25e6), rel=1e-12)
+    assert estimates == [("one", expected, ()), ("two", expected, ())]
+    assert not pipeline.bad
+
+
+def test_a_j1939_code_above_the_dbcs_range_is_no_pressure() -> None:
+    """PRESS_A.Press is [0|3212.75] kPa (J1939: 0..0xFAFF); 0xFE00, J1939's "error", is
+    named by no value table: once it was a valid 3.2512 MPa, now the chamber is NaN."""
+    pipeline, _, _ = _pipeline("j1939_propa.toml", compiled=True)
+    rod_at_max = pipeline.process(replace(_press_a(6, 0xFE, 0x31, 0, 0xFAFF), t_s=1.0))
+    (estimate,) = pipeline.process(replace(_press_a(6, 0xFE, 0x30, 0, 0xFE00), t_s=1.001)).estimates
+    assert rod_at_max.decoded is not None  # the decoded signal stays the DBC's number
+    assert rod_at_max.decoded.signals["Press"] == pytest.approx(3212.75e3)
+    assert math.isnan(estimate.p_piston_Pa) and estimate.reasons == ("range",)
+    assert estimate.p_rod_Pa == pytest.approx(3212.75e3)  # the range's end is inside it
+
+
+def test_frames_the_held_out_dbc_cannot_use_are_counted_by_kind() -> None:
+    """Held up: a 6-byte message padded to 8, a short one, an 11-bit frame with a 29-bit
+    message's number, an unknown ID, an FD frame of a classic message."""
+    pipeline, _, _ = _pipeline("motorola_psi.toml", compiled=True)
+    good = _hub_frame(0, 15000, 1000)
+    frames = [
+        RawFrame(1.0, HUB_FRONT_ID, True, good + b"\x00\x00"),
+        RawFrame(1.0, HUB_FRONT_ID, True, good[:5]),
+        RawFrame(1.0, HUB_FRONT_ID & 0x7FF, False, good),
+        RawFrame(1.0, 0x1FFFFFFF, True, good),
+        RawFrame(1.0, HUB_FRONT_ID, True, good, is_fd=True),
+    ]
+    kinds = [pipeline.process(frame).error_kind for frame in frames]
+    assert kinds == ["wrong_dlc", "wrong_dlc", "unknown_id", "unknown_id", "fd_frame"]
+    assert pipeline.frames == 5 and sum(pipeline.bad.values()) == 5
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "reason"),
+    [
+        (
+            "BO_ 2164195330 HUB_REAR",
+            "BO_ 2164195329 HUB_REAR",
+            "HUB_FRONT has the frame ID of HUB_REAR too in the DBC (0xFF0001, 0xFF0001): "
+            "their frames cannot be told apart",
+        ),
+        (
+            "BO_ 2164195330 HUB_REAR",
+            "BO_ 2164195330 HUB_FRONT",
+            "the DBC has two messages named HUB_FRONT: rename one",
+        ),
+    ],
+)
+def test_a_message_whose_id_or_name_another_has_too_stops_the_config(
+    tmp_path: Path, old: str, new: str, reason: str
+) -> None:
+    """cantools keeps the last of two such messages: HUB_REAR's legs read HUB_FRONT's
+    frames (a silently wrong force), or FL's signals were "not in" HUB_FRONT."""
+    text = (STRANGER / "motorola_psi.dbc").read_text(encoding="cp1252")
+    assert old in text
+    (tmp_path / "motorola_psi.dbc").write_text(text.replace(old, new), encoding="cp1252")
+    (tmp_path / "machine.toml").write_text((STRANGER / "motorola_psi.toml").read_text())
+    with pytest.raises(ConfigError) as refused:
+        load_machine_config(tmp_path / "machine.toml")
+    assert refused.value.key == "legs.FL.piston" and refused.value.reason == reason
+
+
+def test_two_j1939_messages_of_one_pgn_and_sender_stop_the_config(tmp_path: Path) -> None:
+    """One group twice for one sender, at two priorities (two DBCs merged): the decoder
+    kept the last for that sender's frames."""
+    text = (STRANGER / "j1939_propa.dbc").read_text()
+    twin = 'BO_ 2364407806 PRESS_A_P3: 8 Xdcr\n SG_ P3 : 0|16@1+ (0.01,0) [0|0] "bar" DAQ\n'
+    (tmp_path / "j1939_propa.dbc").write_text(text.replace("BA_DEF_ ", twin + "\nBA_DEF_ ", 1))
+    (tmp_path / "machine.toml").write_text((STRANGER / "j1939_propa.toml").read_text())
+    with pytest.raises(ConfigError) as refused:
+        load_machine_config(tmp_path / "machine.toml")
+    assert refused.value.reason == (
+        "PRESS_A has the PGN and source address of PRESS_A_P3 too in the DBC (0x18EDFFFE, "
+        "0xCEDFFFE): their frames cannot be told apart"
+    )
+
+
+def test_a_j1939_group_shorter_than_8_bytes_takes_its_frames_padded_to_8(tmp_path: Path) -> None:
+    """XDCR_PRESSURE written as the 3 bytes it uses: J1939 transducers pad it to 8 with
+    0xFF (J1939-21), and each such frame was counted wrong_dlc."""
+    text = (STRANGER / "cantools_j1939.dbc").read_text()
+    assert "XDCR_PRESSURE: 8 Xdcr" in text
+    (tmp_path / "cantools_j1939.dbc").write_text(
+        text.replace("XDCR_PRESSURE: 8", "XDCR_PRESSURE: 3")
+    )
+    (tmp_path / "machine.toml").write_text((STRANGER / "cantools_j1939.toml").read_text())
+    config, database = load_machine_config(tmp_path / "machine.toml")
+    pipeline = Pipeline.from_config(config, database)
+    rod = (1250).to_bytes(2, "little") + b"\x19"
+    piston = (12500).to_bytes(2, "little") + b"\x19"
+    pipeline.process(RawFrame(1.0, 0x18FF3A41, True, rod + b"\xff" * 5))
+    result = pipeline.process(RawFrame(1.001, 0x18FF3A40, True, piston))  # unpadded too
+    assert result.estimates[0].force_raw_N == pytest.approx(eq4_N(12.5e6, 1.25e6), rel=1e-12)
+    assert result.decoded is not None and result.decoded.signals["Temp"] == 25
+    short = pipeline.process(RawFrame(1.002, 0x18FF3A41, True, rod + b"\xff" * 4))
+    assert short.error_kind == "wrong_dlc" and dict(pipeline.bad) == {"wrong_dlc": 1}
+
+
+def test_a_counter_the_dbc_declares_0_to_14_wraps_from_14_to_0() -> None:
+    """RL_Alive is [0|14] (AUTOSAR E2E profile 1 counts so): 14 -> 0 is one step (it was
+    a lost frame at every wrap), and 15, a value it never takes, is a counter fault."""
+    pipeline, _, _ = _pipeline("motorola_psi.toml", compiled=True)
+    reasons = []
+    for i, counter in enumerate((13, 14, 0, 1, 15, 3)):
+        frame = RawFrame(1.0 + 0.02 * i, 0x00FF0002, True, _hub_frame(counter, 1500, 200))
+        reasons += [e.reasons for e in pipeline.process(frame).estimates]
+    assert reasons == [(), (), (), (), ("counter",), ()]
+    assert pipeline.frames_lost == 0 and dict(pipeline.bad) == {"counter": 1}
