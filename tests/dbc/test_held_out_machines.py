@@ -3,6 +3,8 @@
 the DBC's layout (not by the project's encoder), forces checked against eq. (4) worked
 out here from the config's numbers, in SI."""
 
+import csv
+import io
 import math
 import struct
 from dataclasses import replace
@@ -16,6 +18,7 @@ from crccheck.crc import Crc8SaeJ1850
 
 from daq.frames import RawFrame
 from daq.pipeline import Pipeline
+from daq.replay import replay
 from dbc.database import load_database_bytes
 from dbc.decoding import FrameDecoder
 from dbc.errors import ConfigError
@@ -395,3 +398,26 @@ def test_a_counter_the_dbc_declares_0_to_14_wraps_from_14_to_0() -> None:
         reasons += [e.reasons for e in pipeline.process(frame).estimates]
     assert reasons == [(), (), (), (), ("counter",), ()]
     assert pipeline.frames_lost == 0 and dict(pipeline.bad) == {"counter": 1}
+
+
+def test_candump_logs_of_held_out_machines_replay_to_eq4(tmp_path: Path) -> None:
+    """Held up: a candump log of the J1939 transducers (29-bit IDs, priority 3) and one of
+    the FD hub (``##`` lines) replayed with their configs give eq. (4) of the frames."""
+    lines = []
+    for i, (source, kPa) in enumerate(((0x31, 800.0), (0x30, 2800.0), (0x33, 600.0))):
+        frame = _press_a(3, 0x27, source, 0, round(kPa / 0.05))
+        lines.append(f"(1700000000.{i:06d}) can0 {frame.arbitration_id:08X}#{frame.data.hex()}")
+    lines.append(f"(1700000000.000009) can0 {frame.arbitration_id:08X}#{frame.data.hex()[:6]}")
+    (tmp_path / "j1939.log").write_text("\n".join(lines) + "\n")
+    out = io.StringIO()
+    assert replay(tmp_path / "j1939.log", out, STRANGER / "j1939_propa.toml") == 2
+    left, right = csv.DictReader(io.StringIO(out.getvalue()))
+    assert left["leg"] == "left-front" and left["valid"] == "1"
+    assert float(left["force_raw_N"]) == pytest.approx(eq4_N(2.8e6, 0.8e6), rel=1e-12)
+    assert right["leg"] == "right-front" and right["reasons"] == "piston_stale|range"  # no 0x32
+    fd = _fd_page(1, 0, 10.0, 2.0).hex()
+    (tmp_path / "fd.log").write_text(f"(1700000000.000000) can0 300##0{fd}\n")
+    out = io.StringIO()
+    assert replay(tmp_path / "fd.log", out, STRANGER / "fd_float.toml") == 1
+    (row,) = csv.DictReader(io.StringIO(out.getvalue()))
+    assert row["leg"] == "B" and float(row["force_raw_N"]) == pytest.approx(eq4_N(10e6, 2e6))
