@@ -146,6 +146,8 @@ def replay(
             pipeline.bad.total(),
             ", ".join(f"{kind} {n}" for kind, n in sorted(pipeline.bad.items())),
         )
+    if pipeline.frames == 0:  # an empty log (a logger stopped at once): say so
+        logger.warning("%s: no CAN frame in it: the CSV has its header only", files[0])
     return rows
 
 
@@ -296,6 +298,7 @@ class LogLines:
         self._file = file
         #: Why reading stopped before the end of the file (None: it did not).
         self.cut: str | None = None
+        self._started = False
 
     def __iter__(self) -> "LogLines":
         return self
@@ -306,8 +309,11 @@ class LogLines:
         try:
             line = next(self._file)
         except (EOFError, zlib.error, gzip.BadGzipFile) as exc:  # a gzipped log cut short
+            if not self._started:  # none at all: not gzip ("Not a gzipped file")
+                raise ValueError(str(exc)) from exc
             self.cut = str(exc)
             raise StopIteration from exc
+        self._started = True
         if not line.endswith("\n"):
             self.cut = f"its last line has no line end: {line.strip()[:60]!r}, left out"
             raise StopIteration

@@ -97,6 +97,7 @@ def test_candump_error_frames_keep_to_the_channel_asked_and_are_counted(
         ("garbage.db", b"garbage\n" * 100, "unreadable after frame 0: file is not a database"),
         ("missing.db", None, "cannot read it as a CAN log"),
         ("cycle.txt", b"(1.0) can0 100#00\n", 'unknown log format ".txt"'),
+        ("plain.log.gz", b"(1.0) can0 100#00\n", "unreadable after frame 0: Not a gzipped file"),
         (  # a CSV of other columns (our own replay's, say)
             "estimates.csv",
             b"leg,t,force_N,force_raw_N,pressure_Pa,p_piston_Pa,p_rod_Pa,contact,valid\n"
@@ -520,3 +521,14 @@ def test_the_report_of_a_log_of_two_buses_takes_one_channel(
     args = [str(two), "--config", str(EXAMPLE_CONFIG), "--out", str(out), "--channel"]
     assert report_main([*args, "vcan0"]) == 0
     assert report_main([*args, "can9"]) == 1
+
+
+def test_an_empty_log_replays_to_a_header_with_a_warning(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    log = tmp_path / "empty.log"
+    log.write_text("")
+    out = io.StringIO()
+    assert replay(log, out, EXAMPLE_CONFIG) == 0
+    assert out.getvalue().count("\n") == 1
+    assert f"{log}: no CAN frame in it: the CSV has its header only" in caplog.text
