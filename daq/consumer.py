@@ -49,6 +49,11 @@ DRAIN_S = 0.5
 #: default ground period: the batch goes with the ``/ground`` snapshot, one wake-up of
 #: the recorder's process for both (at 50 ms it cost ~16 us per frame at the DBC's rate).
 RECORD_PERIOD_S = 0.1
+#: ... or once this many frames wait (a saturated bus's 9,000 frames/s: every ~28 ms).
+#: Handing over is work in the frames' thread (joining the batches, encoding the frames
+#: for the recorder's process) that delays the frames behind it: ~1 ms for 0.1 s of a
+#: saturated bus, when the period alone set the size; at most a quarter of that now.
+HAND_OVER_FRAMES = 256
 
 #: Staleness is judged against the bus, not the wall clock: a leg is stale when newer
 #: frames of other messages went by without its own (the estimator's bus time, see
@@ -222,7 +227,7 @@ class Consumer(Worker):
             self._record_due = handled_s + RECORD_PERIOD_S
         self._unrecorded.append(RecordBatch(frames, estimates, decoded))
         self._unrecorded_frames += len(frames)
-        if self._unrecorded_frames >= MAX_FRAMES or handled_s >= self._record_due:
+        if self._unrecorded_frames >= HAND_OVER_FRAMES or handled_s >= self._record_due:
             self._hand_over()
 
     def _signals_due(self, decoded: DecodedFrame) -> bool:

@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from daq.can_batch import MAX_FRAMES
-from daq.consumer import RECORD_PERIOD_S, Consumer
+from daq.consumer import HAND_OVER_FRAMES, RECORD_PERIOD_S, Consumer
 from daq.frames import BusEvent, RawFrame
 from daq.mcap_file import RecordBatch
 from daq.pipeline import Pipeline
@@ -187,6 +187,21 @@ def test_a_wake_up_cut_at_max_frames_is_not_followed_by_a_hold() -> None:
     polls = [(t_s, count) for t_s, _, count in source.polls if count]
     assert polls[0][0] == polls[1][0]  # the rest taken at once
     assert polls[2][0] == polls[1][0] + PERIOD_S  # then the hold
+
+
+def test_a_saturated_bus_is_handed_to_the_recorder_in_bounded_batches() -> None:
+    """At 9,000 frames/s, one frame per wake-up, the recorder gets a batch each
+    HAND_OVER_FRAMES frames, well before RECORD_PERIOD_S: handing over 0.1 s of frames at
+    once held the frames' thread ~1 ms."""
+    count = 2 * HAND_OVER_FRAMES + 88
+    arrivals_s = [START_S + (k + 0.5) / 9000 for k in range(count)]
+    assert arrivals_s[-1] - arrivals_s[0] < RECORD_PERIOD_S
+    source, collect = run(0.0, arrivals_s)
+    sizes = [len(batch.frames) for _, batch in collect.recorded]
+    assert sizes == [HAND_OVER_FRAMES, HAND_OVER_FRAMES, 88]
+    # each handed over on the wake-up that took its last frame
+    handed = [t_s for t_s, _ in collect.recorded]
+    assert handed[:2] == [arrivals_s[HAND_OVER_FRAMES - 1], arrivals_s[2 * HAND_OVER_FRAMES - 1]]
 
 
 class Once:

@@ -2,6 +2,9 @@
 and counted in messages: what does not fit is dropped and counted per message, what
 fits is published in order, on a real Zenoh session."""
 
+from queue import Empty
+
+import pytest
 import zenoh
 
 from daq.publisher import MessageQueue, ZenohPublisher
@@ -14,8 +17,12 @@ def test_the_queue_is_sized_and_bounded_in_messages() -> None:
     assert queue.qsize() == 3
     queue.put_nowait([("d", b"4"), ("e", b"5")])  # taken: fewer than 4 were waiting
     assert queue.qsize() == 5 and queue.full()
-    assert [suffix for suffix, _ in queue.get_nowait()] == ["a", "b", "c"]
-    assert queue.qsize() == 2
+    assert [suffix for suffix, _ in queue.get(0)] == ["a", "b", "c"]
+    assert queue.qsize() == 2 and not queue.full()
+    assert [suffix for suffix, _ in queue.get(0.1)] == ["d", "e"]
+    with pytest.raises(Empty):
+        queue.get(0.01)
+    assert queue.qsize() == 0
 
 
 def test_a_batch_that_does_not_fit_is_dropped_and_counted_per_message() -> None:

@@ -3,6 +3,8 @@
 the DBC's layout (not by the project's encoder), forces checked against eq. (4) worked
 out here from the config's numbers, in SI."""
 
+import csv
+import io
 import math
 import struct
 from dataclasses import replace
@@ -16,6 +18,7 @@ from crccheck.crc import Crc8SaeJ1850
 
 from daq.frames import RawFrame
 from daq.pipeline import Pipeline
+from daq.replay import replay
 from dbc.database import load_database_bytes
 from dbc.decoding import FrameDecoder
 from dbc.errors import ConfigError
@@ -236,7 +239,7 @@ def test_a_message_longer_than_a_classic_frame_takes_fd_frames() -> None:
     assert not pipeline.bad
 
 
-def _press_a(priority: int, destination: int, source: int, counter: int, raw: int) -> RawFrame:
+def press_a(priority: int, destination: int, source: int, counter: int, raw: int) -> RawFrame:
     """A PRESS_A frame (PGN 0xED00, PDU1) as a transducer sends it: 0.05 kPa/bit, Diag "ok",
     the counter in byte 3, CRC-8 SAE J1850 of bytes 0..6 in byte 7."""
     frame_id = frame_id_pack(priority, 0, 0, 0xED, destination, source)
@@ -253,7 +256,7 @@ def test_j1939_pdu1_transducers_whatever_priority_and_destination() -> None:
     t_s = 1.0
     for counter in range(3):
         for source, kPa in ((0x31, 800.0), (0x30, 2800.0), (0x32, 2500.0), (0x33, 600.0)):
-            frame = _press_a(3, 0x27, source, counter, round(kPa / 0.05))
+            frame = press_a(3, 0x27, source, counter, round(kPa / 0.05))
             assert any(frame.arbitration_id & f.can_mask == f.can_id & f.can_mask for f in filters)
             result = pipeline.process(replace(frame, t_s=t_s))
             estimates += [(e.leg, e.force_raw_N, e.reasons) for e in result.estimates]
@@ -267,10 +270,10 @@ def test_j1939_pdu1_transducers_whatever_priority_and_destination() -> None:
         ]
         * 3
     )
-    result = pipeline.process(replace(_press_a(6, 0xFE, 0x30, 3, 0xFFFF), t_s=t_s))
+    result = pipeline.process(replace(press_a(6, 0xFE, 0x30, 3, 0xFFFF), t_s=t_s))
     (estimate,) = result.estimates
     assert math.isnan(estimate.p_piston_Pa) and estimate.reasons == ("range",)
-    result = pipeline.process(replace(_press_a(6, 0xFE, 0x34, 0, 100), t_s=t_s))
+    result = pipeline.process(replace(press_a(6, 0xFE, 0x34, 0, 100), t_s=t_s))
     assert result.estimates == () and dict(pipeline.bad) == {"unmapped_source": 1}
 
 
@@ -294,8 +297,8 @@ def test_a_j1939_code_above_the_dbcs_range_is_no_pressure() -> None:
     """PRESS_A.Press is [0|3212.75] kPa (J1939: 0..0xFAFF); 0xFE00, J1939's "error", is
     named by no value table: once it was a valid 3.2512 MPa, now the chamber is NaN."""
     pipeline, _, _ = _pipeline("j1939_propa.toml", compiled=True)
-    rod_at_max = pipeline.process(replace(_press_a(6, 0xFE, 0x31, 0, 0xFAFF), t_s=1.0))
-    (estimate,) = pipeline.process(replace(_press_a(6, 0xFE, 0x30, 0, 0xFE00), t_s=1.001)).estimates
+    rod_at_max = pipeline.process(replace(press_a(6, 0xFE, 0x31, 0, 0xFAFF), t_s=1.0))
+    (estimate,) = pipeline.process(replace(press_a(6, 0xFE, 0x30, 0, 0xFE00), t_s=1.001)).estimates
     assert rod_at_max.decoded is not None  # the decoded signal stays the DBC's number
     assert rod_at_max.decoded.signals["Press"] == pytest.approx(3212.75e3)
     assert math.isnan(estimate.p_piston_Pa) and estimate.reasons == ("range",)
@@ -395,3 +398,26 @@ def test_a_counter_the_dbc_declares_0_to_14_wraps_from_14_to_0() -> None:
         reasons += [e.reasons for e in pipeline.process(frame).estimates]
     assert reasons == [(), (), (), (), ("counter",), ()]
     assert pipeline.frames_lost == 0 and dict(pipeline.bad) == {"counter": 1}
+
+
+def test_candump_logs_of_held_out_machines_replay_to_eq4(tmp_path: Path) -> None:
+    """Held up: a candump log of the J1939 transducers (29-bit IDs, priority 3) and one of
+    the FD hub (``##`` lines) replayed with their configs give eq. (4) of the frames."""
+    lines = []
+    for i, (source, kPa) in enumerate(((0x31, 800.0), (0x30, 2800.0), (0x33, 600.0))):
+        frame = press_a(3, 0x27, source, 0, round(kPa / 0.05))
+        lines.append(f"(1700000000.{i:06d}) can0 {frame.arbitration_id:08X}#{frame.data.hex()}")
+    lines.append(f"(1700000000.000009) can0 {frame.arbitration_id:08X}#{frame.data.hex()[:6]}")
+    (tmp_path / "j1939.log").write_text("\n".join(lines) + "\n")
+    out = io.StringIO()
+    assert replay(tmp_path / "j1939.log", out, STRANGER / "j1939_propa.toml") == 2
+    left, right = csv.DictReader(io.StringIO(out.getvalue()))
+    assert left["leg"] == "left-front" and left["valid"] == "1"
+    assert float(left["force_raw_N"]) == pytest.approx(eq4_N(2.8e6, 0.8e6), rel=1e-12)
+    assert right["leg"] == "right-front" and right["reasons"] == "piston_stale|range"  # no 0x32
+    fd = _fd_page(1, 0, 10.0, 2.0).hex()
+    (tmp_path / "fd.log").write_text(f"(1700000000.000000) can0 300##0{fd}\n")
+    out = io.StringIO()
+    assert replay(tmp_path / "fd.log", out, STRANGER / "fd_float.toml") == 1
+    (row,) = csv.DictReader(io.StringIO(out.getvalue()))
+    assert row["leg"] == "B" and float(row["force_raw_N"]) == pytest.approx(eq4_N(10e6, 2e6))

@@ -1,0 +1,75 @@
+"""A held-out machine (tests/files/stranger/j1939_propa: J1939 transducers, one per
+chamber) run by the service on python-can's virtual bus, with kernel-style receive
+filters, a real Zenoh session on loopback: what it publishes and counts."""
+
+import shutil
+import time
+import uuid
+from pathlib import Path
+
+import can
+import pytest
+import zenoh
+
+from daq.runner import bus_factory
+from daq.service import Service
+from daq.service_config import load_service_config
+from daq.zenoh_session import zenoh_config
+from dbc.decoding import FrameDecoder
+from tests.daq.service_support import Collector, free_port, running, subscriber_session
+from tests.dbc.test_held_out_machines import STRANGER, eq4_N, press_a
+
+
+def test_the_service_runs_a_held_out_j1939_machine(tmp_path: Path) -> None:
+    shutil.copy(STRANGER / "j1939_propa.dbc", tmp_path)
+    port, channel = free_port(), f"held-out-{uuid.uuid4().hex}"
+    (tmp_path / "portal-daq.toml").write_text(
+        f"""
+[bus]
+interface = "virtual"
+channel = "{channel}"
+kernel_filters = true
+
+[zenoh]
+mode = "peer"
+listen = ["tcp/127.0.0.1:{port}"]
+multicast_scouting = false
+
+[publish]
+status_period_s = 0.2
+"""
+        + (STRANGER / "j1939_propa.toml").read_text()
+    )
+    config = load_service_config(tmp_path / "portal-daq.toml")
+    filters = FrameDecoder(config.database, config.machine.protection).receive_filters
+    prefix = config.zenoh.key_prefix
+    t0 = time.time()
+    sent = [
+        press_a(3, 0x27, source, 5, round(kPa / 0.05))
+        for source, kPa in ((0x31, 800.0), (0x30, 2800.0), (0x34, 100.0))
+    ]
+    messages = [
+        can.Message(timestamp=t0 + 0.001 * i, arbitration_id=f.arbitration_id, data=f.data)
+        for i, f in enumerate(sent)
+    ]
+    messages.append(can.Message(timestamp=t0, arbitration_id=0x123, is_extended_id=False))
+    with zenoh.open(zenoh_config(config.zenoh)) as session:
+        service = Service(config, open_bus=bus_factory(config.bus, filters), session=session)
+        with running(service), subscriber_session(port) as subscriber:
+            collector = Collector(subscriber, f"{prefix}/**")
+            collector.wait_for(f"{prefix}/status")
+            bus = can.Bus(interface="virtual", channel=channel, preserve_timestamps=True)
+            try:
+                for message in messages:
+                    bus.send(message)
+            finally:
+                bus.shutdown()
+            estimate = collector.wait_for(f"{prefix}/leg/left-front/ground")
+            status = collector.wait_for(
+                f"{prefix}/status", lambda s: s["frames"]["processed"] == len(sent)
+            )
+    assert prefix == "portal/held-out-j1939"
+    assert estimate["valid"] and estimate["force_raw_N"] == pytest.approx(eq4_N(2.8e6, 0.8e6))
+    # The standard frame is filtered out (kernel_filters); 0x34 is a transducer of the
+    # PGN that no chamber maps.
+    assert status["bad"] == {"unmapped_source": 1}
