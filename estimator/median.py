@@ -2,7 +2,9 @@
 
 Both give bit-identical results on the same input. Until N samples have
 arrived the median is that of the samples so far; with an even count it is the
-mean of the two middle values, computed as ``(a + b) / 2`` in both paths.
+mean of the two middle values, computed as ``(a + b) / 2`` in both paths. A zero
+median is +0.0 in both: -0.0 and 0.0 compare equal, and which of them the sorted list
+and numpy's selection put in the middle differs (``+ 0.0`` turns -0.0 into 0.0).
 """
 
 from bisect import insort
@@ -69,7 +71,7 @@ class RunningMedian:
         self._insert(value)
         n = len(ordered)
         if n % 2:  # always, once the window is full
-            return float(ordered[n // 2])
+            return float(ordered[n // 2]) + 0.0
         return self.value
 
     @property
@@ -80,8 +82,8 @@ class RunningMedian:
             return float("nan")
         middle = n // 2
         if n % 2:
-            return float(self._sorted[middle])
-        return float((self._sorted[middle - 1] + self._sorted[middle]) / 2)
+            return float(self._sorted[middle]) + 0.0
+        return float((self._sorted[middle - 1] + self._sorted[middle]) / 2) + 0.0
 
 
 def running_median(values: npt.ArrayLike, window: int) -> npt.NDArray[np.float64]:
@@ -98,7 +100,7 @@ def running_median(values: npt.ArrayLike, window: int) -> npt.NDArray[np.float64
     for i in range(min(window - 1, x.size)):
         head = np.sort(x[: i + 1])
         middle = (i + 1) // 2
-        out[i] = head[middle] if (i + 1) % 2 else (head[middle - 1] + head[middle]) / 2
+        out[i] = (head[middle] if (i + 1) % 2 else (head[middle - 1] + head[middle]) / 2) + 0.0
     if x.size >= window:
         windows = sliding_window_view(x, window)
         for start in range(0, windows.shape[0], _BATCH_ROWS):
@@ -106,5 +108,5 @@ def running_median(values: npt.ArrayLike, window: int) -> npt.NDArray[np.float64
             # An odd window's median is its middle order statistic: a selection,
             # no arithmetic, hence identical to the streaming path.
             selected = np.partition(chunk, window // 2, axis=1)[:, window // 2]
-            out[window - 1 + start : window - 1 + start + chunk.shape[0]] = selected
+            out[window - 1 + start : window - 1 + start + chunk.shape[0]] = selected + 0.0
     return out

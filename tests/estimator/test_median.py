@@ -31,6 +31,20 @@ def test_batch_is_bit_identical_to_streaming(values: list[float], window: int) -
     assert streamed.tobytes() == batch.tobytes()
 
 
+@pytest.mark.parametrize("window", [1, 3, 7, 203])
+def test_a_zero_median_is_positive_zero_in_both_paths(window: int) -> None:
+    # Found by the property above: -0.0 == 0.0, and the sorted list and numpy's
+    # selection put different ones of them in the middle.
+    values = [0.0, 0.0, 1.0, 1.0, 0.0, -0.0, 0.0, -0.0, -0.0, -0.0] * 25
+    median = RunningMedian(window)
+    streamed = np.array([median.push(v) for v in values], dtype=np.float64)
+    batch = running_median(values, window)
+    zeros = streamed == 0.0
+    assert zeros.any()
+    assert not np.signbit(streamed[zeros]).any() and not np.signbit(batch[zeros]).any()
+    assert streamed.tobytes() == batch.tobytes()
+
+
 @given(st.lists(st.integers(min_value=-3, max_value=3).map(float), max_size=100), odd_windows)
 def test_many_equal_values_are_removed_one_at_a_time(values: list[float], window: int) -> None:
     median = RunningMedian(window)
