@@ -14,6 +14,7 @@ stretches in the order they were recorded; unchanged when it did not). A recorde
 """
 
 import json
+from array import array
 from collections import Counter, defaultdict
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field, replace
@@ -89,18 +90,47 @@ class LegTrack:
             bool(payload["contact"]),
         )
 
-    @classmethod
-    def of(cls, leg: str, rows: Iterable[LegRow]) -> "LegTrack":
-        ordered = sorted(rows, key=lambda row: row[0])
-        columns = list(zip(*ordered, strict=True)) if ordered else [()] * 6
-        return cls(
+
+class LegColumns:
+    """A leg's rows as they come, a typed array per column: 34 bytes a row where a tuple
+    of Python objects took ~190, so that a long recording's report fits in memory (8 h
+    of six legs at 100 Hz: ~0.6 GB instead of ~3 GB)."""
+
+    def __init__(self) -> None:
+        self.t_s, self.force_N, self.pressure_Pa, self.force_raw_N = (array("d") for _ in "1234")
+        self.valid, self.contact = array("b"), array("b")
+
+    def __len__(self) -> int:
+        return len(self.t_s)
+
+    def append(self, row: LegRow) -> None:
+        t_s, force_N, pressure_Pa, valid, force_raw_N, contact = row
+        self.t_s.append(t_s)
+        self.force_N.append(force_N)
+        self.pressure_Pa.append(pressure_Pa)
+        self.valid.append(valid)
+        self.force_raw_N.append(force_raw_N)
+        self.contact.append(contact)
+
+    def track(self, leg: str) -> LegTrack:
+        """The rows in time order (equal times in the order they came)."""
+
+        def numbers(column: "array[float]") -> FloatArray:
+            return np.array(column, dtype=np.float64)
+
+        def flags(column: "array[int]") -> BoolArray:
+            return np.array(column, dtype=np.bool_)
+
+        t_s = numbers(self.t_s)
+        order = np.argsort(t_s, kind="stable")
+        return LegTrack(
             leg=leg,
-            t_s=np.array(columns[0], dtype=np.float64),
-            force_N=np.array(columns[1], dtype=np.float64),
-            pressure_Pa=np.array(columns[2], dtype=np.float64),
-            valid=np.array(columns[3], dtype=np.bool_),
-            force_raw_N=np.array(columns[4], dtype=np.float64),
-            contact=np.array(columns[5], dtype=np.bool_),
+            t_s=t_s[order],
+            force_N=numbers(self.force_N)[order],
+            pressure_Pa=numbers(self.pressure_Pa)[order],
+            valid=flags(self.valid)[order],
+            force_raw_N=numbers(self.force_raw_N)[order],
+            contact=flags(self.contact)[order],
         )
 
 
@@ -244,7 +274,7 @@ class RecordingCollector:
     """Gathers a recording's messages; :meth:`recording` builds the :class:`Recording`."""
 
     def __init__(self) -> None:
-        self._legs: dict[str, list[LegRow]] = defaultdict(list)
+        self._legs: dict[str, LegColumns] = defaultdict(LegColumns)
         self._state: list[StateRow] = []
         self._truth: list[TruthRow] = []
         self._frames = 0
@@ -394,7 +424,7 @@ class RecordingCollector:
             legs={
                 leg: replace(track, t_s=track.t_s - shift_s)
                 for leg in legs
-                for track in (LegTrack.of(leg, self._legs.get(leg, ())),)
+                for track in (self._legs.get(leg, LegColumns()).track(leg),)
             },
             state=replace(state, t_s=state.t_s - shift_s),
             truth=replace(truth, t_s=truth.t_s - shift_s),
