@@ -142,20 +142,25 @@ class RecordingStream:
     order.
 
     After iteration, :attr:`complete` tells whether the file ended properly
-    (footer read) and :attr:`stopped_by` why reading stopped early, if it did.
+    (footer read) and :attr:`stopped_by` why reading stopped early, if it did; that is
+    logged as a warning unless ``warn`` is False (a look for the run's metadata, which
+    the full read that follows it warns about).
     """
 
-    def __init__(self, stream: IO[bytes], name: str = "recording") -> None:
+    def __init__(self, stream: IO[bytes], name: str = "recording", *, warn: bool = True) -> None:
         self._stream = stream
         self.name = name
         self.complete = False
         self.stopped_by: str | None = None
+        self._warn = warn
 
     def __iter__(self) -> Iterator[RecordedMessage | RecordedAttachment | RecordedMetadata]:
         channels = summary_channels(self._stream)[1]
         records = RecordsToTheCut(self._stream, self.name)
         orphans = 0
+        read = 0
         for record in records:
+            read += 1
             if isinstance(record, Channel):
                 channels[record.id] = record
             elif isinstance(record, Message):
@@ -173,11 +178,20 @@ class RecordingStream:
             elif isinstance(record, Footer):
                 self.complete = True
         self.stopped_by = records.stopped_by
+        if not self._warn:
+            return
         if orphans:
             logger.warning(
                 "%s: %d messages skipped: their channel's record was lost", self.name, orphans
             )
-        if self.stopped_by is not None:
+        if self.stopped_by is not None and not read:
+            logger.warning(
+                "%s holds no MCAP record (%s): nothing was recorded in it (0 bytes, or cut in "
+                "its header: the recorder stopped as it opened the file)",
+                self.name,
+                self.stopped_by,
+            )
+        elif self.stopped_by is not None:
             logger.warning(
                 "%s ends without its summary (%s): read up to its last complete chunk",
                 self.name,

@@ -52,7 +52,7 @@ def read_run_file(path: Path) -> RunFile:
     """The run metadata of ``path``; reads only up to it (it precedes every message)."""
     try:
         with open(path, "rb") as stream:
-            for record in RecordingStream(stream, str(path)):
+            for record in RecordingStream(stream, str(path), warn=False):
                 if isinstance(record, RecordedMetadata) and record.name == RUN_METADATA:
                     return _run_file(path, record.metadata)
                 if isinstance(record, RecordedMessage):

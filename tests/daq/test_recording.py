@@ -23,7 +23,7 @@ from daq.recording_run import read_run_file, run_files
 from daq.service_config import RecordingSettings
 from dbc.encoding import FrameEncoder
 from tests.daq.service_support import leg_signals
-from tests.helpers import example_machine, recorded_raw_frames
+from tests.helpers import EXAMPLE_CONFIG, example_machine, recorded_raw_frames
 
 
 def results(count: int, t0: float = 1000.0, dt: float = 0.01):  # type: ignore[no-untyped-def]
@@ -213,3 +213,30 @@ def test_the_recorder_lets_the_gil_go_once_a_quarter_millisecond_of_writing(
     assert slept == [0]
     pause()  # 0.0006: more than 0.25 ms since 0.00031
     assert slept == [0, 0]
+
+
+def test_an_empty_or_cut_file_is_warned_about_once_by_replay(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Replay looks for the run's metadata first and then reads the file: one warning, and
+    an empty file (the recorder stopped as it opened it) is not called a cut chunk."""
+    from daq.cli import main
+
+    empty = tmp_path / "empty.mcap"
+    empty.write_bytes(b"")
+    cut = tmp_path / "cut.mcap"
+    with open(cut, "wb") as raw:
+        mcap = McapFile(CountingFile(raw), example_machine()[1], chunk_size=1024)
+        mcap.start({})
+        for result in results(200):
+            mcap.write_result(result)
+        mcap.flush()  # no close(): as if the process were killed here
+    warnings = []
+    for path in (empty, cut):
+        assert main(["replay", str(path), "--config", str(EXAMPLE_CONFIG)]) == 0
+        out, err = capsys.readouterr()
+        warnings.append([line for line in err.splitlines() if "daq.mcap_reading" in line])
+        assert out.startswith("leg,t,")
+    (empty_warning,), (cut_warning,) = warnings
+    assert f"{empty} holds no MCAP record (" in empty_warning
+    assert f"{cut} ends without its summary (" in cut_warning
