@@ -33,12 +33,9 @@ PRESSURE_UNITS_TO_PA: dict[str, float] = {
     "psi": 6894.757293168361,
     "hpa": 1.0e2,
     "n/mm2": 1.0e6,
-    "n/mm²": 1.0e6,
     # 1 kgf / cm2 = 9.80665 N / 1e-4 m2 (standard gravity; "kg/cm2" on older gauges).
     "kgf/cm2": 98066.5,
-    "kgf/cm²": 98066.5,
     "kg/cm2": 98066.5,
-    "kg/cm²": 98066.5,
 }
 
 #: The accepted units as a person writes them, for error messages.
@@ -51,8 +48,8 @@ GAUGE_MARKS = ("(gauge)", "gauge", "(g)", "g")
 
 def pressure_factor_to_Pa(unit: str) -> float | None:
     """Pa per one ``unit`` (case-insensitive, surrounding blanks and a gauge mark
-    ignored); None if unknown."""
-    name = unit.strip().lower()
+    ignored, "²" read as "2"); None if unknown."""
+    name = unit.strip().lower().replace("²", "2")
     factor = PRESSURE_UNITS_TO_PA.get(name)
     if factor is None:
         mark = next((mark for mark in GAUGE_MARKS if name.endswith(mark)), None)
