@@ -135,14 +135,11 @@ def replay(
     machine = load_machine_config(config_path) if config_path is not None else None
     files = expand([paths] if isinstance(paths, Path) else paths)
     if all(path.suffix.lower() == MCAP_SUFFIX for path in files):
-        run = run_files(files)
-        attachments: dict[str, bytes] = {}
-        items = run_items(run, attachments)
-        first = next(items, None)  # the first file's attachments are read by then
-        if first is None:
+        source = run_source(run_files(files), machine)
+        if source is None:
             return write_csv((), out)
-        pipeline = Pipeline.from_config(*(machine or embedded_machine(attachments, run[0])))
-        rows = write_csv(estimates(pipeline, itertools.chain((first,), items)), out)
+        pipeline, items = source
+        rows = write_csv(estimates(pipeline, items), out)
     elif machine is None:
         raise ConfigError(files[0], "", "replaying a CAN log needs --config (the machine config)")
     else:
@@ -365,11 +362,27 @@ def run_results(
 ) -> Iterator[FrameResult]:
     """What the pipeline (a fresh one unless given) makes of every frame of MCAP
     ``files`` (one run, in order)."""
+    if pipeline is not None:
+        yield from results(pipeline, run_items(files))
+        return
+    source = run_source(files, machine)
+    if source is not None:
+        yield from results(*source)
+
+
+def run_source(
+    files: Sequence[Path], machine: Machine | None
+) -> tuple[Pipeline, Iterator[RawFrame | BusEvent]] | None:
+    """A fresh pipeline for MCAP ``files`` (one run, in order) and their frames and bus
+    events; None when they hold none. ``machine`` None: the configuration embedded in the
+    first file, whose attachments come before its first message."""
     attachments: dict[str, bytes] = {}
-    for item in run_items(files, attachments):
-        if pipeline is None:
-            pipeline = Pipeline.from_config(*(machine or embedded_machine(attachments, files[0])))
-        yield from results(pipeline, (item,))
+    items = run_items(files, attachments)
+    first = next(items, None)
+    if first is None:
+        return None
+    pipeline = Pipeline.from_config(*(machine or embedded_machine(attachments, files[0])))
+    return pipeline, itertools.chain((first,), items)
 
 
 def run_items(
