@@ -97,17 +97,18 @@ class RecordsToTheCut:
         self.name = name
         self.stopped_by: str | None = None
         self.damaged_chunks = 0
+        #: A record was read (False after iteration: the stream held none, e.g. 0 bytes).
+        self.started = False
 
     def __iter__(self) -> Iterator[McapRecord]:
         records = StreamReader(self._stream, validate_crcs=True).records
-        started = False
         while True:
             try:
                 record = next(records)
             except StopIteration:
                 return
             except InvalidMagic as exc:
-                if not started:  # not an MCAP file at all (a CAN log, say): nothing to recover
+                if not self.started:  # not an MCAP file at all (a CAN log, say): nothing to recover
                     raise RecordingError(
                         self.name, "not an MCAP file (a service recording is .mcap)"
                     ) from exc
@@ -133,7 +134,7 @@ class RecordsToTheCut:
             except Exception as exc:  # noqa: BLE001
                 self.stopped_by = f"{type(exc).__name__}: {exc}".rstrip(": ")
                 return
-            started = True
+            self.started = True
             yield record
 
 
@@ -158,9 +159,7 @@ class RecordingStream:
         channels = summary_channels(self._stream)[1]
         records = RecordsToTheCut(self._stream, self.name)
         orphans = 0
-        read = 0
         for record in records:
-            read += 1
             if isinstance(record, Channel):
                 channels[record.id] = record
             elif isinstance(record, Message):
@@ -184,7 +183,7 @@ class RecordingStream:
             logger.warning(
                 "%s: %d messages skipped: their channel's record was lost", self.name, orphans
             )
-        if self.stopped_by is not None and not read:
+        if self.stopped_by is not None and not records.started:
             logger.warning(
                 "%s holds no MCAP record (%s): nothing was recorded in it (0 bytes, or cut in "
                 "its header: the recorder stopped as it opened the file)",
