@@ -112,8 +112,9 @@ class LegColumns:
         self.force_raw_N.append(force_raw_N)
         self.contact.append(contact)
 
-    def track(self, leg: str) -> LegTrack:
-        """The rows in time order (equal times in the order they came)."""
+    def track(self, leg: str, shift_s: float = 0.0) -> LegTrack:
+        """The rows in time order (equal times in the order they came), their times less
+        ``shift_s``."""
 
         def numbers(column: "array[float]") -> FloatArray:
             return np.array(column, dtype=np.float64)
@@ -125,7 +126,7 @@ class LegColumns:
         order = np.argsort(t_s, kind="stable")
         return LegTrack(
             leg=leg,
-            t_s=t_s[order],
+            t_s=t_s[order] - shift_s,
             force_N=numbers(self.force_N)[order],
             pressure_Pa=numbers(self.pressure_Pa)[order],
             valid=flags(self.valid)[order],
@@ -421,11 +422,7 @@ class RecordingCollector:
             machine=machine,
             start_t_s=float(first) - shift_s,
             end_t_s=float(last) - shift_s,
-            legs={
-                leg: replace(track, t_s=track.t_s - shift_s)
-                for leg in legs
-                for track in (self._legs.get(leg, LegColumns()).track(leg),)
-            },
+            legs={leg: self._legs.get(leg, LegColumns()).track(leg, shift_s) for leg in legs},
             state=replace(state, t_s=state.t_s - shift_s),
             truth=replace(truth, t_s=truth.t_s - shift_s),
             counts=RecordingCounts(
