@@ -29,8 +29,12 @@ class PoseTracker:
         self._by_message: dict[str, list[tuple[str, str]]] = {}
         for name, ref in (("rotation", config.rotation), ("fold", config.fold)):
             self._by_message.setdefault(ref.message, []).append((name, ref.signal))
+        self._rad_per_unit = {
+            "rotation": config.rotation_rad_per_unit,
+            "fold": config.fold_rad_per_unit,
+        }
         self._max_age_s = dict(max_age_s)
-        #: name -> (frame time, angle in degrees)
+        #: name -> (frame time, angle in the DBC signal's unit)
         self._latest: dict[str, tuple[float, float]] = {}
         #: Which base stands, and the pose held while both bases are down.
         self.stance = StanceTracker(config.layout)
@@ -49,7 +53,7 @@ class PoseTracker:
         latest = self._latest.get(name)
         if latest is None or now_s - latest[0] > self._max_age_s[ref.message]:
             return None
-        return math.radians(latest[1])
+        return latest[1] * self._rad_per_unit[name]
 
     def feet_m(self, now_s: float, legs: Mapping[str, LegEstimate]) -> dict[str, Point] | None:
         """Every foot's position at ``now_s``, in the frame of the base that stands as
