@@ -153,13 +153,13 @@ def _pose_tracker(machine: MachineConfig, database: Database) -> PoseTracker | N
     stability = machine.stability
     if stability is None:
         return None
-    max_age_s, ranges_deg = {}, {}
+    max_age_s, ranges = {}, {}
     for name, ref in (("rotation", stability.rotation), ("fold", stability.fold)):
         message = database.get_message_by_name(ref.message)
-        ranges_deg[name] = value_range(message.get_signal_by_name(ref.signal), is_j1939(message))
+        ranges[name] = value_range(message.get_signal_by_name(ref.signal), is_j1939(message))
         cycle_ms = message.cycle_time
         # Without a cycle time in the DBC, a pose frame counts as fresh for a second.
         max_age_s[ref.message] = (
             machine.estimator.stale_after_cycles * cycle_ms / 1000.0 if cycle_ms else 1.0
         )
-    return PoseTracker(stability, max_age_s, ranges_deg)
+    return PoseTracker(stability, max_age_s, ranges)

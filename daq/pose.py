@@ -11,7 +11,6 @@ Which base stands (the plan frame) follows the legs' contact at each snapshot
 (:class:`estimator.stance.StanceTracker`).
 """
 
-import math
 from collections.abc import Mapping
 
 from dbc.decoding import DecodedFrame
@@ -29,18 +28,23 @@ class PoseTracker:
         self,
         config: StabilityConfig,
         max_age_s: Mapping[str, float],
-        ranges_deg: Mapping[str, tuple[float, float]],
+        ranges: Mapping[str, tuple[float, float]],
     ) -> None:
         """``max_age_s``: per message name, how old its latest frame may be;
-        ``ranges_deg``: per angle (``rotation``, ``fold``), the values it may take."""
+        ``ranges``: per angle (``rotation``, ``fold``), the values it may take, in
+        its DBC signal's unit."""
         self.config = config
         # Message name -> the (name, signal, range) it carries: one look-up per frame.
         self._by_message: dict[str, list[tuple[str, str, tuple[float, float]]]] = {}
         for name, ref in (("rotation", config.rotation), ("fold", config.fold)):
-            entry = (name, ref.signal, ranges_deg[name])
+            entry = (name, ref.signal, ranges[name])
             self._by_message.setdefault(ref.message, []).append(entry)
+        self._rad_per_unit = {
+            "rotation": config.rotation_rad_per_unit,
+            "fold": config.fold_rad_per_unit,
+        }
         self._max_age_s = dict(max_age_s)
-        #: name -> (frame time, angle in degrees)
+        #: name -> (frame time, angle in the DBC signal's unit)
         self._latest: dict[str, tuple[float, float]] = {}
         #: Which base stands, and the pose held while both bases are down.
         self.stance = StanceTracker(config.layout)
@@ -61,7 +65,7 @@ class PoseTracker:
         latest = self._latest.get(name)
         if latest is None or now_s - latest[0] > self._max_age_s[ref.message]:
             return None
-        return math.radians(latest[1])
+        return latest[1] * self._rad_per_unit[name]
 
     def feet_m(self, now_s: float, legs: Mapping[str, LegEstimate]) -> dict[str, Point] | None:
         """Every foot's position at ``now_s``, in the frame of the base that stands as
