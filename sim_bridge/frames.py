@@ -185,9 +185,15 @@ class FrameBuilder:
         # The bridge angles where [stability] says they are, whatever the DBC calls them.
         pose_getters: dict[tuple[str, str], Getter] = {}
         if config.stability is not None:
-            rotation, fold = config.stability.rotation, config.stability.fold
-            pose_getters[(rotation.message, rotation.signal)] = getters["Bridge_RotationAngle"]
-            pose_getters[(fold.message, fold.signal)] = getters["Bridge_FoldAngle"]
+            stability = config.stability
+            for ref, rad_per_unit, name in (
+                (stability.rotation, stability.rotation_rad_per_unit, "Bridge_RotationAngle"),
+                (stability.fold, stability.fold_rad_per_unit, "Bridge_FoldAngle"),
+            ):
+                # The simulation's angles are in degrees; the DBC's signal may be in another unit.
+                pose_getters[(ref.message, ref.signal)] = _scaled(
+                    getters[name], math.radians(1.0) / rad_per_unit
+                )
         self._plans: dict[str, _MessagePlan] = {}
         #: Signals sent as a constant 0, as "MESSAGE.SIGNAL".
         self.defaulted: list[str] = []
@@ -353,6 +359,12 @@ def _column(field: str, column: int) -> Getter:
 
 def _series(field: str) -> Getter:
     return lambda result, row, cycle: float(getattr(result, field)[row])
+
+
+def _scaled(getter: Getter, factor: float) -> Getter:
+    if factor == 1.0:
+        return getter
+    return lambda result, row, cycle: float(getter(result, row, cycle)) * factor
 
 
 def _phase_getter(signal: Signal) -> Getter:
