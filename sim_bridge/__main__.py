@@ -49,7 +49,8 @@ def load_source(source: SourceOptions, config: MachineConfig) -> SimulationResul
     if source.input_path is not None and source.mapping_path is not None:
         from sim_bridge.external import load_external
 
-        result = load_external(source.input_path, source.mapping_path)
+        legs = leg_map(config).simulated
+        result = load_external(source.input_path, source.mapping_path, legs)
         logger.info(
             "cycle: %s via %s, %d samples of %g s",
             source.input_path,
