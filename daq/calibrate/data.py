@@ -71,9 +71,7 @@ def machine_for(paths: Sequence[Path], config_path: Path | None) -> Machine:
     return embedded_machine(attachments, first)
 
 
-def read_instants(
-    paths: Sequence[Path], machine: Machine, channel: str | None = None
-) -> Instants:
+def read_instants(paths: Sequence[Path], machine: Machine, channel: str | None = None) -> Instants:
     """The quasi-static instants of every recording in ``paths`` (of CAN logs, only
     ``channel``'s frames when it is given)."""
     legs = tuple(machine[0].legs)
