@@ -26,6 +26,7 @@ from dbc.database import load_database
 from dbc.decoding import is_j1939, j1939_pgn
 from dbc.errors import ConfigError
 from dbc.protection import CRC_ALGORITHMS, DEFAULT_CRC_ALGORITHM, Protection, counter_modulo
+from dbc.signal_range import value_range
 from dbc.stability_config import StabilityConfig, parse_stability
 from dbc.toml_table import TomlTable
 from dbc.units import ACCEPTED_PRESSURE_UNITS, pressure_factor_to_Pa
@@ -138,9 +139,10 @@ class ChamberSignal:
     cycle_time_s: float
     #: The multiplexer values of the frames that carry the signal; None: every frame.
     mux_ids: tuple[int, ...] | None = None
-    #: The DBC signal's physical range ``[min|max]`` in Pa, half a step wider (rounding);
-    #: a value outside it is none the DBC allows (J1939's error and "not available" codes
-    #: lie above a declared range). Unbounded where the DBC gives none.
+    #: The DBC signal's physical range ``[min|max]`` in Pa, half a step wider (rounding),
+    #: within J1939's valid range in a J1939 message: a value outside it is none the DBC
+    #: allows (J1939's error and "not available" codes lie above it). Unbounded where
+    #: neither bounds it (:func:`dbc.signal_range.value_range`).
     range_Pa: tuple[float, float] = (-math.inf, math.inf)
 
     def __str__(self) -> str:
@@ -426,21 +428,16 @@ def _chamber(
         status=status,
         cycle_time_s=_cycle_time_s(chamber, signal_key, message),
         mux_ids=_mux_ids(message, signal_name),
-        range_Pa=_range_Pa(signal, unit),
+        range_Pa=_range_Pa(signal, unit, is_j1939(message)),
     )
 
 
-def _range_Pa(signal: Signal, unit: str) -> tuple[float, float]:
-    """The signal's ``[min|max]`` in Pa, widened by half a step (none: unbounded; cantools
-    reads the DBC's ``[0|0]`` as none)."""
-    low, high = signal.minimum, signal.maximum
-    if low is None or high is None or not low < high:
-        return (-math.inf, math.inf)
+def _range_Pa(signal: Signal, unit: str, j1939: bool) -> tuple[float, float]:
+    """The values the signal may take (:func:`dbc.signal_range.value_range`) in Pa."""
     factor = pressure_factor_to_Pa(unit)
     assert factor is not None  # checked by the caller
-    margin = 0.5 * abs(signal.scale) if not signal.is_float else 0.0
-    margin += 1e-9 * max(abs(low), abs(high))
-    return ((low - margin) * factor, (high + margin) * factor)
+    low, high = value_range(signal, j1939)
+    return (low * factor, high * factor)
 
 
 def _mux_ids(message: Message, signal_name: str) -> tuple[int, ...] | None:

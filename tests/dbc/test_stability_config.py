@@ -107,6 +107,10 @@ def test_bad_stability_config_is_refused(
     assert reason in str(info.value)
 
 
+#: No range of values: the DBC's [0|360] deg would refuse 2094 mrad.
+UNBOUNDED = (-math.inf, math.inf)
+
+
 def test_angles_in_another_unit_give_the_same_pose(tmp_path: Path) -> None:
     """The DBC's degrees, or radians and milliradians the config says the values are in:
     one bridge pose, one set of feet."""
@@ -118,7 +122,8 @@ def test_angles_in_another_unit_give_the_same_pose(tmp_path: Path) -> None:
     for unit, rotation in (("deg", 120.0), ("rad", 2 * math.pi / 3), ("mrad", 2000 * math.pi / 3)):
         given = f'rotation = {{ signal = "BRIDGE_MOTION.Bridge_RotationAngle", unit = "{unit}" }}'
         stability = load(tmp_path, EXAMPLE.replace(old, given)).stability
-        tracker = PoseTracker(stability, {"BRIDGE_MOTION": 1.0, "BRIDGE_POSE": 1.0})
+        ages_s = {"BRIDGE_MOTION": 1.0, "BRIDGE_POSE": 1.0}
+        tracker = PoseTracker(stability, ages_s, {"rotation": UNBOUNDED, "fold": UNBOUNDED})
         tracker.observe(DecodedFrame("BRIDGE_MOTION", 10.0, {"Bridge_RotationAngle": rotation}))
         tracker.observe(DecodedFrame("BRIDGE_POSE", 10.0, {"Bridge_FoldAngle": 30.0}))
         feet[unit] = tracker.feet_m(10.0, {})
