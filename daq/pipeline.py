@@ -78,7 +78,12 @@ class Pipeline:
     @classmethod
     def from_config(cls, machine: MachineConfig, database: Database) -> "Pipeline":
         return cls(
-            FrameDecoder(database, machine.protection, machine.unit_factors),
+            FrameDecoder(
+                database,
+                machine.protection,
+                machine.unit_factors,
+                sender_to_si=machine.sender_unit_factors,
+            ),
             LegSampler(machine.legs),
             MachineEstimator(
                 {name: leg.geometry for name, leg in machine.legs.items()},
@@ -86,7 +91,7 @@ class Pipeline:
                 machine.weight_N,
                 {name: leg.cycle_time_s for name, leg in machine.legs.items()},
             ),
-            _pose_tracker(machine, database),
+            _pose_tracker(machine),
         )
 
     def process(self, frame: RawFrame) -> FrameResult:
@@ -148,14 +153,14 @@ class Pipeline:
         return self.estimator.metrics()
 
 
-def _pose_tracker(machine: MachineConfig, database: Database) -> PoseTracker | None:
+def _pose_tracker(machine: MachineConfig) -> PoseTracker | None:
     stability = machine.stability
     if stability is None:
         return None
     max_age_s = {}
     for ref in (stability.rotation, stability.fold):
-        cycle_ms = database.get_message_by_name(ref.message).cycle_time
-        # Without a cycle time in the DBC, a pose frame counts as fresh for a second.
+        cycle_ms = machine.cycle_times_ms.get(ref.message)
+        # Without a cycle time, a pose frame counts as fresh for a second.
         max_age_s[ref.message] = (
             machine.estimator.stale_after_cycles * cycle_ms / 1000.0 if cycle_ms else 1.0
         )
