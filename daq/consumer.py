@@ -141,8 +141,12 @@ class Consumer(Worker):
         self._now = now
         rate_hz = settings.signals_max_rate_hz
         self._signals_period_s = 1.0 / rate_hz if rate_hz > 0 else 0.0
-        #: Frame time of the signals last published, by message and J1939 sender.
-        self._signals_published_t_s: dict[tuple[str, int | None], float] = {}
+        #: Frame time of the signals last published, by message, J1939 sender and
+        #: multiplexer values (None: not multiplexed).
+        self._signals_published_t_s: dict[
+            tuple[str, int | None, tuple[object, ...] | None], float
+        ] = {}
+        self._multiplexers = pipeline.decoder.multiplexers
         self._monotonic = monotonic
         self._wait = self._stop.wait if wait is None else wait
         #: After a wake-up that took something, the source is not polled for this long.
@@ -232,8 +236,13 @@ class Consumer(Worker):
 
     def _signals_due(self, decoded: DecodedFrame) -> bool:
         """At most one frame's signals per ``signals_max_rate_hz`` (by frame time) for each
-        message and sender: J1939 transducers sharing a PGN each get their share."""
-        key = (decoded.message, decoded.source_address)
+        message, sender and page: J1939 transducers sharing a PGN, and a hub's multiplexer
+        values, each get their share (one would hide the others on a dashboard)."""
+        multiplexers = self._multiplexers.get(decoded.message)
+        page = None
+        if multiplexers is not None:
+            page = tuple(decoded.signals.get(name) for name in multiplexers)
+        key = (decoded.message, decoded.source_address, page)
         last_t_s = self._signals_published_t_s.get(key, float("-inf"))
         if not decoded.t_s - last_t_s >= self._signals_period_s:
             return False

@@ -14,10 +14,11 @@ from cantools.database.can import Database
 
 from daq.frames import RawFrame
 from daq.pose import PoseTracker
-from dbc.decoding import DecodedFrame, FrameDecoder
+from dbc.decoding import DecodedFrame, FrameDecoder, is_j1939
 from dbc.errors import ErrorFrameError, FrameError, RemoteFrameError
 from dbc.machine import MachineConfig
 from dbc.samples import LegSampler
+from dbc.signal_range import value_range
 from estimator.leg import LegEstimate
 from estimator.machine import MachineEstimator, MachineSnapshot
 from estimator.metrics import SoilMetrics
@@ -91,7 +92,7 @@ class Pipeline:
                 machine.weight_N,
                 {name: leg.cycle_time_s for name, leg in machine.legs.items()},
             ),
-            _pose_tracker(machine),
+            _pose_tracker(machine, database),
         )
 
     def process(self, frame: RawFrame) -> FrameResult:
@@ -153,15 +154,17 @@ class Pipeline:
         return self.estimator.metrics()
 
 
-def _pose_tracker(machine: MachineConfig) -> PoseTracker | None:
+def _pose_tracker(machine: MachineConfig, database: Database) -> PoseTracker | None:
     stability = machine.stability
     if stability is None:
         return None
-    max_age_s = {}
-    for ref in (stability.rotation, stability.fold):
+    max_age_s, ranges = {}, {}
+    for name, ref in (("rotation", stability.rotation), ("fold", stability.fold)):
+        message = database.get_message_by_name(ref.message)
+        ranges[name] = value_range(message.get_signal_by_name(ref.signal), is_j1939(message))
         cycle_ms = machine.cycle_times_ms.get(ref.message)
         # Without a cycle time, a pose frame counts as fresh for a second.
         max_age_s[ref.message] = (
             machine.estimator.stale_after_cycles * cycle_ms / 1000.0 if cycle_ms else 1.0
         )
-    return PoseTracker(stability, max_age_s)
+    return PoseTracker(stability, max_age_s, ranges)

@@ -169,7 +169,15 @@ def recording_results(
     if is_can_log(files[0]):
         frames = chained_log_frames(files, channel)
         return results(pipeline or Pipeline.from_config(*machine), frames)
+    no_channel_of_recordings(channel)
     return run_results(files, machine, pipeline)
+
+
+def no_channel_of_recordings(channel: str | None) -> None:
+    """Raises :class:`~dbc.errors.ConfigError` when a channel is asked of service
+    recordings (MCAP): they hold the one bus the service read."""
+    if channel is not None:
+        raise ConfigError("--channel", "", "picks a CAN log's bus; a service recording has one")
 
 
 def is_can_log(path: Path) -> bool:

@@ -261,6 +261,13 @@ class FrameDecoder:
         sender_to_si: SenderUnitFactors | None = None,
     ) -> None:
         self._codecs: dict[tuple[int, bool], _MessageCodec] = {}
+        #: The multiplexer signals of each multiplexed message, by message name: a frame's
+        #: page is their values.
+        self.multiplexers: dict[str, tuple[str, ...]] = {
+            message.name: tuple(s.name for s in message.signals if s.is_multiplexer)
+            for message in database.messages
+            if message.is_multiplexed()
+        }
         # PGN -> source address -> codec; None: any address (one message of the PGN).
         self._by_pgn: dict[int, dict[int | None, _MessageCodec]] = {}
         for message in database.messages:

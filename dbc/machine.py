@@ -26,6 +26,7 @@ from dbc.database import load_database
 from dbc.decoding import is_j1939, j1939_pgn
 from dbc.errors import ConfigError
 from dbc.protection import CRC_ALGORITHMS, DEFAULT_CRC_ALGORITHM, Protection, counter_modulo
+from dbc.signal_range import value_range
 from dbc.stability_config import StabilityConfig, parse_stability
 from dbc.toml_table import TomlTable
 from dbc.units import ACCEPTED_PRESSURE_UNITS, pressure_factor_to_Pa
@@ -54,6 +55,10 @@ GEOMETRY_KEYS = (
 #: Geometry keys that may be left out, and their defaults (``portal-daq calibrate``'s output).
 OPTIONAL_GEOMETRY = {"force_gain": 1.0, "force_offset_N": 0.0}
 LEG_SIGNAL_KEYS = ("piston", "rod", "status", "status_ok", "trigger", "max_skew_s")
+#: The co-simulation's legs (``sim_bridge.result.LEGS``): what a leg's ``simulated_leg``
+#: may name, so the simulator bridge plays that leg's pressures onto this config's leg.
+#: The service itself never reads the key.
+SIMULATED_LEGS = ("SB1_F1", "SB1_F2", "SB1_F3", "SB2_F1", "SB2_F2", "SB2_F3")
 #: Keys of a chamber written as a table: ``piston = { signal = "M.S", ... }``.
 CHAMBER_KEYS = ("signal", "source_address", "unit", "status", "status_ok")
 PROTECTION_KEYS = ("counter", "crc", "crc_algorithm", "data_id", "max_delta_counter")
@@ -141,9 +146,10 @@ class ChamberSignal:
     cycle_time_s: float
     #: The multiplexer values of the frames that carry the signal; None: every frame.
     mux_ids: tuple[int, ...] | None = None
-    #: The DBC signal's physical range ``[min|max]`` in Pa, half a step wider (rounding);
-    #: a value outside it is none the DBC allows (J1939's error and "not available" codes
-    #: lie above a declared range). Unbounded where the DBC gives none.
+    #: The DBC signal's physical range ``[min|max]`` in Pa, half a step wider (rounding),
+    #: within J1939's valid range in a J1939 message: a value outside it is none the DBC
+    #: allows (J1939's error and "not available" codes lie above it). Unbounded where
+    #: neither bounds it (:func:`dbc.signal_range.value_range`).
     range_Pa: tuple[float, float] = (-math.inf, math.inf)
 
     def __str__(self) -> str:
@@ -167,6 +173,9 @@ class LegConfig:
     trigger: str = "piston"
     #: The other chamber's latest value is used if it is at most this much older.
     max_skew_s: float = 0.0
+    #: The simulated leg (one of :data:`SIMULATED_LEGS`) the simulator bridge plays onto
+    #: this leg; None: derived (``sim_bridge.leg_map``).
+    simulated_leg: str | None = None
 
     @property
     def message(self) -> str:
@@ -302,6 +311,7 @@ def parse_machine_config(
         name: _leg(name, table, leg_defaults, database, status_ok, cycle_times_ms)
         for name, table in legs_table.subtables()
     }
+    _check_simulated_legs(legs_table, legs)
     protection = {
         name: _protection(name, table, database, cycle_times_ms)
         for name, table in root.table("protection", required=False).subtables()
@@ -341,7 +351,7 @@ def _leg(
 ) -> LegConfig:
     if re.fullmatch(NAME_PATTERN, name) is None:
         raise table.error("", f"leg name {name!r} must match {NAME_PATTERN}")
-    table.reject_unknown((*GEOMETRY_KEYS, *LEG_SIGNAL_KEYS))
+    table.reject_unknown((*GEOMETRY_KEYS, *LEG_SIGNAL_KEYS, "simulated_leg"))
     values: dict[str, float] = {}
     owners: dict[str, TomlTable] = {}
     for key in GEOMETRY_KEYS:
@@ -373,9 +383,37 @@ def _leg(
     max_skew_s = table.number("max_skew_s", other.cycle_time_s)
     if max_skew_s < 0:
         raise table.error("max_skew_s", f"must be >= 0, got {max_skew_s}")
+    simulated_leg = table.string("simulated_leg") if "simulated_leg" in table else None
+    if simulated_leg is not None and simulated_leg not in SIMULATED_LEGS:
+        raise table.error(
+            "simulated_leg",
+            f"the simulation has no leg {simulated_leg!r}; "
+            f"its legs are {', '.join(SIMULATED_LEGS)}",
+        )
     return LegConfig(
-        name=name, geometry=geometry, piston=piston, rod=rod, trigger=trigger, max_skew_s=max_skew_s
+        name=name,
+        geometry=geometry,
+        piston=piston,
+        rod=rod,
+        trigger=trigger,
+        max_skew_s=max_skew_s,
+        simulated_leg=simulated_leg,
     )
+
+
+def _check_simulated_legs(legs_table: TomlTable, legs: Mapping[str, LegConfig]) -> None:
+    """Each simulated leg is played onto one config leg at most."""
+    taken: dict[str, str] = {}
+    for name, leg in legs.items():
+        if leg.simulated_leg is None:
+            continue
+        if leg.simulated_leg in taken:
+            raise legs_table.error(
+                f"{name}.simulated_leg",
+                f"{leg.simulated_leg} is already legs.{taken[leg.simulated_leg]}'s simulated "
+                "leg; each simulated leg plays onto one leg",
+            )
+        taken[leg.simulated_leg] = name
 
 
 def _split_ref(table: TomlTable, key: str, text: str, database: Database) -> tuple[Message, str]:
@@ -447,21 +485,16 @@ def _chamber(
         status=status,
         cycle_time_s=_cycle_time_s(chamber, signal_key, message, cycle_times_ms),
         mux_ids=_mux_ids(message, signal_name),
-        range_Pa=_range_Pa(signal, unit),
+        range_Pa=_range_Pa(signal, unit, is_j1939(message)),
     )
 
 
-def _range_Pa(signal: Signal, unit: str) -> tuple[float, float]:
-    """The signal's ``[min|max]`` in Pa, widened by half a step (none: unbounded; cantools
-    reads the DBC's ``[0|0]`` as none)."""
-    low, high = signal.minimum, signal.maximum
-    if low is None or high is None or not low < high:
-        return (-math.inf, math.inf)
+def _range_Pa(signal: Signal, unit: str, j1939: bool) -> tuple[float, float]:
+    """The values the signal may take (:func:`dbc.signal_range.value_range`) in Pa."""
     factor = pressure_factor_to_Pa(unit)
     assert factor is not None  # checked by the caller
-    margin = 0.5 * abs(signal.scale) if not signal.is_float else 0.0
-    margin += 1e-9 * max(abs(low), abs(high))
-    return ((low - margin) * factor, (high + margin) * factor)
+    low, high = value_range(signal, j1939)
+    return (low * factor, high * factor)
 
 
 def _mux_ids(message: Message, signal_name: str) -> tuple[int, ...] | None:

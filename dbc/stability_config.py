@@ -4,8 +4,8 @@ Read by :func:`dbc.machine.parse_machine_config`; optional (no table: no stabili
 margin). Example (``deploy/machine.example.toml``)::
 
     [stability]
-    rotation = "BRIDGE_MOTION.Bridge_RotationAngle"   # deg about the standing base; 0: its x
-    fold = "BRIDGE_POSE.Bridge_FoldAngle"             # deg; 0 = unfolded
+    rotation = "BRIDGE_MOTION.Bridge_RotationAngle"   # about the standing base; 0: its x
+    fold = "BRIDGE_POSE.Bridge_FoldAngle"             # 0 = unfolded
     bridge_length_m = 6.0
     hinge_m = 3.0
     warning_margin_m = 0.3
@@ -14,13 +14,19 @@ margin). Example (``deploy/machine.example.toml``)::
     feet_m = { SB1_F1 = [1.6, 0.0], SB1_F2 = [-0.8, 1.3856], SB1_F3 = [-0.8, -1.3856] }
     [stability.bases.SB2]
     ...
+
+The angles are in the DBC signal's unit (deg, rad, mrad: :data:`dbc.units.ANGLE_UNITS_TO_RAD`),
+or in the one the config gives where the DBC's is empty or wrong:
+``rotation = { signal = "POSE.Rot", unit = "rad" }``.
 """
 
+import math
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from dbc.toml_table import TomlTable
+from dbc.units import ACCEPTED_ANGLE_UNITS, angle_factor_to_rad
 from estimator.kinematics import BaseLayout, MachineLayout, Point
 
 if TYPE_CHECKING:
@@ -35,10 +41,10 @@ STABILITY_KEYS = (
     "bases",
 )
 BASE_KEYS = ("axis_m", "feet_m")
+#: Keys of an angle given as a table: ``{ signal = "M.S", unit = "rad" }``.
+ANGLE_KEYS = ("signal", "unit")
 #: Default of ``warning_margin_m``.
 WARNING_MARGIN_M = 0.3
-#: How DBCs spell degrees (lower case, blanks stripped): Vector's tools write "°".
-DEGREE_UNITS = ("deg", "°", "degree", "degrees")
 
 
 @dataclass(frozen=True)
@@ -46,12 +52,15 @@ class StabilityConfig:
     """What the stability margin needs: the layout and where the pose is on the bus."""
 
     layout: MachineLayout
-    #: Bridge rotation angle signal (deg in the DBC).
+    #: Bridge rotation angle signal.
     rotation: "SignalRef"
-    #: Bridge fold angle signal (deg in the DBC).
+    #: Bridge fold angle signal.
     fold: "SignalRef"
     #: Monitor and dashboard warn when the margin falls below this, m.
     warning_margin_m: float
+    #: Radians per unit of the rotation and the fold signal's values.
+    rotation_rad_per_unit: float = math.pi / 180.0
+    fold_rad_per_unit: float = math.pi / 180.0
 
 
 def parse_stability(
@@ -69,14 +78,9 @@ def parse_stability(
         return None
     table.reject_unknown(STABILITY_KEYS)
     refs = {}
+    rad_per_unit = {}
     for key in ("rotation", "fold"):
-        refs[key] = signal(table, key)
-        if (unit(refs[key]) or "").strip().lower() not in DEGREE_UNITS:
-            raise table.error(
-                key,
-                f"{refs[key]} must be in degrees in the DBC (deg, °, degree), "
-                f"got {unit(refs[key])!r}",
-            )
+        refs[key], rad_per_unit[key] = _angle(table, key, signal, unit)
     warning_m = table.number("warning_margin_m", WARNING_MARGIN_M)
     if warning_m < 0:
         raise table.error("warning_margin_m", f"must be >= 0, got {warning_m}")
@@ -97,7 +101,47 @@ def parse_stability(
         bridge_length_m=table.number("bridge_length_m"),
         hinge_m=table.number("hinge_m"),
     )
-    return StabilityConfig(layout, refs["rotation"], refs["fold"], warning_m)
+    return StabilityConfig(
+        layout,
+        refs["rotation"],
+        refs["fold"],
+        warning_m,
+        rotation_rad_per_unit=rad_per_unit["rotation"],
+        fold_rad_per_unit=rad_per_unit["fold"],
+    )
+
+
+def _angle(
+    table: TomlTable,
+    key: str,
+    signal: Callable[[TomlTable, str], "SignalRef"],
+    unit: Callable[["SignalRef"], str | None],
+) -> tuple["SignalRef", float]:
+    """An angle's signal (``"M.S"`` or ``{ signal = "M.S", unit = "rad" }``) and radians per
+    unit of its value: the config's unit, else the DBC's."""
+    if isinstance(table.data.get(key), dict):
+        angle = table.table(key)
+        angle.reject_unknown(ANGLE_KEYS)
+        ref = signal(angle, "signal")
+        if "unit" in angle:
+            given = angle.string("unit")
+            factor = angle_factor_to_rad(given)
+            if factor is None:
+                raise angle.error(
+                    "unit", f"{given!r} is not an angle unit; use one of {ACCEPTED_ANGLE_UNITS}"
+                )
+            return ref, factor
+    else:
+        ref = signal(table, key)
+    dbc_unit = unit(ref) or ""
+    factor = angle_factor_to_rad(dbc_unit)
+    if factor is None:
+        raise table.error(
+            key,
+            f"{ref} has unit {dbc_unit!r} in the DBC, not an angle unit; give its unit: "
+            f'{key} = {{ signal = "{ref}", unit = "deg" }} (one of {ACCEPTED_ANGLE_UNITS})',
+        )
+    return ref, factor
 
 
 def _base(name: str, table: TomlTable) -> BaseLayout:

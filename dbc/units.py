@@ -1,4 +1,6 @@
-"""Pressure units of DBC signals and their factor to Pa: the one table of them.
+"""Units of DBC signals and their factor to SI: the one table of them.
+
+Pressures (the legs' chambers) go to Pa; the bridge angles of ``[stability]`` to radians.
 
 A DBC signal's physical value is in the unit its ``unit`` string names; the
 service works in SI inside, so every pressure signal is converted to Pa when it
@@ -21,6 +23,8 @@ True
 >>> pressure_factor_to_Pa("bara") is None
 True
 """
+
+import math
 
 #: Accepted pressure units (lower case) and what one of them is in Pa.
 PRESSURE_UNITS_TO_PA: dict[str, float] = {
@@ -56,3 +60,32 @@ def pressure_factor_to_Pa(unit: str) -> float | None:
         if mark is not None:
             factor = PRESSURE_UNITS_TO_PA.get(name.removesuffix(mark).rstrip(" _-"))
     return factor
+
+
+#: Accepted angle units (lower case) and what one of them is in radians: the bridge's
+#: rotation and fold angles (``[stability]``). Vector's tools write degrees as "°".
+ANGLE_UNITS_TO_RAD: dict[str, float] = {
+    "deg": math.pi / 180.0,
+    "°": math.pi / 180.0,
+    "degree": math.pi / 180.0,
+    "degrees": math.pi / 180.0,
+    "rad": 1.0,
+    "radian": 1.0,
+    "radians": 1.0,
+    "mrad": 1.0e-3,
+}
+
+#: The accepted angle units as a person writes them, for error messages.
+ACCEPTED_ANGLE_UNITS = "deg, \u00b0, degree, rad, mrad"
+
+
+def angle_factor_to_rad(unit: str) -> float | None:
+    """Radians per one ``unit`` (case-insensitive, surrounding blanks ignored); None if
+    unknown.
+
+    >>> angle_factor_to_rad(" Deg ") == math.pi / 180
+    True
+    >>> angle_factor_to_rad("mrad")
+    0.001
+    """
+    return ANGLE_UNITS_TO_RAD.get(unit.strip().lower())

@@ -32,6 +32,7 @@ from sim_bridge._args import BridgeOptions, PlotOptions, SourceOptions, ZenohOpt
 from sim_bridge.emitter import Emitter, EmitterStats, end_of_run_ns
 from sim_bridge.faults import FaultConfig, FaultInjector
 from sim_bridge.frames import FrameBuilder
+from sim_bridge.leg_map import leg_map
 from sim_bridge.playout import Playout, fault_targets
 from sim_bridge.result import SimulationResult
 from sim_bridge.truth import CsvTruthWriter, McapTruthWriter, TruthSink, ZenohTruthPublisher
@@ -199,6 +200,7 @@ def main(options: BridgeOptions) -> int:
     config, database = load_machine_config(options.source.config_path)
     result = load_source(options.source, config)
     builder = FrameBuilder(config, database)
+    logger.info("legs played (config=simulated): %s, by %s", builder.leg_map, builder.leg_map.rule)
     if builder.skipped:
         logger.info(
             "not sent (the simulation has none of their signals, or multiplexed): %s",
@@ -302,10 +304,12 @@ def plot_main(options: PlotOptions) -> int:
     from sim_bridge.plot import write_cycle_plot  # matplotlib loads only to draw
 
     config, _ = load_machine_config(options.source.config_path)
+    columns = leg_map(config).columns
     result = load_source(options.source, config)
     with _open_output(options.out_path, "wb") as stream:
         geometries = {leg: config.legs[leg].geometry for leg in config.legs}
-        write_cycle_plot(result, geometries, stream, title=f"{config.machine_id}: one cycle")
+        title = f"{config.machine_id}: one cycle"
+        write_cycle_plot(result, geometries, stream, title, columns)
     logger.info("wrote %s", options.out_path)
     return 0
 

@@ -81,7 +81,8 @@ class Emitter:
     ``end_sim_ns`` ends the run before that simulation time (None: run until
     :meth:`stop`; :func:`end_of_run_ns` computes it from cycles and a duration).
     ``truth_every`` writes every n-th simulation row the bus reaches to each of
-    ``truth_sinks``, with foot areas ``feet_m2`` (leg -> m2).
+    ``truth_sinks``, with foot areas ``feet_m2`` (config leg -> m2); the truth names the
+    config's legs, each with its simulated leg's values (the playout's leg map).
     """
 
     def __init__(
@@ -152,7 +153,13 @@ class Emitter:
             if (position.cycle, position.row) != last_row:
                 last_row = (position.cycle, position.row)
                 if self._truth_sinks and rows_reached % self._truth_every == 0:
-                    sample = truth_sample(self._playout.result, position, t_unix_s, self._feet_m2)
+                    sample = truth_sample(
+                        self._playout.result,
+                        position,
+                        t_unix_s,
+                        self._feet_m2,
+                        self._playout.leg_columns,
+                    )
                     for sink in self._truth_sinks:
                         sink.write(sample)
                     stats.truth_samples += 1

@@ -13,7 +13,7 @@ fault hits the same frames at any ``--speed``. The faults and their command-line
 ``--freeze-counter TARGET@START:DURATION``
     The message's rolling counter stops advancing: every frame in the window repeats the
     last counter sent before it (``counter``); afterwards it advances from there again.
-    TARGET is a message (``LEG_SB1_F1``), a leg (``SB1_F1``, meaning its message, or its
+    TARGET is a message (``LEG_SB1_F1``), a config leg (``SB1_F1``, meaning its message, or its
     trigger chamber's transducer), one J1939 transducer (``HYD_PRESS@0x21``) or all
     transducers sending a message (``HYD_PRESS``).
 ``--silent TARGET@START:DURATION``
@@ -52,7 +52,7 @@ import numpy as np
 
 from dbc.errors import ConfigError
 from sim_bridge.frames import LegOverride
-from sim_bridge.result import LEGS, SimulationResult
+from sim_bridge.result import SimulationResult, leg_column
 from sim_bridge.schedule import NS_PER_S
 
 #: The source named by errors about fault flags.
@@ -224,16 +224,21 @@ class FaultInjector:
         )
 
     def overrides(
-        self, result: SimulationResult, row: int, sim_t_ns: int
+        self,
+        result: SimulationResult,
+        row: int,
+        sim_t_ns: int,
+        columns: Mapping[str, int] | None = None,
     ) -> dict[str, LegOverride]:
-        """The legs whose pressures or status a fault changes at this time."""
+        """The legs whose pressures or status a fault changes at this time; ``columns``:
+        each leg's column in ``result`` (see :func:`~sim_bridge.result.leg_column`)."""
         faults = self.faults
         changed: dict[str, tuple[float, float, str | None]] = {}
 
         def current(leg: str) -> tuple[float, float, str | None]:
             if leg in changed:
                 return changed[leg]
-            column = LEGS.index(leg)
+            column = leg_column(leg, columns)
             return (
                 float(result.p_piston_Pa[row, column]),
                 float(result.p_rod_Pa[row, column]),

@@ -5,12 +5,14 @@ Pure computation. Which signal carries what:
 - **Leg chambers** follow the machine configuration: ``[legs.<LEG>]`` names the piston
   and rod signals (in one message or two, J1939 ones from a source address each) and
   their status signals, so a different DBC works by editing the config. Each config leg
-  must be one of the simulation's legs (:data:`~sim_bridge.result.LEGS`). Pressures are
-  in Pa here; the encoder converts them into the DBC signal's unit.
+  plays one of the simulation's legs (:data:`~sim_bridge.result.LEGS`), as
+  :mod:`sim_bridge.leg_map` finds it (by name, ``simulated_leg``, or derived). Pressures
+  are in Pa here; the encoder converts them into the DBC signal's unit.
 - **The bridge angles** are the ``[stability]`` ``rotation`` and ``fold`` signals where
   the config has that table, whatever their DBC names.
 - **Every other signal** is found by its name in the DBC: ``INCL_<BASE>_pPiston`` /
-  ``_pRod`` / ``_Status``, ``<LEG>_Stroke``, ``<BASE>_InclinationAngle``,
+  ``_pRod`` / ``_Status``, ``<LEG>_Stroke`` (a simulated or a config leg),
+  ``<BASE>_InclinationAngle``,
   ``Bridge_FoldAngle``, ``Bridge_RotationAngle``, ``Carriage_Position``,
   ``Machine_Phase`` (value-table name), ``Machine_CycleCount`` (completed cycles) and
   ``Machine_CycleTime`` (time since the cycle started).
@@ -38,6 +40,7 @@ from dbc.decoding import SignalValue
 from dbc.errors import ConfigError
 from dbc.machine import ChamberSignal, MachineConfig
 from dbc.units import pressure_factor_to_Pa
+from sim_bridge.leg_map import LegMap, leg_map
 from sim_bridge.result import BASES, LEGS, PHASES, SimulationResult
 from sim_bridge.schedule import NS_PER_MS, NS_PER_S, MessageCycle
 
@@ -101,6 +104,8 @@ class _ChamberSignals:
     """One chamber pressure of a leg in a sender's frame, and its status signal."""
 
     leg: str
+    #: The leg's column in the result's per-leg arrays (its simulated leg).
+    column: int
     #: "piston" or "rod".
     chamber: str
     pressure: Signal
@@ -138,8 +143,8 @@ class FrameBuilder:
     of trigger chambers: each leg sample then pairs the chamber values of one
     simulation row (skew 0), from the very first sample on. Values are in SI; the encoder turns
     them into the DBC's units. Constructed once from the machine configuration and
-    the DBC; raises :class:`~dbc.errors.ConfigError` when a config leg is not a
-    simulated leg.
+    the DBC; raises :class:`~dbc.errors.ConfigError` when the config's legs cannot be
+    mapped onto the simulated legs (:func:`~sim_bridge.leg_map.leg_map`).
     """
 
     def __init__(self, config: MachineConfig, database: Database) -> None:
@@ -153,14 +158,11 @@ class FrameBuilder:
         self._with_crc = frozenset(
             name for name, protection in config.protection.items() if protection.crc is not None
         )
+        #: Which simulated leg plays each config leg.
+        self.leg_map: LegMap = leg_map(config)
+        columns = self.leg_map.columns
         chambers_by_sender: dict[tuple[str, int | None], list[_ChamberSignals]] = {}
         for leg in config.legs.values():
-            if leg.name not in LEGS:
-                raise ConfigError(
-                    config.source,
-                    f"legs.{leg.name}",
-                    f"the simulation has no leg {leg.name!r}; its legs are {', '.join(LEGS)}",
-                )
             for chamber in ("piston", "rod"):
                 mapped: ChamberSignal = getattr(leg, chamber)
                 message = database.get_message_by_name(mapped.message)
@@ -172,20 +174,26 @@ class FrameBuilder:
                         "(the service decodes it)",
                     )
                 chambers_by_sender.setdefault((mapped.message, mapped.source_address), []).append(
-                    _chamber_signals(message, leg.name, chamber, mapped)
+                    _chamber_signals(message, leg.name, columns[leg.name], chamber, mapped)
                 )
         # Senders carrying a leg's trigger chamber go after the others of their message.
         triggers = {
             (leg.trigger_chamber.message, leg.trigger_chamber.source_address)
             for leg in config.legs.values()
         }
-        getters = _named_getters(status_ok)
+        getters = _named_getters(status_ok, columns)
         # The bridge angles where [stability] says they are, whatever the DBC calls them.
         pose_getters: dict[tuple[str, str], Getter] = {}
         if config.stability is not None:
-            rotation, fold = config.stability.rotation, config.stability.fold
-            pose_getters[(rotation.message, rotation.signal)] = getters["Bridge_RotationAngle"]
-            pose_getters[(fold.message, fold.signal)] = getters["Bridge_FoldAngle"]
+            stability = config.stability
+            for ref, rad_per_unit, name in (
+                (stability.rotation, stability.rotation_rad_per_unit, "Bridge_RotationAngle"),
+                (stability.fold, stability.fold_rad_per_unit, "Bridge_FoldAngle"),
+            ):
+                # The simulation's angles are in degrees; the DBC's signal may be in another unit.
+                pose_getters[(ref.message, ref.signal)] = _scaled(
+                    getters[name], math.radians(1.0) / rad_per_unit
+                )
         self._plans: dict[str, _MessagePlan] = {}
         #: Signals sent as a constant 0, as "MESSAGE.SIGNAL".
         self.defaulted: list[str] = []
@@ -284,9 +292,8 @@ class FrameBuilder:
             override = (overrides or {}).get(chamber.leg)
             status: SignalValue
             if override is None:
-                column = LEGS.index(chamber.leg)
                 field = result.p_piston_Pa if chamber.chamber == "piston" else result.p_rod_Pa
-                p_Pa = float(field[row, column])
+                p_Pa = float(field[row, chamber.column])
                 status = chamber.status_nominal
             else:
                 p_Pa = override.p_piston_Pa if chamber.chamber == "piston" else override.p_rod_Pa
@@ -332,13 +339,14 @@ def clip(signal: Signal, value: SignalValue, to_si: float = 1.0) -> SignalValue:
 
 
 def _chamber_signals(
-    message: Message, leg: str, chamber: str, mapped: ChamberSignal
+    message: Message, leg: str, column: int, chamber: str, mapped: ChamberSignal
 ) -> _ChamberSignals:
     factor = pressure_factor_to_Pa(mapped.unit)
     assert factor is not None  # the config loader checked the unit
     status = mapped.status
     return _ChamberSignals(
         leg=leg,
+        column=column,
         chamber=chamber,
         pressure=message.get_signal_by_name(mapped.signal),
         to_Pa=factor,
@@ -355,6 +363,12 @@ def _series(field: str) -> Getter:
     return lambda result, row, cycle: float(getattr(result, field)[row])
 
 
+def _scaled(getter: Getter, factor: float) -> Getter:
+    if factor == 1.0:
+        return getter
+    return lambda result, row, cycle: float(getter(result, row, cycle)) * factor
+
+
 def _phase_getter(signal: Signal) -> Getter:
     """The phase by its value-table name when the DBC's table has the names, else its index."""
     names = {str(choice) for choice in (signal.choices or {}).values()}
@@ -368,8 +382,9 @@ def _phase_getter(signal: Signal) -> Getter:
     return phase
 
 
-def _named_getters(status_ok: SignalValue) -> dict[str, Getter]:
-    """Getters of the signals found by name in the DBC (Machine_Phase aside)."""
+def _named_getters(status_ok: SignalValue, columns: Mapping[str, int]) -> dict[str, Getter]:
+    """Getters of the signals found by name in the DBC (Machine_Phase aside); ``columns``:
+    each config leg's column, whose ``<LEG>_Stroke`` is its simulated leg's."""
     getters: dict[str, Getter] = {
         "Bridge_FoldAngle": _series("fold_deg"),
         "Bridge_RotationAngle": _series("rotation_deg"),
@@ -382,6 +397,6 @@ def _named_getters(status_ok: SignalValue) -> dict[str, Getter]:
         getters[f"INCL_{base}_pRod"] = _column("incl_p_rod_Pa", b)
         getters[f"INCL_{base}_Status"] = lambda result, row, cycle: status_ok
         getters[f"{base}_InclinationAngle"] = _column("inclination_deg", b)
-    for i, leg in enumerate(LEGS):
-        getters[f"{leg}_Stroke"] = _column("stroke_m", i)
+    for leg, column in ({leg: i for i, leg in enumerate(LEGS)} | dict(columns)).items():
+        getters[f"{leg}_Stroke"] = _column("stroke_m", column)
     return getters

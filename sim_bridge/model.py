@@ -26,13 +26,13 @@ from scipy.integrate import solve_ivp
 
 from sim_bridge import cycle
 from sim_bridge.noise import ImpulsiveNoise
-from sim_bridge.params import G_M_S2, ModelParams
+from sim_bridge.params import FOOT_ANGLES_DEG, G_M_S2, ModelParams
 from sim_bridge.result import SimulationResult
 
 FloatArray = npt.NDArray[np.float64]
 
 #: Angles of a base's feet F1, F2, F3 about its centre.
-FOOT_ANGLES_RAD = np.radians([0.0, 120.0, 240.0])
+FOOT_ANGLES_RAD = np.radians(FOOT_ANGLES_DEG)
 
 
 @dataclass(frozen=True)

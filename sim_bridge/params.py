@@ -14,6 +14,10 @@ from estimator.geometry import LegGeometry
 
 #: Standard gravity.
 G_M_S2 = 9.80665
+#: Angles of a base's feet F1, F2, F3 about the centre of its feet, in the base's frame
+#: (x along the bridge at rotation 0; for the hanging base, pointing away from the
+#: standing one): the frame of ``[stability.bases.*]`` in the machine configuration.
+FOOT_ANGLES_DEG = (0.0, 120.0, 240.0)
 
 
 def default_leg() -> LegGeometry:

@@ -64,6 +64,8 @@ class Playout:
         self._injector = injector or FaultInjector(FaultConfig(), fault_targets(builder))
         self._next_counter: dict[str, int] = {}
         self.counts = PlayoutCounts()
+        #: Config leg -> its column in ``result`` (its simulated leg).
+        self.leg_columns = builder.leg_map.columns
 
     @property
     def cycles(self) -> list[MessageCycle]:
@@ -77,7 +79,9 @@ class Playout:
         if injector.paused(instant.sim_t_ns):
             counts.paused.update(instant.messages)
             return position, []
-        overrides = injector.overrides(self.result, position.row, instant.sim_t_ns)
+        overrides = injector.overrides(
+            self.result, position.row, instant.sim_t_ns, self.leg_columns
+        )
         outgoing: list[OutgoingFrame] = []
         for message in instant.messages:
             if injector.silent(message, instant.sim_t_ns):

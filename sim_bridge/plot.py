@@ -21,19 +21,22 @@ from matplotlib.figure import Figure
 
 from estimator.equations import foot_force_N
 from estimator.geometry import LegGeometry
-from sim_bridge.result import LEGS, PHASES, FloatArray, SimulationResult
+from sim_bridge.result import LEGS, PHASES, FloatArray, SimulationResult, leg_column
 
 COLOURS = ("tab:blue", "tab:orange", "tab:green")
 MARKERS = ("o", "s", "^")
 
 
 def foot_forces_N(
-    result: SimulationResult, geometries: Mapping[str, LegGeometry]
+    result: SimulationResult,
+    geometries: Mapping[str, LegGeometry],
+    columns: Mapping[str, int] | None = None,
 ) -> dict[str, tuple[FloatArray, bool]]:
-    """Leg -> (force per row, True if the true force, False if from eq. (4))."""
+    """Leg -> (force per row, True if the true force, False if from eq. (4)); ``columns``:
+    each config leg's column (see :func:`~sim_bridge.result.leg_column`)."""
     forces: dict[str, tuple[FloatArray, bool]] = {}
     for leg, geometry in geometries.items():
-        column = LEGS.index(leg)
+        column = leg_column(leg, columns)
         true_N = result.force_true_N[:, column]
         if np.all(np.isnan(true_N)):
             estimate = foot_force_N(
@@ -46,15 +49,19 @@ def foot_forces_N(
 
 
 def cycle_figure(
-    result: SimulationResult, geometries: Mapping[str, LegGeometry], title: str = ""
+    result: SimulationResult,
+    geometries: Mapping[str, LegGeometry],
+    title: str = "",
+    columns: Mapping[str, int] | None = None,
 ) -> Figure:
-    """The two-panel figure (pressure in kPa above, force in kN below)."""
+    """The two-panel figure (pressure in kPa above, force in kN below), one line per leg
+    of ``geometries``, styled by its simulated leg's base and foot."""
     figure = Figure(figsize=(10, 7), layout="constrained")
     FigureCanvasAgg(figure)
     pressure_axes, force_axes = figure.subplots(2, 1, sharex=True)
     t_s = result.t_s
-    for leg, (force_N, is_true) in foot_forces_N(result, geometries).items():
-        column = LEGS.index(leg)
+    for leg, (force_N, is_true) in foot_forces_N(result, geometries, columns).items():
+        column = leg_column(leg, columns)
         style = {
             "color": COLOURS[column % 3],
             "linestyle": "-" if column < 3 else "--",
@@ -86,9 +93,10 @@ def write_cycle_plot(
     geometries: Mapping[str, LegGeometry],
     out: str | Path | IO[bytes],
     title: str = "",
+    columns: Mapping[str, int] | None = None,
 ) -> None:
     """Draws :func:`cycle_figure` into a PNG file (a path or a binary stream)."""
-    cycle_figure(result, geometries, title).savefig(out, format="png", dpi=120)
+    cycle_figure(result, geometries, title, columns).savefig(out, format="png", dpi=120)
 
 
 def phase_spans(result: SimulationResult) -> list[tuple[float, float, int]]:

@@ -1,18 +1,28 @@
 """The output of one simulated movement cycle: every DBC signal plus the ground truth."""
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
 
+from dbc.machine import SIMULATED_LEGS
+
 FloatArray = npt.NDArray[np.float64]
 
-#: Leg order of every per-leg column.
-LEGS = ("SB1_F1", "SB1_F2", "SB1_F3", "SB2_F1", "SB2_F2", "SB2_F3")
+#: Leg order of every per-leg column (defined beside the config key ``simulated_leg``
+#: that names them).
+LEGS = SIMULATED_LEGS
 #: Base order of the per-base columns.
 BASES = ("SB1", "SB2")
 #: Movement phases, numbered as in the DBC's Machine_Phase value table.
 PHASES = ("idle", "move_carriage", "fold", "rotate", "unfold")
+
+
+def leg_column(leg: str, columns: Mapping[str, int] | None = None) -> int:
+    """The column of ``leg`` in per-leg arrays: ``columns[leg]`` for a config leg
+    (:attr:`sim_bridge.leg_map.LegMap.columns`), else the simulated leg of that name."""
+    return columns[leg] if columns is not None else LEGS.index(leg)
 
 
 @dataclass(frozen=True)

@@ -32,7 +32,7 @@ from mcap.writer import CompressionType
 from mcap.writer import Writer as McapWriter
 
 from sim_bridge.frames import Position
-from sim_bridge.result import LEGS, SimulationResult
+from sim_bridge.result import SimulationResult, leg_column
 
 logger = logging.getLogger(__name__)
 
@@ -84,12 +84,15 @@ def truth_sample(
     position: Position,
     t_unix_s: float,
     feet_m2: Mapping[str, float],
+    columns: Mapping[str, int] | None = None,
 ) -> TruthSample:
-    """The truth of ``result`` at ``position``; ``feet_m2`` is each leg's foot area."""
+    """The truth of ``result`` at ``position``; ``feet_m2`` is each leg's foot area, by
+    config leg, ``columns`` each config leg's column in ``result`` (None: the legs are
+    named like the simulation's; see :func:`~sim_bridge.result.leg_column`)."""
     row = position.row
     legs = {}
     for leg, foot_m2 in feet_m2.items():
-        column = LEGS.index(leg)
+        column = leg_column(leg, columns)
         force_N = float(result.force_true_N[row, column])
         legs[leg] = LegTruth(
             force_true_N=force_N,

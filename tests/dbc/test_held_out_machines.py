@@ -206,8 +206,10 @@ def test_bridge_angles_in_degrees_spelled_as_dbcs_do_are_taken(tmp_path: Path) -
     with pytest.raises(ConfigError) as refused:
         load_machine_config(tmp_path / "machine.toml")
     assert str(refused.value) == (
-        f"{tmp_path / 'machine.toml'}: stability.fold: HUB_REAR.RL_pRod must be in degrees "
-        "in the DBC (deg, \u00b0, degree), got 'Bar'"
+        f"{tmp_path / 'machine.toml'}: stability.fold: HUB_REAR.RL_pRod has unit 'Bar' in the "
+        "DBC, not an angle unit; give its unit: "
+        'fold = { signal = "HUB_REAR.RL_pRod", unit = "deg" } '
+        "(one of deg, \u00b0, degree, rad, mrad)"
     )
 
 

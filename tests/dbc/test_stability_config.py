@@ -1,9 +1,12 @@
 """The ``[stability]`` table: the example loads, non-default values apply, bad ones refused."""
 
+import math
 from pathlib import Path
 
 import pytest
 
+from daq.pose import PoseTracker
+from dbc.decoding import DecodedFrame
 from dbc.errors import ConfigError
 from dbc.machine import load_machine_config
 from tests.helpers import EXAMPLE_CONFIG
@@ -59,6 +62,18 @@ def test_without_the_table_there_is_no_margin(tmp_path: Path) -> None:
             "stability.fold",
             "no signal",
         ),
+        (
+            'rotation = "BRIDGE_MOTION.Bridge_RotationAngle"',
+            'rotation = { signal = "BRIDGE_MOTION.Bridge_RotationAngle", unit = "furlong" }',
+            "stability.rotation.unit",
+            "'furlong' is not an angle unit; use one of deg",
+        ),
+        (
+            'fold = "BRIDGE_POSE.Bridge_FoldAngle"',
+            'fold = { signal = "BRIDGE_POSE.Bridge_FoldAngle", units = "rad" }',
+            "stability.fold.units",
+            "unknown key",
+        ),
         ("axis_m = [0.07, 0.0]", "axis_m = [0.07]", "stability.bases.SB1.axis_m", "[x, y]"),
         (
             "SB1_F1 = [1.6, 0.0]",
@@ -90,3 +105,31 @@ def test_bad_stability_config_is_refused(
         load(tmp_path, EXAMPLE.replace(old, new, 1))
     assert info.value.key == key
     assert reason in str(info.value)
+
+
+#: No range of values: the DBC's [0|360] deg would refuse 2094 mrad.
+UNBOUNDED = (-math.inf, math.inf)
+
+
+def test_angles_in_another_unit_give_the_same_pose(tmp_path: Path) -> None:
+    """The DBC's degrees, or radians and milliradians the config says the values are in:
+    one bridge pose, one set of feet."""
+    old = 'rotation = "BRIDGE_MOTION.Bridge_RotationAngle"'
+    assert old in EXAMPLE
+    degrees = load_machine_config(EXAMPLE_CONFIG)[0].stability
+    assert degrees is not None and degrees.rotation_rad_per_unit == math.pi / 180
+    feet = {}
+    for unit, rotation in (("deg", 120.0), ("rad", 2 * math.pi / 3), ("mrad", 2000 * math.pi / 3)):
+        given = f'rotation = {{ signal = "BRIDGE_MOTION.Bridge_RotationAngle", unit = "{unit}" }}'
+        stability = load(tmp_path, EXAMPLE.replace(old, given)).stability
+        ages_s = {"BRIDGE_MOTION": 1.0, "BRIDGE_POSE": 1.0}
+        tracker = PoseTracker(stability, ages_s, {"rotation": UNBOUNDED, "fold": UNBOUNDED})
+        tracker.observe(DecodedFrame("BRIDGE_MOTION", 10.0, {"Bridge_RotationAngle": rotation}))
+        tracker.observe(DecodedFrame("BRIDGE_POSE", 10.0, {"Bridge_FoldAngle": 30.0}))
+        feet[unit] = tracker.feet_m(10.0, {})
+    turned = feet["deg"]
+    assert turned is not None and turned["SB2_F1"] == pytest.approx((-3.529038, 6.233717))
+    for unit in ("rad", "mrad"):
+        assert feet[unit] is not None and feet[unit].keys() == turned.keys()
+        for leg, at_m in turned.items():
+            assert feet[unit][leg] == pytest.approx(at_m, abs=1e-9)

@@ -1,5 +1,6 @@
 """Frames built from a simulation row decode back to the row's values within quantization."""
 
+import math
 import tomllib
 
 import numpy as np
@@ -169,3 +170,19 @@ def test_the_pose_signals_of_the_stability_config_carry_the_bridge_pose(
     assert motion["RotAngle"] == pytest.approx(result.rotation_deg[row])
     assert pose["Fold"] == pytest.approx(result.fold_deg[row])
     assert not {"BRIDGE_MOTION.RotAngle", "BRIDGE_POSE.Fold"} & set(builder.defaulted)
+
+
+def test_the_bridge_angles_go_out_in_the_unit_of_their_signal(result: SimulationResult) -> None:
+    """A DBC (or config) whose bridge angles are in radians gets radians, not degrees."""
+    data = tomllib.loads(EXAMPLE_CONFIG.read_text())
+    data["stability"]["rotation"] = {
+        "signal": "BRIDGE_MOTION.Bridge_RotationAngle",
+        "unit": "rad",
+    }
+    builder = FrameBuilder(parse_machine_config(data, "rad.toml", DATABASE), DATABASE)
+    row = 150  # the bridge rotated and folded
+    motion = builder.signals("BRIDGE_MOTION", result, row, 0)
+    pose = builder.signals("BRIDGE_POSE", result, row, 0)
+    assert result.rotation_deg[row] > 10.0
+    assert motion["Bridge_RotationAngle"] == pytest.approx(math.radians(result.rotation_deg[row]))
+    assert pose["Bridge_FoldAngle"] == pytest.approx(result.fold_deg[row])

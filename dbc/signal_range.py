@@ -1,0 +1,33 @@
+"""Which decoded values of a DBC signal are values, not codes: its ``[min|max]``, and in
+a J1939 message the valid range of a parameter of 1, 2 or 4 bytes.
+
+J1939-71 reserves the top of such a parameter's raw range for indicators: above 0xFA,
+0xFAFF, 0xFAFFFFFF come "parameter specific" (0xFB..), "error" (0xFE..) and "not
+available" (0xFF..). A transducer without a value sends 0xFFFF; at 0.05 kPa/bit that is
+3.28 MPa, a plausible pressure, so where the DBC declares no range (cantools reads the
+DBC's ``[0|0]`` as none) only this rule tells the code from a measurement.
+"""
+
+import math
+
+from cantools.database.can import Signal
+
+#: Largest valid raw value of an unsigned J1939 parameter, by its length in bits.
+J1939_VALID_RAW_MAX = {8: 0xFA, 16: 0xFAFF, 32: 0xFAFFFFFF}
+
+
+def value_range(signal: Signal, j1939: bool) -> tuple[float, float]:
+    """The physical values ``signal`` may take, in its DBC unit, half a step wider for
+    rounding; unbounded where neither the DBC nor J1939 (``j1939``: the signal is in a
+    J1939 message) bounds it."""
+    low, high = -math.inf, math.inf
+    if signal.minimum is not None and signal.maximum is not None:
+        if signal.minimum < signal.maximum:
+            margin = 0.5 * abs(signal.scale) if not signal.is_float else 0.0
+            margin += 1e-9 * max(abs(signal.minimum), abs(signal.maximum))
+            low, high = signal.minimum - margin, signal.maximum + margin
+    raw_max = J1939_VALID_RAW_MAX.get(signal.length)
+    if j1939 and raw_max is not None and not (signal.is_signed or signal.is_float):
+        if signal.scale > 0:
+            high = min(high, (raw_max + 0.5) * signal.scale + signal.offset)
+    return (low, high)
