@@ -210,9 +210,9 @@ def _run_systems(
 
 
 def nominal_rate_hz() -> float:
-    """Frames per second of the DBC's periodic messages (``GenMsgCycleTime``)."""
-    _, database = load_machine_config(EXAMPLE_CONFIG)
-    return sum(1000.0 / m.cycle_time for m in database.messages if m.cycle_time)
+    """Frames per second of the example's periodic messages (their cycle times)."""
+    config, _ = load_machine_config(EXAMPLE_CONFIG)
+    return sum(1000.0 / cycle_time_ms for cycle_time_ms in config.cycle_times_ms.values())
 
 
 def main(argv: Sequence[str] | None = None) -> int:

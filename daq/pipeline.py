@@ -79,7 +79,12 @@ class Pipeline:
     @classmethod
     def from_config(cls, machine: MachineConfig, database: Database) -> "Pipeline":
         return cls(
-            FrameDecoder(database, machine.protection, machine.unit_factors),
+            FrameDecoder(
+                database,
+                machine.protection,
+                machine.unit_factors,
+                sender_to_si=machine.sender_unit_factors,
+            ),
             LegSampler(machine.legs),
             MachineEstimator(
                 {name: leg.geometry for name, leg in machine.legs.items()},
@@ -157,8 +162,8 @@ def _pose_tracker(machine: MachineConfig, database: Database) -> PoseTracker | N
     for name, ref in (("rotation", stability.rotation), ("fold", stability.fold)):
         message = database.get_message_by_name(ref.message)
         ranges[name] = value_range(message.get_signal_by_name(ref.signal), is_j1939(message))
-        cycle_ms = message.cycle_time
-        # Without a cycle time in the DBC, a pose frame counts as fresh for a second.
+        cycle_ms = machine.cycle_times_ms.get(ref.message)
+        # Without a cycle time, a pose frame counts as fresh for a second.
         max_age_s[ref.message] = (
             machine.estimator.stale_after_cycles * cycle_ms / 1000.0 if cycle_ms else 1.0
         )

@@ -169,7 +169,15 @@ def recording_results(
     if is_can_log(files[0]):
         frames = chained_log_frames(files, channel)
         return results(pipeline or Pipeline.from_config(*machine), frames)
+    no_channel_of_recordings(channel)
     return run_results(files, machine, pipeline)
+
+
+def no_channel_of_recordings(channel: str | None) -> None:
+    """Raises :class:`~dbc.errors.ConfigError` when a channel is asked of service
+    recordings (MCAP): they hold the one bus the service read."""
+    if channel is not None:
+        raise ConfigError("--channel", "", "picks a CAN log's bus; a service recording has one")
 
 
 def is_can_log(path: Path) -> bool:
@@ -262,7 +270,7 @@ def _log_reader(path: Path) -> tuple[MessageReader, "LogLines | None"]:
     suffixes = [suffix.lower() for suffix in path.suffixes[-2:]]
     gzipped = suffixes[-1:] == [".gz"]
     suffix = suffixes[-2] if gzipped and len(suffixes) == 2 else suffixes[-1] if suffixes else ""
-    reader_type = AscReader if suffix == ".asc" else MESSAGE_READERS.get(suffix)
+    reader_type = _OWN_READERS.get(suffix) or MESSAGE_READERS.get(suffix)
     if reader_type is None or not issubclass(reader_type, TextIOMessageReader):
         return can.LogReader(str(path)), None  # binary, or python-can's word on the suffix
     # The frames are ASCII; a header, comment or name may be in a Windows code page
@@ -348,6 +356,24 @@ class AscReader(can.ASCReader):
             return message
         message.is_fd = bool(flags & _EDL)
         return message
+
+
+class TrcReader(can.TRCReader):
+    """python-can's TRC reader, except that a frame line it cannot parse (too few
+    columns: a line cut in the middle of the log) stops reading, as in every other text
+    log; python-can left it out with a warning of its own, a frame lost uncounted."""
+
+    def _parse_line(self, line: str) -> can.Message | None:
+        if not line.strip():  # python-can's header reading hands on an empty file's ''
+            return None
+        try:
+            return self._parse_cols(tuple(line.split(maxsplit=self._num_columns)))
+        except IndexError as exc:
+            raise ValueError(f"a frame line with too few columns: {line.strip()!r}") from exc
+
+
+#: Our readers where python-can's read a suffix wrongly.
+_OWN_READERS: dict[str, type[TextIOMessageReader]] = {".asc": AscReader, ".trc": TrcReader}
 
 
 def _open(path: Path) -> IO[bytes]:

@@ -11,7 +11,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from daq.replay import replay
-from daq.subcommand import PROG, Subcommand, fail, setup_logging
+from daq.subcommand import PROG, Subcommand, add_channel_option, fail, setup_logging
 from dbc.errors import ConfigError, DbcError, PortalDaqError
 
 
@@ -27,11 +27,7 @@ def replay_main(args: Sequence[str]) -> int:
     )
     parser.add_argument("--config", type=Path, help="machine config (MCAP: default embedded)")
     parser.add_argument("--out", type=Path, help="CSV file (default: stdout)")
-    parser.add_argument(
-        "--channel",
-        help="CAN logs: replay only this channel's frames (candump: can0; ASC/BLF: 0 for "
-        "the first)",
-    )
+    add_channel_option(parser, "replay")
     options = parser.parse_args(args)
     setup_logging("WARNING")
     try:

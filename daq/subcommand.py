@@ -8,6 +8,7 @@ configuration, 1 a resource or input that cannot be used), printing the reason a
 line via :func:`fail`.
 """
 
+import argparse
 import logging
 import os
 import sys
@@ -40,3 +41,12 @@ def fail(exc: BaseException | str, status: int) -> int:
     """One line on stderr, ``portal-daq: REASON``; returns ``status``."""
     sys.stderr.write(f"{PROG}: {exc}\n")
     return status
+
+
+def add_channel_option(parser: argparse.ArgumentParser, verb: str) -> None:
+    """``--channel``: of CAN logs of several buses, ``verb`` only that channel's frames."""
+    parser.add_argument(
+        "--channel",
+        help=f"CAN logs: {verb} only this channel's frames (candump: can0; ASC/BLF: 0 for "
+        "the first)",
+    )

@@ -41,6 +41,8 @@ SignalValue = float | int | str
 
 #: Signal name -> factor from its DBC unit to SI, per message name.
 UnitFactors = Mapping[str, Mapping[str, float]]
+#: The same per message name and J1939 source address: a transducer in its own unit.
+SenderUnitFactors = Mapping[tuple[str, int], Mapping[str, float]]
 
 #: Identifier masks of standard and extended frames.
 SFF_MASK = 0x7FF
@@ -238,8 +240,11 @@ class FrameDecoder:
     """Decodes frames of the messages in ``database``; checks the protected ones.
 
     ``protection`` holds the profiles by message name; ``to_si`` the unit factors
-    of the signals to convert (by message, then signal). ``compiled=False``
-    decodes every message with cantools (the reference path).
+    of the signals to convert (by message, then signal); ``sender_to_si`` those of a
+    J1939 message's frames from one source address, where that transducer sends in
+    its own unit (each such sender gets a codec of its own, compiled with its factors:
+    no per-frame cost). ``compiled=False`` decodes every message with cantools (the
+    reference path).
 
     >>> decoder = FrameDecoder(database, config.protection)  # doctest: +SKIP
     >>> decoder.decode(0x100, frame_bytes, t_s=1.5).signals["SB1_F1_pPiston"]  # doctest: +SKIP
@@ -253,6 +258,7 @@ class FrameDecoder:
         to_si: UnitFactors | None = None,
         *,
         compiled: bool = True,
+        sender_to_si: SenderUnitFactors | None = None,
     ) -> None:
         self._codecs: dict[tuple[int, bool], _MessageCodec] = {}
         #: The multiplexer signals of each multiplexed message, by message name: a frame's
@@ -281,6 +287,15 @@ class FrameDecoder:
             # One message of a PGN takes it from any source address (transducers sharing a
             # PGN); several (one per sender) each take their own, others go to the first.
             by_address[None] = next(iter(by_address.values()))
+        for (name, address), factors in (sender_to_si or {}).items():
+            message = database.get_message_by_name(name)
+            by_address = self._by_pgn[j1939_pgn(message.frame_id)]
+            taken = by_address.get(address)
+            # A sender another DBC message of the PGN is for (one message per sender) keeps it.
+            if taken is None or taken.message is message:
+                by_address[address] = _MessageCodec(
+                    message, protection.get(name), factors, compiled
+                )
         # 29-bit IDs of J1939 frames seen, with their message: bounded by the known PGNs
         # times priorities, source (and destination) addresses, so it cannot grow forever.
         self._j1939_ids: dict[int, _MessageCodec] = {}

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 from cantools.database.can import Database
 
-from dbc.decoding import SignalValue, UnitFactors, is_fd_message, is_j1939
+from dbc.decoding import SenderUnitFactors, SignalValue, UnitFactors, is_fd_message, is_j1939
 from dbc.machine import MachineConfig
 from dbc.protection import CrcCheck, Protection, counter_modulo
 
@@ -29,7 +29,8 @@ class FrameEncoder:
     """Encodes messages of ``database`` by name, counting and CRC-ing protected ones.
 
     ``to_si`` holds the unit factors of the pressure signals (as for the decoder):
-    their values are divided by it before encoding.
+    their values are divided by it before encoding; ``sender_to_si`` those of a J1939
+    sender in its own unit, used for frames sent from that ``source_address``.
 
     >>> encoder = FrameEncoder(database, config.protection)  # doctest: +SKIP
     >>> encoder.encode("LEG_SB1_F1", {"SB1_F1_pPiston": 12e6, "SB1_F1_pRod": 1e6,
@@ -42,10 +43,12 @@ class FrameEncoder:
         database: Database,
         protection: Mapping[str, Protection],
         to_si: UnitFactors | None = None,
+        sender_to_si: SenderUnitFactors | None = None,
     ) -> None:
         self._database = database
         self._protection = dict(protection)
         self._to_si = dict(to_si or {})
+        self._sender_to_si = dict(sender_to_si or {})
         self._counters: dict[tuple[str, int | None], int] = {}
         # Built once per message: a CRC check builds its lookup table (~0.2 ms).
         self._crc_checks: dict[str, CrcCheck | None] = {}
@@ -53,7 +56,7 @@ class FrameEncoder:
     @classmethod
     def from_config(cls, config: MachineConfig, database: Database) -> "FrameEncoder":
         """The encoder of ``config``'s protection profiles and pressure units."""
-        return cls(database, config.protection, config.unit_factors)
+        return cls(database, config.protection, config.unit_factors, config.sender_unit_factors)
 
     def encode(
         self,
@@ -68,6 +71,8 @@ class FrameEncoder:
         ``corrupt_crc`` sends a wrong CRC, ``source_address`` sets a J1939 sender."""
         message = self._database.get_message_by_name(message_name)
         factors = self._to_si.get(message_name, {})
+        if source_address is not None:
+            factors = self._sender_to_si.get((message_name, source_address), factors)
         values = {
             name: value / factors[name] if name in factors and not isinstance(value, str) else value
             for name, value in signals.items()

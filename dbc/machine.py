@@ -62,6 +62,8 @@ SIMULATED_LEGS = ("SB1_F1", "SB1_F2", "SB1_F3", "SB2_F1", "SB2_F2", "SB2_F3")
 #: Keys of a chamber written as a table: ``piston = { signal = "M.S", ... }``.
 CHAMBER_KEYS = ("signal", "source_address", "unit", "status", "status_ok")
 PROTECTION_KEYS = ("counter", "crc", "crc_algorithm", "data_id", "max_delta_counter")
+#: Keys of ``[messages.<MESSAGE>]``: what the config says of a message the DBC leaves out.
+MESSAGE_KEYS = ("cycle_time_ms",)
 ESTIMATOR_KEYS = (
     "filter",
     "median_window",
@@ -83,6 +85,7 @@ MACHINE_TABLES = (
     "leg_defaults",
     "legs",
     "protection",
+    "messages",
     "stability",
 )
 #: What ``status_ok`` is when the config does not say.
@@ -204,6 +207,14 @@ class MachineConfig:
     #: Factor from the DBC unit to Pa of every pressure signal, by message and signal
     #: (the legs' chambers, and any other signal whose DBC unit is a pressure unit).
     unit_factors: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
+    #: The same (every pressure signal of the message) by message and J1939 source address,
+    #: for the senders whose chamber gives another unit than the message's: a transducer's
+    #: frames are converted by its own unit, other senders' by ``unit_factors``.
+    sender_unit_factors: Mapping[tuple[str, int], Mapping[str, float]] = field(default_factory=dict)
+    #: The cycle time of every message that has one, ms: ``[messages.<MESSAGE>]
+    #: cycle_time_ms``, else the DBC's ``GenMsgCycleTime`` (the config wins). What
+    #: staleness, skew, the counter's resynchronisation and the simulator's schedule use.
+    cycle_times_ms: Mapping[str, float] = field(default_factory=dict)
     #: ``[sensors] status_ok``: the status values meaning "fine" where a leg does not say.
     status_ok: tuple[str | int, ...] = ("ok",)
     #: Feet, bridge and pose signals for the stability margin; None: not configured.
@@ -295,17 +306,18 @@ def parse_machine_config(
     legs_table = root.table("legs")
     if not legs_table.data:
         raise legs_table.error("", "no legs configured; add a [legs.<LEG>] table per leg")
+    cycle_times_ms = _cycle_times_ms(root.table("messages", required=False), database)
     legs = {
-        name: _leg(name, table, leg_defaults, database, status_ok)
+        name: _leg(name, table, leg_defaults, database, status_ok, cycle_times_ms)
         for name, table in legs_table.subtables()
     }
     _check_simulated_legs(legs_table, legs)
     protection = {
-        name: _protection(name, table, database)
+        name: _protection(name, table, database, cycle_times_ms)
         for name, table in root.table("protection", required=False).subtables()
     }
     _check_senders(legs_table, legs, database)
-    unit_factors = _unit_factors(legs_table, legs, database)
+    unit_factors, sender_unit_factors = _unit_factors(legs_table, legs, database)
     return MachineConfig(
         source=source,
         machine_id=machine.string("id", pattern=NAME_PATTERN),
@@ -315,6 +327,8 @@ def parse_machine_config(
         legs=legs,
         protection=protection,
         unit_factors=unit_factors,
+        sender_unit_factors=sender_unit_factors,
+        cycle_times_ms=cycle_times_ms,
         status_ok=status_ok,
         stability=parse_stability(
             root.table("stability", required=False),
@@ -333,6 +347,7 @@ def _leg(
     defaults: TomlTable,
     database: Database,
     status_ok: tuple[StatusValue, ...],
+    cycle_times_ms: Mapping[str, float],
 ) -> LegConfig:
     if re.fullmatch(NAME_PATTERN, name) is None:
         raise table.error("", f"leg name {name!r} must match {NAME_PATTERN}")
@@ -351,7 +366,9 @@ def _leg(
 
     leg_status_ok = _status_values(table, "status_ok", status_ok)
     leg_status = _leg_status(table, database) if "status" in table else None
-    chambers = {key: _chamber(table, key, database, leg_status_ok) for key in TRIGGERS}
+    chambers = {
+        key: _chamber(table, key, database, leg_status_ok, cycle_times_ms) for key in TRIGGERS
+    }
     if leg_status is not None:
         chambers = _attach_leg_status(table, chambers, leg_status, leg_status_ok)
     piston, rod = chambers["piston"], chambers["rod"]
@@ -426,7 +443,11 @@ def _chamber_table(table: TomlTable, key: str, allowed: tuple[str, ...]) -> tupl
 
 
 def _chamber(
-    table: TomlTable, key: str, database: Database, status_ok: tuple[StatusValue, ...]
+    table: TomlTable,
+    key: str,
+    database: Database,
+    status_ok: tuple[StatusValue, ...],
+    cycle_times_ms: Mapping[str, float],
 ) -> ChamberSignal:
     chamber, signal_key = _chamber_table(table, key, CHAMBER_KEYS)
     message, signal_name = _split_ref(chamber, signal_key, chamber.string("signal"), database)
@@ -462,7 +483,7 @@ def _chamber(
         source_address=source_address,
         unit=unit,
         status=status,
-        cycle_time_s=_cycle_time_s(chamber, signal_key, message),
+        cycle_time_s=_cycle_time_s(chamber, signal_key, message, cycle_times_ms),
         mux_ids=_mux_ids(message, signal_name),
         range_Pa=_range_Pa(signal, unit, is_j1939(message)),
     )
@@ -520,14 +541,37 @@ def _shares_pgn(message: Message, database: Database) -> bool:
     )
 
 
-def _cycle_time_s(table: TomlTable, key: str, message: Message) -> float:
-    if not message.cycle_time:
+def _cycle_time_s(
+    table: TomlTable, key: str, message: Message, cycle_times_ms: Mapping[str, float]
+) -> float:
+    if message.name not in cycle_times_ms:
         raise table.error(
             key,
-            f"message {message.name} has no GenMsgCycleTime in the DBC; "
-            "staleness and skew cannot be judged without it",
+            f"message {message.name} has no GenMsgCycleTime in the DBC: set "
+            f"[messages.{message.name}] cycle_time_ms (staleness and skew are judged on it)",
         )
-    return message.cycle_time / 1000.0
+    return cycle_times_ms[message.name] / 1000.0
+
+
+def _cycle_times_ms(table: TomlTable, database: Database) -> dict[str, float]:
+    """Each message's cycle time, ms: ``[messages.<MESSAGE>] cycle_time_ms``, else the
+    DBC's ``GenMsgCycleTime`` (vendor DBCs, J1939 ones especially, often give none)."""
+    times = {
+        message.name: float(message.cycle_time)
+        for message in database.messages
+        if message.cycle_time
+    }
+    for name, message_table in table.subtables():
+        message_table.reject_unknown(MESSAGE_KEYS)
+        _message(message_table, "", name, database)
+        if "cycle_time_ms" in message_table:
+            cycle_time_ms = message_table.number("cycle_time_ms")
+            if cycle_time_ms <= 0:
+                raise message_table.error(
+                    "cycle_time_ms", f"must be > 0 (the message's period), got {cycle_time_ms}"
+                )
+            times[name] = cycle_time_ms
+    return times
 
 
 def _status_ref(table: TomlTable, message: Message, database: Database) -> tuple[Message, str]:
@@ -679,36 +723,67 @@ def _check_senders(
 
 def _unit_factors(
     legs_table: TomlTable, legs: Mapping[str, LegConfig], database: Database
-) -> dict[str, dict[str, float]]:
-    """Pa per DBC unit of every pressure signal; one signal cannot be in two units."""
+) -> tuple[dict[str, dict[str, float]], dict[tuple[str, int], dict[str, float]]]:
+    """Pa per DBC unit of every pressure signal: by message (what frames of any sender
+    are decoded with: the DBC's unit, or that of a chamber pinning no sender), and by
+    message and J1939 sender, for the transducers whose chamber gives another unit.
+
+    One sender has one unit: two for one source address, or a chamber pinning no sender
+    in one unit and another chamber of the signal in another, stop the config.
+    """
     factors: dict[str, dict[str, float]] = {}
     for message in database.messages:
         for signal in message.signals:
             factor = pressure_factor_to_Pa(signal.unit or "")
             if factor is not None and factor != 1.0:
                 factors.setdefault(message.name, {})[signal.name] = factor
-    chosen: dict[tuple[str, str], str] = {}
+    # (message, signal) -> [(source address, factor, unit, leg, chamber key)]
+    readers: dict[tuple[str, str], list[tuple[int | None, float, str, str, str]]] = {}
     for leg in legs.values():
         for key in TRIGGERS:
             chamber: ChamberSignal = getattr(leg, key)
-            where = (chamber.message, chamber.signal)
-            if chosen.setdefault(where, chamber.unit).lower() != chamber.unit.lower():
-                raise legs_table.table(leg.name).error(
-                    key,
-                    f"{chamber.message}.{chamber.signal} is given in {chosen[where]!r} by another "
-                    f"leg and in {chamber.unit!r} here; one signal has one unit",
-                )
             factor = pressure_factor_to_Pa(chamber.unit)
             assert factor is not None  # checked when the chamber was read
-            message_factors = factors.setdefault(chamber.message, {})
-            if factor == 1.0:
-                message_factors.pop(chamber.signal, None)
-            else:
-                message_factors[chamber.signal] = factor
-    return {message: table for message, table in factors.items() if table}
+            address = chamber.source_address
+            others = readers.setdefault((chamber.message, chamber.signal), [])
+            for other_address, other_factor, other_unit, other_leg, other_key in others:
+                pinned = None not in (address, other_address)
+                if other_factor == factor or (pinned and address != other_address):
+                    continue
+                sender = (
+                    f"both from 0x{address:02X}"
+                    if pinned and address is not None
+                    else "a chamber without source_address reads every sender"
+                )
+                raise legs_table.table(leg.name).error(
+                    key,
+                    f"{chamber} is in {chamber.unit!r} here and in {other_unit!r} for "
+                    f"legs.{other_leg}.{other_key} ({sender}); one transducer has one unit",
+                )
+            others.append((address, factor, chamber.unit, leg.name, key))
+            if address is None:
+                _set_factor(factors.setdefault(chamber.message, {}), chamber.signal, factor)
+    by_sender: dict[tuple[str, int], dict[str, float]] = {}
+    for (message_name, signal_name), chambers in readers.items():
+        defaults = factors.get(message_name, {})
+        for address, factor, *_ in chambers:
+            if address is not None and factor != defaults.get(signal_name, 1.0):
+                table = by_sender.setdefault((message_name, address), dict(defaults))
+                _set_factor(table, signal_name, factor)
+    return {name: table for name, table in factors.items() if table}, by_sender
 
 
-def _protection(name: str, table: TomlTable, database: Database) -> Protection:
+def _set_factor(factors: dict[str, float], signal: str, factor: float) -> None:
+    """``signal``'s factor to Pa in ``factors``; none for Pa (the value as decoded)."""
+    if factor == 1.0:
+        factors.pop(signal, None)
+    else:
+        factors[signal] = factor
+
+
+def _protection(
+    name: str, table: TomlTable, database: Database, cycle_times_ms: Mapping[str, float]
+) -> Protection:
     table.reject_unknown(PROTECTION_KEYS)
     message = _message(table, "", name, database)
     signals = {signal.name: signal for signal in message.signals}
@@ -750,6 +825,7 @@ def _protection(name: str, table: TomlTable, database: Database) -> Protection:
         crc_algorithm=algorithm_name,
         data_id=data_id,
         max_delta_counter=max_delta,
+        cycle_time_s=cycle_times_ms[name] / 1000.0 if name in cycle_times_ms else None,
     )
 
 

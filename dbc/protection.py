@@ -302,6 +302,9 @@ class Protection:
     data_id: int | tuple[int, ...] = 0
     #: Largest counter step still accepted (1 + frames that may be lost in a row).
     max_delta_counter: int = 2
+    #: The message's cycle time (:attr:`dbc.machine.MachineConfig.cycle_times_ms`), s;
+    #: None: none known, the counter check then never resynchronises on a silence.
+    cycle_time_s: float | None = None
 
     def crc_check(self, message: Message, *, compiled: bool = True) -> CrcCheck | None:
         """The CRC check of this profile on ``message``'s layout; None without a CRC."""
@@ -325,6 +328,5 @@ class Protection:
             return None
         modulo = counter_modulo(message, self.counter)
         # A whole turn of the counter: longer silent, it cannot count what was lost.
-        cycle_ms = message.cycle_time
-        resync_after_s = modulo * cycle_ms / 1000.0 if cycle_ms else math.inf
+        resync_after_s = modulo * self.cycle_time_s if self.cycle_time_s else math.inf
         return CounterCheck(modulo, self.max_delta_counter, resync_after_s)

@@ -200,10 +200,12 @@ class FrameBuilder:
         #: Periodic messages not sent: the simulation supplies none of their signals, or
         #: they are multiplexed (which the bridge cannot play; no leg's chamber may be in one).
         self.skipped: list[str] = []
-        #: The senders built, with their DBC cycle times, in DBC order.
+        #: The senders built, with their cycle times (the DBC's, or the config's
+        #: ``[messages.<MESSAGE>] cycle_time_ms``), in DBC order.
         self.cycles: list[MessageCycle] = []
         for message in database.messages:
-            if not message.cycle_time:
+            cycle_time_ms = config.cycle_times_ms.get(message.name)
+            if cycle_time_ms is None:
                 continue
             if message.is_multiplexed():
                 self.skipped.append(message.name)
@@ -243,7 +245,7 @@ class FrameBuilder:
                 self._plans[sender] = _MessagePlan(
                     message.name, address, chambers, tuple(named), tuple(constants)
                 )
-                self.cycles.append(MessageCycle(sender, int(message.cycle_time) * NS_PER_MS))
+                self.cycles.append(MessageCycle(sender, round(cycle_time_ms * NS_PER_MS)))
         #: Leg name -> the sender of its trigger chamber (what faults on a leg act on).
         self.leg_messages = {
             leg.name: sender_name(leg.trigger_chamber.message, leg.trigger_chamber.source_address)

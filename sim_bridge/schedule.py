@@ -32,7 +32,7 @@ class MessageCycle:
     """One periodic message and its cycle time."""
 
     message: str
-    #: GenMsgCycleTime of the DBC, in nanoseconds.
+    #: The message's cycle time (the DBC's GenMsgCycleTime, or the config's), ns.
     cycle_ns: int
 
     @property

@@ -1,7 +1,8 @@
 """The shipped machine examples, and an independent reading of the frames sent with them.
 
 :class:`SentFrames` decodes sent frames with cantools alone (J1939 messages by their
-PGN), converts pressures to Pa with its own unit table, pairs each leg's trigger
+PGN), converts pressures to Pa with its own unit table (each chamber's unit as the
+config gives it: a transducer may send in another unit than the DBC's), pairs each leg's trigger
 chamber with the other chamber's latest value (the README's timing rule) and computes
 eq. (4) itself: what the service must publish for those frames.
 """
@@ -25,8 +26,9 @@ from tests.helpers import ROOT
 #: service config and the other machines.
 EXAMPLE_CONFIGS = tuple(sorted((ROOT / "daq" / "examples").glob("*/portal-daq.toml")))
 
-#: Pa per DBC unit, written out here rather than taken from dbc.units.
+#: Pa per unit, written out here rather than taken from dbc.units (psi: 1 lbf per in2).
 PA_PER_UNIT = {"Pa": 1.0, "kPa": 1.0e3, "MPa": 1.0e6, "bar": 1.0e5}
+PA_PER_UNIT["psi"] = 0.45359237 * 9.80665 / 0.0254**2
 
 #: Tables of the service config (the rest is the machine's).
 SERVICE_TABLES = ("bus", "zenoh", "publish", "recording")
@@ -70,6 +72,8 @@ class _Chamber:
     chamber: str
     signal: str
     source_address: int | None
+    #: The unit the transducer sends in (the config's, else the DBC's).
+    unit: str
 
 
 class SentFrames:
@@ -90,7 +94,7 @@ class SentFrames:
             for chamber in ("piston", "rod"):
                 mapped = getattr(leg, chamber)
                 self._chambers[mapped.message].append(
-                    _Chamber(leg.name, chamber, mapped.signal, mapped.source_address)
+                    _Chamber(leg.name, chamber, mapped.signal, mapped.source_address, mapped.unit)
                 )
         self._latest: dict[tuple[str, str], tuple[float, float]] = {}
         #: Every sample so far, by leg, in order.
@@ -119,8 +123,7 @@ class SentFrames:
             if chamber.source_address in (None, source_address)
         ]
         for chamber in chambers:  # a frame with both chambers pairs them: update both first
-            signal = message.get_signal_by_name(chamber.signal)
-            p_Pa = float(values[chamber.signal]) * PA_PER_UNIT[signal.unit]  # type: ignore[arg-type]
+            p_Pa = float(values[chamber.signal]) * PA_PER_UNIT[chamber.unit]  # type: ignore[arg-type]
             self._latest[(chamber.leg, chamber.chamber)] = (t_s, p_Pa)
         return [
             self._sample(chamber.leg, t_s)
@@ -153,7 +156,7 @@ class SentFrames:
         mapped = getattr(self._config.legs[leg], chamber)
         message = self._database.get_message_by_name(mapped.message)
         signal = message.get_signal_by_name(mapped.signal)
-        return float(signal.scale) * PA_PER_UNIT[signal.unit] / 2  # type: ignore[index]
+        return float(signal.scale) * PA_PER_UNIT[mapped.unit] / 2
 
 
 def machine_part(example: Path) -> Iterator[str]:

@@ -1,4 +1,4 @@
-"""``portal-daq calibrate RECORDING.mcap... [--config FILE] [--out calibration.toml]``.
+"""``portal-daq calibrate RECORDING... [--config FILE] [--out calibration.toml] [--channel CH]``.
 
 Fits each leg's ``force_gain`` and ``force_offset_N`` to the weight balance at the
 quasi-static instants of the recordings (:mod:`estimator.calibration`), writes the TOML
@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from daq.subcommand import PROG, Subcommand, fail
+from daq.subcommand import PROG, Subcommand, add_channel_option, fail
 from dbc.errors import ConfigError, DbcError, PortalDaqError
 
 
@@ -38,6 +38,7 @@ def calibrate_main(args: Sequence[str]) -> int:
     parser.add_argument(
         "--out", type=Path, default=Path("calibration.toml"), help="the TOML snippet to write"
     )
+    add_channel_option(parser, "calibrate from")
     options = parser.parse_args(args)
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     from daq.calibrate.data import machine_for, read_instants  # numpy/scipy only here
@@ -46,7 +47,7 @@ def calibrate_main(args: Sequence[str]) -> int:
 
     try:
         machine = machine_for(options.recording, options.config)
-        instants = read_instants(options.recording, machine)
+        instants = read_instants(options.recording, machine, options.channel)
     except (ConfigError, DbcError) as exc:
         return fail(exc, 2)
     except (PortalDaqError, OSError) as exc:

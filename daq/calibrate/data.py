@@ -71,13 +71,14 @@ def machine_for(paths: Sequence[Path], config_path: Path | None) -> Machine:
     return embedded_machine(attachments, first)
 
 
-def read_instants(paths: Sequence[Path], machine: Machine) -> Instants:
-    """The quasi-static instants of every recording in ``paths``."""
+def read_instants(paths: Sequence[Path], machine: Machine, channel: str | None = None) -> Instants:
+    """The quasi-static instants of every recording in ``paths`` (of CAN logs, only
+    ``channel``'s frames when it is given)."""
     legs = tuple(machine[0].legs)
     parts: list[Snapshots] = []
     total = 0
     for path in paths:
-        rows, states = _replayed(path, machine)
+        rows, states = _replayed(path, machine, channel)
         if not rows:
             raise RecordingError(path, "no leg estimates: no leg frames to replay")
         config = machine[0]
@@ -103,12 +104,14 @@ def read_instants(paths: Sequence[Path], machine: Machine) -> Instants:
     )
 
 
-def _replayed(path: Path, machine: Machine) -> tuple[list[LegEstimate], list[StateRow]]:
+def _replayed(
+    path: Path, machine: Machine, channel: str | None
+) -> tuple[list[LegEstimate], list[StateRow]]:
     """The leg estimates and machine states (of the ``MACHINE_STATE`` frames whose
     CRC was fine) of one recording or CAN log, replayed."""
     rows: list[LegEstimate] = []
     states: list[StateRow] = []
-    for result in recording_results([path], machine):
+    for result in recording_results([path], machine, channel=channel):
         rows.extend(result.estimates)
         decoded = result.decoded
         if decoded is not None and SIGNALS_PREFIX + decoded.message == STATE_TOPIC:

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from daq.errors import EmptyRecordingError
-from daq.subcommand import Subcommand
+from daq.subcommand import Subcommand, add_channel_option
 from dbc.errors import ConfigError, DbcError, PortalDaqError
 
 PROG = "portal-daq"
@@ -71,11 +71,7 @@ def parse_report_args(args: Sequence[str]) -> ReportOptions:
     parser.add_argument(
         "--config", type=Path, help="machine config (default: the one embedded in the file)"
     )
-    parser.add_argument(
-        "--channel",
-        help="CAN logs: report only this channel's frames (candump: can0; ASC/BLF: 0 for the "
-        "first)",
-    )
+    add_channel_option(parser, "report")
     campaign = parser.add_argument_group(
         "campaign", "one table and summary page over many recordings (runs of the service)"
     )

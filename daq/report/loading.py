@@ -37,7 +37,14 @@ from daq.mcap_file import RAW_TOPIC
 from daq.mcap_reading import RecordedAttachment, RecordedMessage, RecordingStream
 from daq.pipeline import UNMAPPED_SOURCE, Pipeline
 from daq.recording_run import expand, run_files
-from daq.replay import Machine, embedded_machine, is_can_log, recording_results, run_results
+from daq.replay import (
+    Machine,
+    embedded_machine,
+    is_can_log,
+    no_channel_of_recordings,
+    recording_results,
+    run_results,
+)
 from daq.report.tracks import Recording, RecordingCollector
 from dbc.errors import ConfigError, DbcError
 from dbc.machine import MachineConfig, load_machine_config
@@ -79,8 +86,7 @@ def load_recording(
     logs = expand(given)
     if any(is_can_log(path) for path in logs):
         return _log_recording(logs, config_path, channel)
-    if channel is not None:
-        raise ConfigError("--channel", "", "picks a CAN log's bus; a service recording has one")
+    no_channel_of_recordings(channel)
     files = run_files(given)
     first = files[0]
     machine: Machine | None = load_machine_config(config_path) if config_path else None

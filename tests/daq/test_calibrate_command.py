@@ -233,3 +233,42 @@ def test_the_calibrated_config_is_nearer_the_simulation_truth(
     # Measured: mean 1,626 -> 172 N, max 5,469 -> 1,874 N (what is left: cylinder
     # friction and the running median's lag, which no gain or offset can take out).
     assert after.mean() < before.mean() / 5
+
+
+def test_calibrate_from_one_bus_of_a_log_of_two(
+    walk: Recorded, calibrated: Calibrated, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The walking cycle exported to a candump log on can0, beside a second bus carrying
+    the same IDs with other pressures: ``--channel can0`` calibrates as from the recording;
+    both buses as one would not. A channel asked of a service recording is refused."""
+    from daq.export import export
+
+    log = tmp_path / "two.log"
+    assert export([walk.path], log, "candump") > 0
+    lines = log.read_text().splitlines()
+    other = []
+    for line in lines:  # the other bus: same IDs, every byte but the last two inverted
+        stamp, _, frame, *direction = line.split()
+        can_id, data = frame.split("#")
+        payload = bytes.fromhex(data)
+        inverted = bytes(b ^ 0xFF for b in payload[:-2]) + payload[-2:]
+        other.append(" ".join([stamp, "can1", f"{can_id}#{inverted.hex().upper()}", *direction]))
+    log.write_text(
+        "\n".join(line for pair in zip(lines, other, strict=True) for line in pair) + "\n"
+    )
+    machine = load_machine_config(walk.config_path)
+    recorded = read_instants([walk.path], machine)
+    one_bus = read_instants([log], machine, "can0")
+    assert len(recorded.t_s) > 100
+    np.testing.assert_array_equal(one_bus.t_s, recorded.t_s)
+    np.testing.assert_array_equal(one_bus.force_N, recorded.force_N)
+    assert len(read_instants([log], machine).t_s) != len(recorded.t_s)
+    out = tmp_path / "cal" / "calibration.toml"
+    args = [str(log), "--config", str(walk.config_path), "--out", str(out), "--channel", "can0"]
+    assert calibrate_main(args) == 0
+    assert out.read_text() == calibrated.out.read_text()
+    capsys.readouterr()
+    assert calibrate_main([str(walk.path), "--channel", "can0", "--out", str(out)]) == 2
+    assert capsys.readouterr().err == (
+        "portal-daq: --channel: picks a CAN log's bus; a service recording has one\n"
+    )

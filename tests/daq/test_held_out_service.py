@@ -17,7 +17,14 @@ from daq.service_config import load_service_config
 from daq.zenoh_session import zenoh_config
 from dbc.decoding import FrameDecoder
 from tests.daq.service_support import Collector, free_port, running, subscriber_session
-from tests.dbc.test_held_out_machines import STRANGER, eq4_N, press_a
+from tests.dbc.test_held_out_machines import (
+    STRANGER,
+    UNITS_FORCES_N,
+    UNITS_SENT,
+    eq4_N,
+    press_a,
+    units_frames,
+)
 
 
 def test_the_service_runs_a_held_out_j1939_machine(tmp_path: Path) -> None:
@@ -72,4 +79,67 @@ status_period_s = 0.2
     assert estimate["valid"] and estimate["force_raw_N"] == pytest.approx(eq4_N(2.8e6, 0.8e6))
     # The standard frame is filtered out (kernel_filters); 0x34 is a transducer of the
     # PGN that no chamber maps.
+    assert status["bad"] == {"unmapped_source": 1}
+
+
+def test_the_service_runs_transducers_in_their_own_units_without_dbc_cycle_times(
+    tmp_path: Path,
+) -> None:
+    """tests/files/stranger/j1939_units: one PGN from four transducers in psi, bar and MPa,
+    a DBC without cycle times (the config gives them). The legs' forces are eq. (4) of
+    the pressures converted here; /signals is in Pa for each sender."""
+    shutil.copy(STRANGER / "j1939_units.dbc", tmp_path)
+    port, channel = free_port(), f"held-out-{uuid.uuid4().hex}"
+    (tmp_path / "portal-daq.toml").write_text(
+        f"""
+[bus]
+interface = "virtual"
+channel = "{channel}"
+kernel_filters = true
+
+[zenoh]
+mode = "peer"
+listen = ["tcp/127.0.0.1:{port}"]
+multicast_scouting = false
+
+[publish]
+status_period_s = 0.2
+signals_max_rate_hz = 0
+"""
+        + (STRANGER / "j1939_units.toml").read_text()
+    )
+    config = load_service_config(tmp_path / "portal-daq.toml")
+    filters = FrameDecoder(config.database, config.machine.protection).receive_filters
+    prefix = config.zenoh.key_prefix
+    frames = units_frames()
+    with zenoh.open(zenoh_config(config.zenoh)) as session:
+        service = Service(config, open_bus=bus_factory(config.bus, filters), session=session)
+        with running(service), subscriber_session(port) as subscriber:
+            collector = Collector(subscriber, f"{prefix}/**")
+            collector.wait_for(f"{prefix}/status")
+            bus = can.Bus(interface="virtual", channel=channel, preserve_timestamps=True)
+            try:
+                for frame in frames:
+                    bus.send(
+                        can.Message(
+                            timestamp=frame.t_s,
+                            arbitration_id=frame.arbitration_id,
+                            data=frame.data,
+                        )
+                    )
+            finally:
+                bus.shutdown()
+            status = collector.wait_for(
+                f"{prefix}/status", lambda s: s["frames"]["processed"] == len(frames)
+            )
+            signals_key = f"{prefix}/signals/XDCR"
+            collector.wait_until(lambda: len(collector.of(signals_key)) == len(frames))
+            grounds = {leg: collector.first(f"{prefix}/leg/{leg}/ground") for leg in UNITS_FORCES_N}
+    assert {leg: (g["valid"], g["force_raw_N"]) for leg, g in grounds.items()} == {
+        leg: (True, pytest.approx(force_N, rel=1e-12)) for leg, force_N in UNITS_FORCES_N.items()
+    }
+    published = {s["source_address"]: s["signals"]["Pressure"] for s in collector.of(signals_key)}
+    assert published == {
+        source: pytest.approx(value * unit, rel=1e-12) for source, value, unit in UNITS_SENT
+    }
     assert status["bad"] == {"unmapped_source": 1}

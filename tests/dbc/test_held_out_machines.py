@@ -43,7 +43,11 @@ def _pipeline(name: str, compiled: bool) -> tuple[Pipeline, MachineConfig, Datab
     pipeline = Pipeline.from_config(config, database)
     if not compiled:
         pipeline.decoder = FrameDecoder(
-            database, config.protection, config.unit_factors, compiled=False
+            database,
+            config.protection,
+            config.unit_factors,
+            compiled=False,
+            sender_to_si=config.sender_unit_factors,
         )
     return pipeline, config, database
 
@@ -423,3 +427,66 @@ def test_candump_logs_of_held_out_machines_replay_to_eq4(tmp_path: Path) -> None
     assert replay(tmp_path / "fd.log", out, STRANGER / "fd_float.toml") == 1
     (row,) = csv.DictReader(io.StringIO(out.getvalue()))
     assert row["leg"] == "B" and float(row["force_raw_N"]) == pytest.approx(eq4_N(10e6, 2e6))
+
+
+# --- j1939_units: a unit per transducer, cycle times from the config ---------------------------
+
+BAR_PA, MPA_PA = 1e5, 1e6
+#: What the j1939_units machine's transducers send, in the order sent: (source address,
+#: value in the transducer's own unit, Pa per that unit); 0x5F is mapped to no chamber.
+UNITS_SENT = ((0x52, 80.0, BAR_PA), (0x51, 2000.0, PSI_PA), (0x53, 1500.0, PSI_PA))
+UNITS_SENT += ((0x54, 4.5, MPA_PA), (0x5F, 12.5, BAR_PA))
+#: eq. (4) of those pressures: front (piston 0x51, rod 0x52), rear (rod 0x54 triggers).
+UNITS_FORCES_N = {
+    "front": eq4_N(2000.0 * PSI_PA, 80.0 * BAR_PA),
+    "rear": eq4_N(1500.0 * PSI_PA, 4.5 * MPA_PA),
+}
+
+
+def xdcr(source: int, value: float, t_s: float, priority: int = 6) -> RawFrame:
+    """An XDCR frame (PGN 0xFF50) from ``source``: ``value`` in the transducer's own unit,
+    32-bit signed little-endian at 0.001 per bit, 25 degC, padded with 0xFF."""
+    data = round(value / 0.001).to_bytes(4, "little", signed=True) + bytes([65]) + b"\xff" * 3
+    return RawFrame(t_s, int(frame_id_pack(priority, 0, 0, 0xFF, 0x50, source)), True, data)
+
+
+def units_frames() -> list[RawFrame]:
+    return [
+        xdcr(source, value, 1_700_000_000.0 + 0.001 * i, priority=3 + i % 4)
+        for i, (source, value, _) in enumerate(UNITS_SENT)
+    ]
+
+
+@pytest.mark.parametrize("compiled", [True, False])
+def test_each_j1939_transducer_is_converted_by_its_own_unit(compiled: bool) -> None:
+    """One signal, XDCR.Pressure, from four transducers in psi, bar (the DBC's) and MPa:
+    each frame in Pa by its sender's unit (the decoded signal too: /signals is SI), an
+    unmapped sender by the DBC's unit; eq. (4) of the Pa values, on both decoding paths."""
+    pipeline, _, _ = _pipeline("j1939_units.toml", compiled)
+    decoded, forces = [], {}
+    for frame in units_frames():
+        result = pipeline.process(frame)
+        assert result.decoded is not None
+        decoded.append(result.decoded.signals["Pressure"])
+        forces |= {e.leg: (e.force_raw_N, e.reasons) for e in result.estimates}
+    assert decoded == [pytest.approx(v * unit, rel=1e-12) for _, v, unit in UNITS_SENT]
+    assert forces == {
+        leg: (pytest.approx(force_N, rel=1e-12), ()) for leg, force_N in UNITS_FORCES_N.items()
+    }
+    assert dict(pipeline.bad) == {"unmapped_source": 1}
+
+
+def test_a_candump_log_of_transducers_in_their_own_units_replays_to_eq4(tmp_path: Path) -> None:
+    """``portal-daq replay`` of the frames, as a candump log, gives what the live path gives."""
+    log = "".join(
+        f"({f.t_s:.6f}) can0 {f.arbitration_id:08X}#{f.data.hex().upper()}\n"
+        for f in units_frames()
+    )
+    (tmp_path / "units.log").write_text(log)
+    out = io.StringIO()
+    assert replay(tmp_path / "units.log", out, STRANGER / "j1939_units.toml") == 2
+    rows = {row["leg"]: row for row in csv.DictReader(io.StringIO(out.getvalue()))}
+    assert {leg: float(row["force_raw_N"]) for leg, row in rows.items()} == {
+        leg: pytest.approx(force_N, rel=1e-9) for leg, force_N in UNITS_FORCES_N.items()
+    }
+    assert all(row["valid"] == "1" for row in rows.values())

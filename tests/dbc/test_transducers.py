@@ -16,6 +16,7 @@ from crccheck.crc import Crc8SaeJ1850
 from daq.frames import RawFrame
 from daq.pipeline import Pipeline
 from dbc.database import load_database
+from dbc.decoding import FrameDecoder
 from dbc.encoding import FrameEncoder
 from dbc.errors import ConfigError
 from dbc.machine import MachineConfig, parse_machine_config
@@ -181,12 +182,77 @@ def test_unknown_unit_exits_2_with_one_line(tmp_path: Path) -> None:
     assert len(lines) == 1 and "legs.E2E.rod.signal" in lines[0] and "psi" in lines[0]
 
 
-def test_one_signal_cannot_have_two_units() -> None:
-    text = BASE.replace(
+PSI_PA = 6894.757293168361
+
+
+def psi_rod_text(extra: str = "") -> str:
+    """BASE with J2's rod transducer (0x24) in psi: the DBC's bar for the others."""
+    return BASE.replace(
         'rod = { signal = "HYD_PRESS.Pressure", source_address = 0x24 }',
-        'rod = { signal = "HYD_PRESS.Pressure", source_address = 0x24, unit = "psi" }',
+        f'rod = {{ signal = "HYD_PRESS.Pressure", source_address = 0x24, unit = "psi"{extra} }}',
     )
-    assert "one signal has one unit" in str(refused(text))
+
+
+@pytest.mark.parametrize("compiled", [True, False])
+def test_each_transducer_of_a_shared_signal_is_read_in_its_own_unit(compiled: bool) -> None:
+    """HYD_PRESS.Pressure from 0x24 is psi (its chamber says so), from every other sender
+    the DBC's bar: the same raw number is 12.34 psi from 0x24 and 12.34 bar from 0x23."""
+    config = config_of(psi_rod_text())
+    assert config.unit_factors["HYD_PRESS"] == {"Pressure": 1e5}
+    assert config.sender_unit_factors == {("HYD_PRESS", 0x24): {"Pressure": PSI_PA}}
+    bench = Bench(psi_rod_text())
+    if not compiled:
+        bench.pipeline.decoder = FrameDecoder(
+            DATABASE,
+            config.protection,
+            config.unit_factors,
+            compiled=False,
+            sender_to_si=config.sender_unit_factors,
+        )
+    decoder = bench.pipeline.decoder
+    raw = pressure_bytes(12.34)  # raw 1234 at 0.01 per bit
+    assert decoder.decode(j1939_id(6, 0x24), raw, 1.0, True).signals["Pressure"] == (
+        pytest.approx(12.34 * PSI_PA, rel=1e-12)
+    )
+    for source in (0x23, 0x21, 0x40):  # mapped without a unit, another leg's, unmapped
+        decoded = decoder.decode(j1939_id(6, source), raw, 1.0, True)
+        assert decoded.signals["Pressure"] == pytest.approx(12.34e5, rel=1e-12), source
+    bench.raw(j1939_id(6, 0x24), pressure_bytes(300.0), 2.000, True)  # 300 psi
+    (estimate,) = bench.raw(j1939_id(7, 0x23), pressure_bytes(100.0), 2.002, True)  # 100 bar
+    assert estimate.valid and estimate.leg == "J2"
+    assert estimate.p_rod_Pa == pytest.approx(300 * PSI_PA, rel=1e-12)
+    assert estimate.force_raw_N == pytest.approx(
+        foot_force_N(100e5, 300 * PSI_PA, config.legs["J2"].geometry), abs=1e-6
+    )
+
+
+def test_the_encoder_sends_each_transducer_in_its_own_unit() -> None:
+    encoder = FrameEncoder.from_config(config_of(psi_rod_text()), DATABASE)
+    for source, raw in ((0x24, round(20e5 / PSI_PA / 0.01)), (0x23, 2000)):
+        frame = encoder.encode(
+            "HYD_PRESS", {"Pressure": 20e5, "Status": "ok"}, source_address=source
+        )
+        assert frame.data[:2] == raw.to_bytes(2, "little"), hex(source)
+
+
+def test_two_units_for_one_sender_stop_the_config() -> None:
+    """Two chambers on one transducer (one source address) in two units; and a chamber
+    pinning no sender (it reads them all) in another unit than another chamber's."""
+    text = psi_rod_text().replace(
+        'rod = { signal = "HYD_PRESS.Pressure", source_address = 0x22, status = "Status" }',
+        'rod = { signal = "HYD_PRESS.Pressure", source_address = 0x24, unit = "bar" }',
+    )
+    error = refused(text)
+    assert error.key == "legs.J2.rod"
+    assert "HYD_PRESS.Pressure@0x24 is in 'psi' here and in 'bar' for legs.J1.rod" in str(error)
+    assert "both from 0x24" in str(error)
+    # Same factor, other spelling: one unit.
+    assert config_of(text.replace('unit = "bar"', 'unit = "PSIG"')).sender_unit_factors
+    unpinned = BASE + (
+        '\n[legs.X]\npiston = { signal = "LEG_E2E5.pRod", unit = "psi" }\nrod = "LEG_PSI.pRod"\n'
+    )
+    error = refused(unpinned)
+    assert error.key == "legs.X.piston" and "without source_address" in str(error)
 
 
 # --- J1939 ----------------------------------------------------------------------------------

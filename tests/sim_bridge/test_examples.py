@@ -23,6 +23,7 @@ from dbc.machine import load_machine_config
 from estimator.leg import LegEstimate
 from sim_bridge.__main__ import cli
 from sim_bridge.faults import FaultConfig, FaultWindow
+from sim_bridge.frames import FrameBuilder
 from sim_bridge.result import LEGS
 from sim_bridge.schedule import instants, schedule
 from tests.examples_support import EXAMPLE_CONFIGS, ROOT, SentFrames, example_id
@@ -104,6 +105,36 @@ def play_through_pipeline(
 
 @pytest.mark.parametrize("config_path", EXAMPLE_CONFIGS, ids=example_id)
 def test_each_example_decodes_to_eq_4_of_the_pressures_sent_in_Pa(config_path: Path) -> None:
+    assert_eq_4_of_the_pressures_sent(config_path)
+
+
+def test_transducers_in_their_own_units_on_a_cycle_time_from_the_config_round_trip(
+    tmp_path: Path,
+) -> None:
+    """The j1939 example with SB1_F1's transducers set to MPa (piston) and psi (rod), and
+    HYD_PRESS's cycle time given by the config, not the DBC: the bridge sends each
+    transducer in its own unit every 10 ms, the service decodes eq. (4) of them in Pa."""
+    dbc = J1939.parent / "transducers_j1939.dbc"
+    text = dbc.read_text(encoding="cp1252")
+    cycle_line = 'BA_ "GenMsgCycleTime" BO_ 2566856737 10;\n'
+    assert cycle_line in text
+    (tmp_path / dbc.name).write_text(text.replace(cycle_line, ""), encoding="cp1252")
+    config = J1939.read_text()
+    for address, unit in ((0x21, "MPa"), (0x22, "psi")):
+        where = f"source_address = 0x{address:02X}, "
+        assert config.count(where) == 1
+        config = config.replace(where, f'{where}unit = "{unit}", ')
+    config_path = tmp_path / "portal-daq.toml"
+    config_path.write_text(config + "\n[messages.HYD_PRESS]\ncycle_time_ms = 10\n")
+    machine, database = load_machine_config(config_path)
+    assert database.get_message_by_name("HYD_PRESS").cycle_time is None
+    assert (machine.legs["SB1_F1"].piston.unit, machine.legs["SB1_F1"].rod.unit) == ("MPa", "psi")
+    cycles = {cycle.message: cycle.cycle_ns for cycle in FrameBuilder(machine, database).cycles}
+    assert cycles["HYD_PRESS@0x21"] == cycles["HYD_PRESS@0x2C"] == 10_000_000
+    assert_eq_4_of_the_pressures_sent(config_path)
+
+
+def assert_eq_4_of_the_pressures_sent(config_path: Path) -> None:
     sent, estimates, pipeline, _ = play_through_pipeline(config_path)
     assert pipeline.bad == {} and pipeline.frames_lost == 0
     assert sorted(estimates) == sorted(LEGS)

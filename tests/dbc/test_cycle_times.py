@@ -1,0 +1,144 @@
+"""Cycle times the DBC does not give: ``[messages.<MESSAGE>] cycle_time_ms`` (vendor DBCs,
+J1939 ones especially, often have no ``GenMsgCycleTime``), and that every user of a
+message's cycle time (skew, staleness, counter resynchronisation, the bridge's schedule)
+takes the same one (tests/files/stranger/j1939_units: a DBC without any)."""
+
+import subprocess
+import sys
+import tomllib
+from pathlib import Path
+
+import pytest
+from cantools.database.can import Database
+from cantools.j1939 import frame_id_pack
+
+from daq.frames import RawFrame
+from daq.pipeline import Pipeline
+from dbc.database import load_database
+from dbc.errors import ConfigError
+from dbc.machine import MachineConfig, load_machine_config, parse_machine_config
+from tests.dbc.test_held_out_machines import PSI_PA, STRANGER, eq4_N
+from tests.dbc.test_transducers import BASE, DATABASE, config_of
+from tests.helpers import ROOT
+
+UNITS_TOML = (STRANGER / "j1939_units.toml").read_text()
+UNITS_DB = STRANGER / "j1939_units.dbc"
+T0_S = 1_700_000_000.0
+
+
+def units_config(text: str = UNITS_TOML) -> tuple[MachineConfig, Database]:
+    database = load_database(UNITS_DB)
+    return parse_machine_config(tomllib.loads(text), "m.toml", database, UNITS_DB), database
+
+
+def units_refused(text: str) -> ConfigError:
+    with pytest.raises(ConfigError) as info:
+        units_config(text)
+    assert "\n" not in str(info.value)
+    return info.value
+
+
+def xdcr(source: int, psi_or_bar: float, t_s: float) -> RawFrame:
+    frame_id = int(frame_id_pack(6, 0, 0, 0xFF, 0x50, source))
+    data = round(psi_or_bar / 0.001).to_bytes(4, "little", signed=True) + bytes(4)
+    return RawFrame(t_s, frame_id, True, data)
+
+
+def test_the_configs_cycle_times_stand_in_for_the_dbcs() -> None:
+    config, database = units_config()
+    assert all(message.cycle_time is None for message in database.messages)
+    assert config.cycle_times_ms == {"XDCR": 20.0, "MC_STATE": 100.0}
+    front = config.legs["front"]
+    assert (front.cycle_time_s, front.max_skew_s) == (0.020, 0.020)  # default: one cycle
+    assert config.protection["MC_STATE"].cycle_time_s == 0.100
+
+
+def test_skew_and_staleness_are_judged_on_the_configs_cycle_time() -> None:
+    config, database = units_config()
+    pipeline = Pipeline.from_config(config, database)
+    pipeline.process(xdcr(0x52, 80.0, T0_S))  # rod, bar
+    (fresh,) = pipeline.process(xdcr(0x51, 2000.0, T0_S + 0.019)).estimates  # piston, psi
+    assert fresh.valid and fresh.force_raw_N == pytest.approx(eq4_N(2000 * PSI_PA, 80e5))
+    (late,) = pipeline.process(xdcr(0x51, 2000.0, T0_S + 0.0405)).estimates  # rod 40.5 ms old
+    assert late.reasons == ("rod_stale",)
+    pipeline.process(xdcr(0x52, 80.0, T0_S + 0.041))
+    (fresh,) = pipeline.process(xdcr(0x51, 2000.0, T0_S + 0.041)).estimates
+    assert fresh.valid
+    # stale_after_cycles (3) x 20 ms after the last sample, on the frames' clock
+    assert pipeline.snapshot(T0_S + 0.041 + 0.059).legs["front"].valid
+    assert pipeline.snapshot(T0_S + 0.041 + 0.061).legs["front"].reasons[-1] == "stale"
+
+
+def test_the_counter_resynchronises_after_a_turn_of_the_configs_cycle_time() -> None:
+    """MC_STATE.Alive counts 0..15 every 100 ms (the config's): a jump within 1.6 s is a
+    counter fault; after a longer silence the check starts anew (no DBC cycle time: never)."""
+    config, database = units_config()
+    pipeline = Pipeline.from_config(config, database)
+    faults = [
+        pipeline.process(RawFrame(T0_S + t_s, 0x310, False, bytes([0, alive]))).decoded
+        for t_s, alive in ((0.0, 0), (1.0, 5), (3.0, 9), (3.1, 10))
+    ]
+    assert [frame.faults if frame else None for frame in faults] == [(), ("counter",), (), ()]
+
+
+def test_the_config_wins_over_the_dbcs_cycle_time() -> None:
+    config = config_of(BASE + "\n[messages.HYD_PRESS]\ncycle_time_ms = 25.5\n")
+    assert DATABASE.get_message_by_name("HYD_PRESS").cycle_time == 10
+    assert config.cycle_times_ms["HYD_PRESS"] == 25.5
+    assert config.legs["J1"].cycle_time_s == 0.0255 and config.legs["J1"].max_skew_s == 0.0255
+    assert config.legs["J2"].max_skew_s == 0.004  # a leg's own max_skew_s still wins
+    assert config_of().cycle_times_ms["HYD_PRESS"] == 10.0
+
+
+def test_a_message_without_a_cycle_time_names_the_key_to_add() -> None:
+    error = units_refused(UNITS_TOML.replace("[messages.XDCR]\ncycle_time_ms = 20\n", ""))
+    assert error.key == "legs.front.piston.signal"
+    assert str(error) == (
+        "m.toml: legs.front.piston.signal: message XDCR has no GenMsgCycleTime in the DBC: "
+        "set [messages.XDCR] cycle_time_ms (staleness and skew are judged on it)"
+    )
+
+
+@pytest.mark.parametrize(
+    ("value", "key", "reason"),
+    [
+        ("cycle_time_ms = 0", "messages.XDCR.cycle_time_ms", "must be > 0"),
+        ("cycle_time_ms = -20", "messages.XDCR.cycle_time_ms", "must be > 0"),
+        ('cycle_time_ms = "20"', "messages.XDCR.cycle_time_ms", "must be a number"),
+        ("cycle_time_ms = true", "messages.XDCR.cycle_time_ms", "must be a number"),
+        ("cycle_time_ms = inf", "messages.XDCR.cycle_time_ms", "must be finite"),
+        ("cycle_ms = 20", "messages.XDCR.cycle_ms", "unknown key"),
+    ],
+)
+def test_a_bad_cycle_time_stops_the_config(value: str, key: str, reason: str) -> None:
+    error = units_refused(UNITS_TOML.replace("cycle_time_ms = 20", value))
+    assert error.key == key and reason in error.reason
+
+
+def test_a_cycle_time_of_a_message_the_dbc_lacks_stops_the_config() -> None:
+    error = units_refused(UNITS_TOML + "\n[messages.XDCR2]\ncycle_time_ms = 20\n")
+    assert error.key == "messages.XDCR2" and "no message 'XDCR2' in the DBC" in error.reason
+
+
+def test_a_bad_cycle_time_exits_2_with_one_line(tmp_path: Path) -> None:
+    (tmp_path / "j1939_units.dbc").write_bytes(UNITS_DB.read_bytes())
+    config = tmp_path / "machine.toml"
+    config.write_text(UNITS_TOML.replace("cycle_time_ms = 100", "cycle_time_ms = 0"))
+    (tmp_path / "x.log").write_text("")
+    result = subprocess.run(
+        [sys.executable, "-m", "daq", "replay", str(tmp_path / "x.log"), "--config", str(config)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        cwd=ROOT,
+    )
+    assert result.returncode == 2, result.stderr
+    assert result.stderr.strip() == (
+        f"portal-daq: {config}: messages.MC_STATE.cycle_time_ms: "
+        "must be > 0 (the message's period), got 0.0"
+    )
+
+
+def test_load_machine_config_reads_the_table_from_a_file() -> None:
+    config, _ = load_machine_config(STRANGER / "j1939_units.toml")
+    assert config.cycle_times_ms["MC_STATE"] == 100.0
