@@ -17,8 +17,8 @@ estimates and the truth line up. The rules, in this order:
      240 deg (:data:`~sim_bridge.params.FOOT_ANGLES_DEG`) when every foot is within
      :data:`ANGLE_TOLERANCE_DEG` of a different one of them; else by the feet's order
      in ``feet_m``;
-   - without ``[stability]`` (or unless its bases have three feet each): the legs' order
-     in the config, the first three SB1_F1..F3, the next three SB2_F1..F3.
+   - without ``[stability]`` (or when its bases do not have three feet each): the legs'
+     order in the config, the first three SB1_F1..F3, the next three SB2_F1..F3.
 
 Anything else (legs left over after rules 1 and 2, or a number of legs other than six
 with none mapped) is a :class:`~dbc.errors.ConfigError` naming the leg and what to add.
