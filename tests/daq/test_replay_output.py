@@ -2,6 +2,7 @@
 done; a replay refused or failed leaves FILE as it was, and says why in one line."""
 
 from pathlib import Path
+from subprocess import CompletedProcess
 
 import pytest
 
@@ -27,45 +28,28 @@ def _left_alone(path: Path) -> None:
     assert sorted(p.name for p in path.parent.iterdir() if p.name.endswith(".part")) == []
 
 
+def replay_into(log: Path, out: Path, config: Path = EXAMPLE_CONFIG) -> CompletedProcess[str]:
+    return run_cli("replay", str(log), "--config", str(config), "--out", str(out))
+
+
 def test_a_bad_config_leaves_the_output_as_it_was(tmp_path: Path, earlier: Path) -> None:
     """It was emptied: a typo in the config cost the CSV of the run before."""
     (tmp_path / "cycle.log").write_text(LOG)
     (tmp_path / "bad.toml").write_text("x = [\n")
-    result = run_cli(
-        "replay",
-        str(tmp_path / "cycle.log"),
-        "--config",
-        str(tmp_path / "bad.toml"),
-        "--out",
-        str(earlier),
-    )
+    result = replay_into(tmp_path / "cycle.log", earlier, tmp_path / "bad.toml")
     assert_one_line_error(result, 2, "bad.toml: not valid TOML")
     _left_alone(earlier)
 
 
 def test_a_missing_log_leaves_the_output_as_it_was(tmp_path: Path, earlier: Path) -> None:
-    result = run_cli(
-        "replay",
-        str(tmp_path / "cylce.log"),
-        "--config",
-        str(EXAMPLE_CONFIG),
-        "--out",
-        str(earlier),
-    )
+    result = replay_into(tmp_path / "cylce.log", earlier)
     assert_one_line_error(result, 1, "cylce.log: cannot read it as a CAN log: no such file")
     _left_alone(earlier)
 
 
 def test_a_replay_that_is_done_replaces_the_output(tmp_path: Path, earlier: Path) -> None:
     (tmp_path / "cycle.log").write_text(LOG)
-    result = run_cli(
-        "replay",
-        str(tmp_path / "cycle.log"),
-        "--config",
-        str(EXAMPLE_CONFIG),
-        "--out",
-        str(earlier),
-    )
+    result = replay_into(tmp_path / "cycle.log", earlier)
     assert result.returncode == 0, result.stderr
     rows = earlier.read_text().splitlines()
     assert rows[0].startswith("leg,t,force_N,") and len(rows) == 3
@@ -84,14 +68,7 @@ def test_an_output_that_cannot_be_written_is_one_line(
 ) -> None:
     """It was Python's "[Errno 2] No such file or directory: '...'"."""
     (tmp_path / "cycle.log").write_text(LOG)
-    result = run_cli(
-        "replay",
-        str(tmp_path / "cycle.log"),
-        "--config",
-        str(EXAMPLE_CONFIG),
-        "--out",
-        str(tmp_path / out),
-    )
+    result = replay_into(tmp_path / "cycle.log", tmp_path / out)
     assert_one_line_error(result, 1, reason)
     assert "Errno" not in result.stderr
 
