@@ -312,6 +312,7 @@ def parse_machine_config(
         for name, table in legs_table.subtables()
     }
     _check_simulated_legs(legs_table, legs)
+    _check_own_chambers(legs_table, legs)
     protection = {
         name: _protection(name, table, database, cycle_times_ms)
         for name, table in root.table("protection", required=False).subtables()
@@ -414,6 +415,22 @@ def _check_simulated_legs(legs_table: TomlTable, legs: Mapping[str, LegConfig]) 
                 "leg; each simulated leg plays onto one leg",
             )
         taken[leg.simulated_leg] = name
+
+
+def _check_own_chambers(legs_table: TomlTable, legs: Mapping[str, LegConfig]) -> None:
+    """No leg reads both chambers of another (a leg table copied and not edited: its
+    forces would be the other's, the weight check would count one foot twice). One
+    chamber's transducer may be shared: chambers on a common line."""
+    taken: dict[tuple[str, str], str] = {}
+    for name, leg in legs.items():
+        chambers = (str(leg.piston), str(leg.rod))
+        if chambers in taken:
+            raise legs_table.error(
+                name,
+                f"reads the chambers of legs.{taken[chambers]} ({', '.join(chambers)}): "
+                "each leg needs its own",
+            )
+        taken[chambers] = name
 
 
 def _split_ref(table: TomlTable, key: str, text: str, database: Database) -> tuple[Message, str]:
