@@ -478,6 +478,12 @@ def _chamber(
             f"signal {message.name}.{signal_name} has unit {unit!r}, not a pressure unit; "
             f"set unit = one of {ACCEPTED_PRESSURE_UNITS}",
         )
+    if signal.scale == 0:  # cantools takes it: a constant, published as a valid pressure
+        raise chamber.error(
+            signal_key,
+            f"signal {message.name}.{signal_name} has factor 0 in the DBC: every value "
+            f"would be its offset, {signal.offset:g} {unit}",
+        )
     status = None
     if "status" in chamber:
         status_message, status_signal = _status_ref(chamber, message, database)
