@@ -651,7 +651,25 @@ def _status_check(
             ok.add(value)
             if value in choices:
                 ok.add(str(choices[value]))
+    signal = message.get_signal_by_name(signal_name)
+    low, high = _decoded_bounds(signal)
+    if not any(isinstance(value, str) or low <= value <= high for value in status_ok):
+        raise table.error(
+            key,
+            f"{message.name}.{signal_name} takes {low:g}..{high:g}: none of {list(status_ok)} "
+            "is one of them (every sample would be invalid)",
+        )
     return StatusCheck(signal=signal_name, ok=frozenset(ok), nominal=status_ok[0])
+
+
+def _decoded_bounds(signal: Signal) -> tuple[float, float]:
+    """The least and greatest value a signal's bits decode to (unbounded: a float)."""
+    if signal.is_float:
+        return (-math.inf, math.inf)
+    bits = signal.length - 1 if signal.is_signed else signal.length
+    low_raw, high_raw = (-(1 << bits) if signal.is_signed else 0), (1 << bits) - 1
+    ends = (low_raw * signal.scale + signal.offset, high_raw * signal.scale + signal.offset)
+    return (min(ends), max(ends))
 
 
 def _leg_status(table: TomlTable, database: Database) -> tuple[Message, str, int | None]:
