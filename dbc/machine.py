@@ -22,7 +22,7 @@ from typing import Any
 from cantools.database.can import Database, Message, Signal
 
 from dbc import DEFAULT_DBC_PATH
-from dbc.database import load_database
+from dbc.database import load_database, unsound
 from dbc.decoding import is_j1939, j1939_pgn
 from dbc.errors import ConfigError
 from dbc.protection import CRC_ALGORITHMS, DEFAULT_CRC_ALGORITHM, Protection, counter_modulo
@@ -707,11 +707,15 @@ def _attach_leg_status(
 
 def _message(table: TomlTable, key: str, name: str, database: Database) -> Message:
     """The DBC's message ``name``; one whose name or ID another message has too is an
-    error (cantools keeps the last: the config would read another message's frames)."""
+    error (cantools keeps the last: the config would read another message's frames),
+    and so is one whose signals overlap or do not fit in it."""
     try:
         message = database.get_message_by_name(name)
     except KeyError:
         raise table.error(key, f"no message {name!r} in the DBC") from None
+    problem = unsound(message)  # a message cantools' checks refused (see dbc.database)
+    if problem is not None:
+        raise table.error(key, f"message {name} of the DBC: {problem}")
     wire = _wire(message)
     for other in database.messages:
         if other is message:
