@@ -221,7 +221,10 @@ def can_log_frames(path: Path, channel: str | None = None) -> Iterator[RawFrame]
     summed from its start. A log cut short is read up to its last whole line
     (:class:`LogLines`) or BLF object (:func:`blf_cut`), with a warning."""
     if not path.is_file():  # python-can's SQLite reader would create it
-        raise RecordingError(path, "cannot read it as a CAN log: no such file")
+        what = "not a file" if path.exists() else "no such file"
+        raise RecordingError(path, f"cannot read it as a CAN log: {what}")
+    if path.stat().st_size == 0:  # a logger stopped at once (python-can: a BLF "unpack" error)
+        return
     try:
         reader, lines = _log_reader(path)
     except (OSError, NotImplementedError, *_READER_ERRORS) as exc:  # NotImplemented: no asammdf
