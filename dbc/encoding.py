@@ -9,7 +9,7 @@ builds; the tests use it to make frames.
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-from cantools.database.can import Database
+from cantools.database.can import Database, Message
 
 from dbc.decoding import SenderUnitFactors, SignalValue, UnitFactors, is_fd_message, is_j1939
 from dbc.machine import MachineConfig
@@ -68,7 +68,12 @@ class FrameEncoder:
         source_address: int | None = None,
     ) -> EncodedFrame:
         """Encode one frame; ``counter`` overrides the rolling counter (fault injection),
-        ``corrupt_crc`` sends a wrong CRC, ``source_address`` sets a J1939 sender."""
+        ``corrupt_crc`` sends a wrong CRC, ``source_address`` sets a J1939 sender.
+
+        A multiplexed message's frame is the page its multiplexer value in ``signals``
+        selects, with that page's signals only; a counter or CRC under other multiplexer
+        values is not in it (nor advanced: the receiver counts the frames carrying it).
+        """
         message = self._database.get_message_by_name(message_name)
         factors = self._to_si.get(message_name, {})
         if source_address is not None:
@@ -78,14 +83,17 @@ class FrameEncoder:
             for name, value in signals.items()
         }
         protection = self._protection.get(message_name)
-        if protection is not None and protection.counter is not None:
+        if protection is not None and _carries(message, protection.counter, values):
+            assert protection.counter is not None
             key = (message_name, source_address)
             if counter is None:
                 counter = self._counters.get(key, -1) + 1
             counter %= counter_modulo(message, protection.counter)
             self._counters[key] = counter
             values[protection.counter] = counter
-        if protection is not None and protection.crc is not None:
+        with_crc = protection is not None and _carries(message, protection.crc, values)
+        if with_crc:
+            assert protection is not None and protection.crc is not None
             values[protection.crc] = 0
         data = bytearray(message.encode(values, scaling=True, padding=False, strict=True))
         if message_name not in self._crc_checks:
@@ -93,7 +101,7 @@ class FrameEncoder:
                 protection.crc_check(message) if protection is not None else None
             )
         crc = self._crc_checks[message_name]
-        if crc is not None:
+        if crc is not None and with_crc:
             crc.write(data, counter, corrupt=corrupt_crc)
         frame_id = message.frame_id
         if source_address is not None:
@@ -103,3 +111,19 @@ class FrameEncoder:
         return EncodedFrame(
             frame_id, bool(message.is_extended_frame), bytes(data), is_fd_message(message)
         )
+
+
+def _carries(message: Message, signal_name: str | None, values: Mapping[str, SignalValue]) -> bool:
+    """The frame of ``values`` carries the signal: it is not multiplexed, or ``values``
+    put its multiplexer at one of its values (by number or value-table name)."""
+    if signal_name is None:
+        return False
+    signal = message.get_signal_by_name(signal_name)
+    if not signal.multiplexer_ids or signal.multiplexer_signal is None:
+        return True
+    multiplexer = message.get_signal_by_name(signal.multiplexer_signal)
+    page = values.get(multiplexer.name)
+    if isinstance(page, str):
+        names = {str(name): raw for raw, name in (multiplexer.choices or {}).items()}
+        return names.get(page) in signal.multiplexer_ids
+    return page in signal.multiplexer_ids

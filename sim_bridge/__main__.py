@@ -204,7 +204,7 @@ def main(options: BridgeOptions) -> int:
     logger.info("legs played (config=simulated, by %s): %s", builder.leg_map.rule, builder.leg_map)
     if builder.skipped:
         logger.info(
-            "not sent (the simulation has none of their signals, or multiplexed): %s",
+            "not sent (the simulation has none of their signals, or nested multiplexing): %s",
             builder.skipped,
         )
     if builder.defaulted:

@@ -14,8 +14,9 @@ fault hits the same frames at any ``--speed``. The faults and their command-line
     The message's rolling counter stops advancing: every frame in the window repeats the
     last counter sent before it (``counter``); afterwards it advances from there again.
     TARGET is a message (``LEG_SB1_F1``), a config leg (``SB1_F1``, meaning its message, or its
-    trigger chamber's transducer), one J1939 transducer (``HYD_PRESS@0x21``) or all
-    transducers sending a message (``HYD_PRESS``).
+    trigger chamber's transducer or page), one J1939 transducer (``HYD_PRESS@0x21``) or all
+    transducers sending a message (``HYD_PRESS``), one page of a multiplexed message
+    (``MUXHUB#1``) or all its pages (``MUXHUB``).
 ``--silent TARGET@START:DURATION``
     The message is not sent in the window (``stale`` after the stale time). Nothing is
     built either, so its counter resumes where it stopped. TARGET as above.
@@ -54,6 +55,7 @@ from dbc.errors import ConfigError
 from sim_bridge.frames import LegOverride
 from sim_bridge.result import SimulationResult, leg_column
 from sim_bridge.schedule import NS_PER_S
+from sim_bridge.senders import message_of
 
 #: The source named by errors about fault flags.
 SOURCE = "fault flags"
@@ -274,12 +276,13 @@ def _message_windows(
     window: FaultWindow, flag: str, targets: FaultTargets
 ) -> list[tuple[str, FaultWindow]]:
     """(sender, window) pairs for a fault that names a sender, a leg, or a DBC message
-    sent by several J1939 transducers (``HYD_PRESS``: every ``HYD_PRESS@0x..``)."""
+    sent by several J1939 transducers (``HYD_PRESS``: every ``HYD_PRESS@0x..``) or in
+    pages (``MUXHUB``: every ``MUXHUB#..``)."""
     if window.target in targets.messages:
         return [(window.target, window)]
     if window.target in targets.leg_messages:
         return [(targets.leg_messages[window.target], window)]
-    senders = [sender for sender in targets.messages if sender.startswith(f"{window.target}@")]
+    senders = [sender for sender in targets.messages if message_of(sender) == window.target]
     if senders:
         return [(sender, window) for sender in senders]
     raise ConfigError(

@@ -19,8 +19,11 @@ Pure computation. Which signal carries what:
 - Counter and CRC signals (``[protection.<MESSAGE>]``) are left to the
   :class:`~dbc.encoding.FrameEncoder`. A signal nobody supplies is sent as 0 (clipped into
   its range) and listed in :attr:`FrameBuilder.defaulted`; a periodic message none of whose
-  signals is supplied is not sent at all, nor is a multiplexed one
-  (:attr:`FrameBuilder.skipped`; a leg's chamber in a multiplexed message is refused).
+  signals is supplied is not sent at all, nor is one with nested multiplexing
+  (:attr:`FrameBuilder.skipped`; a leg's chamber in such a message is refused).
+- A **multiplexed message** is sent as one sender per page (:mod:`sim_bridge.senders`):
+  each cycle time, one frame of each multiplexer value its signals use, in value order,
+  each with that page's signals (and the counter and CRC where that page has them).
 
 Status signals say the first ``status_ok`` value of their chamber unless a fault says
 otherwise. Every
@@ -31,21 +34,21 @@ fault of e.g. 45 MPa still goes out unchanged. NaN (no data) is sent as 0.
 """
 
 import math
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 
 from cantools.database.can import Database, Message, Signal
 
 from dbc.decoding import SignalValue
 from dbc.errors import ConfigError
-from dbc.machine import ChamberSignal, MachineConfig
+from dbc.machine import TRIGGERS, ChamberSignal, LegConfig, MachineConfig
+from dbc.protection import Protection
 from dbc.units import pressure_factor_to_Pa
+from sim_bridge.getters import Getter, named_getters, phase_getter, scaled
 from sim_bridge.leg_map import LegMap, leg_map
-from sim_bridge.result import BASES, LEGS, PHASES, SimulationResult
+from sim_bridge.result import SimulationResult
 from sim_bridge.schedule import NS_PER_MS, NS_PER_S, MessageCycle
-
-#: A signal's value at one row: (result, row, completed cycles) -> physical value or name.
-Getter = Callable[[SimulationResult, int, int], SignalValue]
+from sim_bridge.senders import multiplexer_pages, on_page, sender_name
 
 
 @dataclass(frozen=True, slots=True)
@@ -108,6 +111,8 @@ class _ChamberSignals:
     column: int
     #: "piston" or "rod".
     chamber: str
+    #: The leg's sample is made when this chamber's value arrives (its trigger chamber).
+    triggers: bool
     pressure: Signal
     #: Factor from the pressure signal's DBC unit to Pa.
     to_Pa: float
@@ -118,72 +123,63 @@ class _ChamberSignals:
 
 @dataclass(frozen=True, slots=True)
 class _MessagePlan:
+    """What one sender's frames carry."""
+
     message: str
     #: J1939 source address the frames are sent from; None: the DBC's frame ID.
     source_address: int | None
+    #: The multiplexer signal and its value (the page) in these frames; None: not multiplexed.
+    multiplexer: str | None
+    page: int | None
     chambers: tuple[_ChamberSignals, ...]
     #: Signals found by name, with their getters.
     named: tuple[tuple[Signal, Getter], ...]
     #: Signals sent as a constant (nobody supplies them).
     constants: tuple[tuple[Signal, SignalValue], ...]
-
-
-def sender_name(message: str, source_address: int | None) -> str:
-    """What the bridge calls one sender: the message, and ``@0x21`` for a J1939 transducer."""
-    return message if source_address is None else f"{message}@0x{source_address:02X}"
+    #: The frames carry the message's rolling counter (all but a multiplexed message's
+    #: pages without it; also True for a message without a counter).
+    counted: bool
+    #: The frames carry the message's CRC.
+    crc: bool
 
 
 class FrameBuilder:
     """Builds each periodic sender's signal values from a simulation row.
 
-    A *sender* is one message, or for a J1939 message mapped to several source
-    addresses (one transducer per chamber) one per address (``HYD_PRESS@0x21``);
+    A *sender* (:mod:`sim_bridge.senders`) is one message, or for a J1939 message mapped
+    to several source addresses (one transducer per chamber) one per address
+    (``HYD_PRESS@0x21``), or for a multiplexed message one per page (``MUXHUB#1``);
     each sends at its message's cycle time. Within one instant the senders of a
-    message go out in address order, those of the legs' other chambers before those
-    of trigger chambers: each leg sample then pairs the chamber values of one
-    simulation row (skew 0), from the very first sample on. Values are in SI; the encoder turns
+    message go out in address and page order, except that one carrying a leg's trigger
+    chamber without its other chamber goes after the others: each leg sample then pairs
+    the chamber values of one simulation row (skew 0), from the very first sample on.
+    Values are in SI; the encoder turns
     them into the DBC's units. Constructed once from the machine configuration and
     the DBC; raises :class:`~dbc.errors.ConfigError` when the config's legs cannot be
     mapped onto the simulated legs (:func:`~sim_bridge.leg_map.leg_map`).
     """
 
     def __init__(self, config: MachineConfig, database: Database) -> None:
-        status_ok = config.status_ok[0]
-        protected = {
-            (name, signal)
-            for name, protection in config.protection.items()
-            for signal in (protection.counter, protection.crc)
-            if signal is not None
-        }
-        self._with_crc = frozenset(
-            name for name, protection in config.protection.items() if protection.crc is not None
-        )
         #: Which simulated leg plays each config leg.
         self.leg_map: LegMap = leg_map(config)
         columns = self.leg_map.columns
         chambers_by_sender: dict[tuple[str, int | None], list[_ChamberSignals]] = {}
         for leg in config.legs.values():
-            for chamber in ("piston", "rod"):
+            for chamber in TRIGGERS:
                 mapped: ChamberSignal = getattr(leg, chamber)
                 message = database.get_message_by_name(mapped.message)
-                if message.is_multiplexed():
+                if multiplexer_pages(message) is None:
                     raise ConfigError(
                         config.source,
                         f"legs.{leg.name}.{chamber}",
-                        f"message {message.name} is multiplexed: the bridge cannot play it "
-                        "(the service decodes it)",
+                        f"message {message.name} has nested multiplexing: the bridge plays "
+                        "one multiplexer signal only (the service decodes it)",
                     )
                 chambers_by_sender.setdefault((mapped.message, mapped.source_address), []).append(
-                    _chamber_signals(message, leg.name, columns[leg.name], chamber, mapped)
+                    _chamber_signals(message, leg, columns[leg.name], chamber, mapped)
                 )
-        # Senders carrying a leg's trigger chamber go after the others of their message.
-        triggers = {
-            (leg.trigger_chamber.message, leg.trigger_chamber.source_address)
-            for leg in config.legs.values()
-        }
-        getters = _named_getters(status_ok, columns)
+        getters = named_getters(config.status_ok[0], columns)
         # The bridge angles where [stability] says they are, whatever the DBC calls them.
-        pose_getters: dict[tuple[str, str], Getter] = {}
         if config.stability is not None:
             stability = config.stability
             for ref, rad_per_unit, name in (
@@ -191,14 +187,14 @@ class FrameBuilder:
                 (stability.fold, stability.fold_rad_per_unit, "Bridge_FoldAngle"),
             ):
                 # The simulation's angles are in degrees; the DBC's signal may be in another unit.
-                pose_getters[(ref.message, ref.signal)] = _scaled(
+                getters[f"{ref.message}.{ref.signal}"] = scaled(
                     getters[name], math.radians(1.0) / rad_per_unit
                 )
         self._plans: dict[str, _MessagePlan] = {}
         #: Signals sent as a constant 0, as "MESSAGE.SIGNAL".
         self.defaulted: list[str] = []
         #: Periodic messages not sent: the simulation supplies none of their signals, or
-        #: they are multiplexed (which the bridge cannot play; no leg's chamber may be in one).
+        #: they have nested multiplexing (no leg's chamber may be in such a message).
         self.skipped: list[str] = []
         #: The senders built, with their cycle times (the DBC's, or the config's
         #: ``[messages.<MESSAGE>] cycle_time_ms``), in DBC order.
@@ -207,48 +203,44 @@ class FrameBuilder:
             cycle_time_ms = config.cycle_times_ms.get(message.name)
             if cycle_time_ms is None:
                 continue
-            if message.is_multiplexed():
-                self.skipped.append(message.name)
-                continue
+            pages = multiplexer_pages(message)
             addresses = sorted(
                 {address for name, address in chambers_by_sender if name == message.name},
-                key=lambda address: (
-                    (message.name, address) in triggers,
-                    -1 if address is None else address,
-                ),
+                key=lambda address: -1 if address is None else address,
             ) or [None]
-            for address in addresses:
-                chambers = tuple(chambers_by_sender.get((message.name, address), ()))
-                taken = {s.name for c in chambers for s in (c.pressure, c.status) if s is not None}
-                named: list[tuple[Signal, Getter]] = []
-                constants: list[tuple[Signal, SignalValue]] = []
-                for signal in message.signals:
-                    if signal.name in taken or (message.name, signal.name) in protected:
-                        continue
-                    if (message.name, signal.name) in pose_getters:
-                        named.append((signal, pose_getters[(message.name, signal.name)]))
-                    elif signal.name == "Machine_Phase":
-                        named.append((signal, _phase_getter(signal)))
-                    elif signal.name in getters:
-                        named.append((signal, getters[signal.name]))
-                    else:
-                        constants.append((signal, clip(signal, 0.0)))
-                if not chambers and not named:
-                    self.skipped.append(message.name)
-                    continue
+            plans = [
+                _plan(
+                    message,
+                    address,
+                    page,
+                    chambers_by_sender.get((message.name, address), ()),
+                    getters,
+                    config.protection.get(message.name),
+                )
+                for address in addresses
+                for page in pages or ()
+            ]
+            if not any(plan.chambers or plan.named for plan in plans):
+                self.skipped.append(message.name)
+                continue
+            # A sender carrying a leg's trigger chamber without the other goes after the
+            # others of its message (sorted is stable: address, then page order otherwise).
+            for plan in sorted(plans, key=_pairs_late):
                 self.defaulted += [
                     name
-                    for name in (f"{message.name}.{signal.name}" for signal, _ in constants)
+                    for name in (f"{message.name}.{signal.name}" for signal, _ in plan.constants)
                     if name not in self.defaulted
                 ]
-                sender = sender_name(message.name, address)
-                self._plans[sender] = _MessagePlan(
-                    message.name, address, chambers, tuple(named), tuple(constants)
-                )
+                sender = sender_name(message.name, plan.source_address, plan.page)
+                self._plans[sender] = plan
                 self.cycles.append(MessageCycle(sender, round(cycle_time_ms * NS_PER_MS)))
         #: Leg name -> the sender of its trigger chamber (what faults on a leg act on).
         self.leg_messages = {
-            leg.name: sender_name(leg.trigger_chamber.message, leg.trigger_chamber.source_address)
+            leg.name: next(
+                sender
+                for sender, plan in self._plans.items()
+                if any(c.leg == leg.name and c.triggers for c in plan.chambers)
+            )
             for leg in config.legs.values()
         }
 
@@ -274,8 +266,15 @@ class FrameBuilder:
         return plan.message, plan.source_address
 
     def has_crc(self, sender: str) -> bool:
-        """``sender``'s message carries a CRC (what ``--bad-crc`` can corrupt)."""
-        return self._plans[sender].message in self._with_crc
+        """``sender``'s frames carry a CRC (what ``--bad-crc`` can corrupt)."""
+        return self._plans[sender].crc
+
+    def counter_key(self, sender: str) -> tuple[str, int | None] | None:
+        """The rolling counter ``sender``'s frames advance: the message's, per J1939
+        source address, which the pages of a multiplexed message that carry it share (the
+        receiver counts their frames in turn); None for a page without it."""
+        plan = self._plans[sender]
+        return (plan.message, plan.source_address) if plan.counted else None
 
     def signals(
         self,
@@ -288,6 +287,8 @@ class FrameBuilder:
         """The signal values (SI) of sender ``message`` at ``row`` (counter, CRC left out)."""
         plan = self._plans[message]
         values: dict[str, SignalValue] = {}
+        if plan.multiplexer is not None and plan.page is not None:
+            values[plan.multiplexer] = plan.page
         for chamber in plan.chambers:
             override = (overrides or {}).get(chamber.leg)
             status: SignalValue
@@ -339,15 +340,16 @@ def clip(signal: Signal, value: SignalValue, to_si: float = 1.0) -> SignalValue:
 
 
 def _chamber_signals(
-    message: Message, leg: str, column: int, chamber: str, mapped: ChamberSignal
+    message: Message, leg: LegConfig, column: int, chamber: str, mapped: ChamberSignal
 ) -> _ChamberSignals:
     factor = pressure_factor_to_Pa(mapped.unit)
     assert factor is not None  # the config loader checked the unit
     status = mapped.status
     return _ChamberSignals(
-        leg=leg,
+        leg=leg.name,
         column=column,
         chamber=chamber,
+        triggers=chamber == leg.trigger,
         pressure=message.get_signal_by_name(mapped.signal),
         to_Pa=factor,
         status=message.get_signal_by_name(status.signal) if status is not None else None,
@@ -355,48 +357,56 @@ def _chamber_signals(
     )
 
 
-def _column(field: str, column: int) -> Getter:
-    return lambda result, row, cycle: float(getattr(result, field)[row, column])
+def _plan(
+    message: Message,
+    source_address: int | None,
+    page: int | None,
+    chambers: Iterable[_ChamberSignals],
+    getters: Mapping[str, Getter],
+    protection: Protection | None,
+) -> _MessagePlan:
+    """What the frames of one sender carry: ``page``'s signals (None: all) of ``message``
+    from ``source_address``; ``getters`` by signal name, or by ``MESSAGE.SIGNAL``."""
+    mine = tuple(chamber for chamber in chambers if on_page(chamber.pressure, page))
+    taken = {s.name for c in mine for s in (c.pressure, c.status) if s is not None}
+    if protection is not None:
+        taken |= {name for name in (protection.counter, protection.crc) if name is not None}
+    named: list[tuple[Signal, Getter]] = []
+    constants: list[tuple[Signal, SignalValue]] = []
+    multiplexer = None
+    for signal in message.signals:
+        if signal.is_multiplexer:
+            multiplexer = signal.name
+        elif not on_page(signal, page) or signal.name in taken:
+            continue
+        elif f"{message.name}.{signal.name}" in getters:
+            named.append((signal, getters[f"{message.name}.{signal.name}"]))
+        elif signal.name == "Machine_Phase":
+            named.append((signal, phase_getter(signal)))
+        elif signal.name in getters:
+            named.append((signal, getters[signal.name]))
+        else:
+            constants.append((signal, clip(signal, 0.0)))
+
+    def carried(name: str | None) -> bool:
+        return name is not None and on_page(message.get_signal_by_name(name), page)
+
+    return _MessagePlan(
+        message=message.name,
+        source_address=source_address,
+        multiplexer=multiplexer,
+        page=page,
+        chambers=mine,
+        named=tuple(named),
+        constants=tuple(constants),
+        counted=protection is None or protection.counter is None or carried(protection.counter),
+        crc=protection is not None and carried(protection.crc),
+    )
 
 
-def _series(field: str) -> Getter:
-    return lambda result, row, cycle: float(getattr(result, field)[row])
-
-
-def _scaled(getter: Getter, factor: float) -> Getter:
-    if factor == 1.0:
-        return getter
-    return lambda result, row, cycle: float(getter(result, row, cycle)) * factor
-
-
-def _phase_getter(signal: Signal) -> Getter:
-    """The phase by its value-table name when the DBC's table has the names, else its index."""
-    names = {str(choice) for choice in (signal.choices or {}).values()}
-
-    def phase(result: SimulationResult, row: int, cycle: int) -> SignalValue:
-        index = int(result.phase[row])
-        if 0 <= index < len(PHASES) and PHASES[index] in names:
-            return PHASES[index]
-        return index
-
-    return phase
-
-
-def _named_getters(status_ok: SignalValue, columns: Mapping[str, int]) -> dict[str, Getter]:
-    """Getters of the signals found by name in the DBC (Machine_Phase aside); ``columns``:
-    each config leg's column, whose ``<LEG>_Stroke`` is its simulated leg's."""
-    getters: dict[str, Getter] = {
-        "Bridge_FoldAngle": _series("fold_deg"),
-        "Bridge_RotationAngle": _series("rotation_deg"),
-        "Carriage_Position": _series("carriage_m"),
-        "Machine_CycleCount": lambda result, row, cycle: cycle,
-        "Machine_CycleTime": lambda result, row, cycle: float(result.t_s[row]),
-    }
-    for b, base in enumerate(BASES):
-        getters[f"INCL_{base}_pPiston"] = _column("incl_p_piston_Pa", b)
-        getters[f"INCL_{base}_pRod"] = _column("incl_p_rod_Pa", b)
-        getters[f"INCL_{base}_Status"] = lambda result, row, cycle: status_ok
-        getters[f"{base}_InclinationAngle"] = _column("inclination_deg", b)
-    for leg, column in ({leg: i for i, leg in enumerate(LEGS)} | dict(columns)).items():
-        getters[f"{leg}_Stroke"] = _column("stroke_m", column)
-    return getters
+def _pairs_late(plan: _MessagePlan) -> bool:
+    """``plan``'s frames carry a leg's trigger chamber but not its other chamber: sent
+    after the message's other senders of an instant, the leg's sample pairs the chamber
+    values of one simulation row (skew 0) from the very first sample on."""
+    legs = [chamber.leg for chamber in plan.chambers]
+    return any(chamber.triggers and legs.count(chamber.leg) == 1 for chamber in plan.chambers)

@@ -4,7 +4,8 @@ Pure computation (no bus, no clock): combines the :class:`~sim_bridge.frames.Tim
 the :class:`~sim_bridge.frames.FrameBuilder`, the :class:`~sim_bridge.faults.FaultInjector`
 and the :class:`~dbc.encoding.FrameEncoder`. The emitter only times and sends the result.
 
-The rolling counter of each message is kept here and handed to the encoder explicitly,
+The rolling counter of each message (per J1939 sender; shared by the pages of a
+multiplexed message that carry it) is kept here and handed to the encoder explicitly,
 so a frozen counter can repeat the last value sent.
 """
 
@@ -62,7 +63,7 @@ class Playout:
         self._builder = builder
         self._encoder = encoder
         self._injector = injector or FaultInjector(FaultConfig(), fault_targets(builder))
-        self._next_counter: dict[str, int] = {}
+        self._next_counter: dict[tuple[str, int | None], int] = {}
         self.counts = PlayoutCounts()
         #: Config leg -> its column in ``result`` (its simulated leg).
         self.leg_columns = builder.leg_map.columns
@@ -88,13 +89,16 @@ class Playout:
                 counts.silent[message] += 1
                 continue
             fate = injector.fate(message, instant.sim_t_ns)
-            next_counter = self._next_counter.get(message, 0)
-            if fate.freeze_counter and next_counter > 0:
-                counter = next_counter - 1  # the last one sent, again
-                counts.frozen_counter[message] += 1
-            else:  # (a freeze from the very first frame starts by sending counter 0)
-                counter = next_counter
-                self._next_counter[message] = next_counter + 1
+            counter = None
+            key = self._builder.counter_key(message)
+            if key is not None:  # (the pages of a multiplexed message may share one)
+                next_counter = self._next_counter.get(key, 0)
+                if fate.freeze_counter and next_counter > 0:
+                    counter = next_counter - 1  # the last one sent, again
+                    counts.frozen_counter[message] += 1
+                else:  # (a freeze from the very first frame starts by sending counter 0)
+                    counter = next_counter
+                    self._next_counter[key] = next_counter + 1
             signals = self._builder.signals(
                 message, self.result, position.row, position.cycle, overrides
             )

@@ -1,6 +1,7 @@
 """Leg chambers in a multiplexed message (a sensor hub sending one leg per multiplexer
 value): each frame makes the samples of the legs it carries, a leg's chambers in two
-multiplexer values pair by the timing rule, and what cannot work is refused at load."""
+multiplexer values pair by the timing rule, and what cannot work is refused at load.
+The bridge playing this hub: tests/sim_bridge/test_multiplexed.py."""
 
 from pathlib import Path
 
@@ -12,7 +13,6 @@ from daq.pipeline import Pipeline
 from dbc.errors import ConfigError
 from dbc.machine import MachineConfig, load_machine_config
 from estimator import foot_force_N
-from sim_bridge.frames import FrameBuilder
 from tests.helpers import LEG_DEFAULTS_TOML, dbc_text
 
 DBC = dbc_text(
@@ -129,19 +129,3 @@ def test_a_status_in_another_multiplexer_value_than_its_chamber_is_refused(
     )
     with pytest.raises(ConfigError, match=r"legs\.SB1_F3\.rod\.status: C_Status .*multiplexer"):
         _load(tmp_path, config)
-
-
-def test_the_bridge_refuses_a_multiplexed_leg_message_in_one_line(tmp_path: Path) -> None:
-    config, database = _load(tmp_path)
-    with pytest.raises(ConfigError, match=r"legs\.SB1_F1\.piston: .*HUB_PRESS is multiplexed"):
-        FrameBuilder(config, database)
-
-
-def test_the_bridge_plays_the_other_messages_and_skips_multiplexed_ones(tmp_path: Path) -> None:
-    plain = CONFIG.split("[legs.SB1_F1]")[0] + (
-        '[legs.SB1_F1]\npiston = "LEG_PLAIN.pPiston"\nrod = "LEG_PLAIN.pRod"\n'
-    )
-    config, database = _load(tmp_path, plain)
-    builder = FrameBuilder(config, database)
-    assert builder.messages == ["LEG_PLAIN"]
-    assert builder.skipped == ["HUB_PRESS", "DIAG"]
