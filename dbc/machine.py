@@ -724,9 +724,10 @@ def _check_senders(
 def _unit_factors(
     legs_table: TomlTable, legs: Mapping[str, LegConfig], database: Database
 ) -> tuple[dict[str, dict[str, float]], dict[tuple[str, int], dict[str, float]]]:
-    """Pa per DBC unit of every pressure signal: by message (what frames of any sender
-    are decoded with: the DBC's unit, or that of a chamber pinning no sender), and by
-    message and J1939 sender, for the transducers whose chamber gives another unit.
+    """Pa per DBC unit of every pressure signal: by message, what frames of any sender
+    are decoded with (the unit of a chamber pinning no sender, else the DBC's; where the
+    DBC's is none, the one unit all chambers of the signal agree on), and by message and
+    J1939 sender, for the transducers whose chamber gives another unit than that.
 
     One sender has one unit: two for one source address, or a chamber pinning no sender
     in one unit and another chamber of the signal in another, stop the config.
@@ -761,8 +762,16 @@ def _unit_factors(
                     f"legs.{other_leg}.{other_key} ({sender}); one transducer has one unit",
                 )
             others.append((address, factor, chamber.unit, leg.name, key))
-            if address is None:
-                _set_factor(factors.setdefault(chamber.message, {}), chamber.signal, factor)
+    for (message_name, signal_name), chambers in readers.items():
+        unpinned = [factor for address, factor, *_ in chambers if address is None]
+        agreed = {factor for _, factor, *_ in chambers}
+        signal = database.get_message_by_name(message_name).get_signal_by_name(signal_name)
+        in_dbc = pressure_factor_to_Pa(signal.unit or "")
+        default = unpinned[0] if unpinned else in_dbc
+        if default is None and len(agreed) == 1:
+            default = agreed.pop()
+        if default is not None:
+            _set_factor(factors.setdefault(message_name, {}), signal_name, default)
     by_sender: dict[tuple[str, int], dict[str, float]] = {}
     for (message_name, signal_name), chambers in readers.items():
         defaults = factors.get(message_name, {})
