@@ -205,7 +205,7 @@ class _MessageCodec:
             return None
         counter = self._counters.get(source_address)
         if counter is None:
-            counter = self.protection.counter_check(self.message)
+            counter = self.protection.counter_check(self.message, source_address)
             assert counter is not None
             self._counters[source_address] = counter
         return counter

@@ -200,16 +200,10 @@ class FrameBuilder:
         #: Periodic messages not sent: the simulation supplies none of their signals, or
         #: they are multiplexed (which the bridge cannot play; no leg's chamber may be in one).
         self.skipped: list[str] = []
-        #: The senders built, with their cycle times (the DBC's, or the config's
-        #: ``[messages.<MESSAGE>] cycle_time_ms``), in DBC order.
+        #: The senders built, with their cycle times (the DBC's, or the config's: the
+        #: message's or the transducer's ``cycle_time_ms``), in DBC order.
         self.cycles: list[MessageCycle] = []
         for message in database.messages:
-            cycle_time_ms = config.cycle_times_ms.get(message.name)
-            if cycle_time_ms is None:
-                continue
-            if message.is_multiplexed():
-                self.skipped.append(message.name)
-                continue
             addresses = sorted(
                 {address for name, address in chambers_by_sender if name == message.name},
                 key=lambda address: (
@@ -217,7 +211,17 @@ class FrameBuilder:
                     -1 if address is None else address,
                 ),
             ) or [None]
-            for address in addresses:
+            cycle_times_ms = {
+                address: cycle_time_ms
+                for address in addresses
+                if (cycle_time_ms := config.cycle_time_ms(message.name, address)) is not None
+            }
+            if not cycle_times_ms:
+                continue
+            if message.is_multiplexed():
+                self.skipped.append(message.name)
+                continue
+            for address, cycle_time_ms in cycle_times_ms.items():
                 chambers = tuple(chambers_by_sender.get((message.name, address), ()))
                 taken = {s.name for c in chambers for s in (c.pressure, c.status) if s is not None}
                 named: list[tuple[Signal, Getter]] = []
