@@ -221,7 +221,10 @@ def can_log_frames(path: Path, channel: str | None = None) -> Iterator[RawFrame]
     summed from its start. A log cut short is read up to its last whole line
     (:class:`LogLines`) or BLF object (:func:`blf_cut`), with a warning."""
     if not path.is_file():  # python-can's SQLite reader would create it
-        raise RecordingError(path, "cannot read it as a CAN log: no such file")
+        what = "not a file" if path.exists() else "no such file"
+        raise RecordingError(path, f"cannot read it as a CAN log: {what}")
+    if path.stat().st_size == 0:  # a logger stopped at once (python-can: a BLF "unpack" error)
+        return
     try:
         reader, lines = _log_reader(path)
     except (OSError, NotImplementedError, *_READER_ERRORS) as exc:  # NotImplemented: no asammdf
@@ -270,7 +273,7 @@ def _log_reader(path: Path) -> tuple[MessageReader, "LogLines | None"]:
     suffixes = [suffix.lower() for suffix in path.suffixes[-2:]]
     gzipped = suffixes[-1:] == [".gz"]
     suffix = suffixes[-2] if gzipped and len(suffixes) == 2 else suffixes[-1] if suffixes else ""
-    reader_type = AscReader if suffix == ".asc" else MESSAGE_READERS.get(suffix)
+    reader_type = _OWN_READERS.get(suffix) or MESSAGE_READERS.get(suffix)
     if reader_type is None or not issubclass(reader_type, TextIOMessageReader):
         return can.LogReader(str(path)), None  # binary, or python-can's word on the suffix
     # The frames are ASCII; a header, comment or name may be in a Windows code page
@@ -356,6 +359,24 @@ class AscReader(can.ASCReader):
             return message
         message.is_fd = bool(flags & _EDL)
         return message
+
+
+class TrcReader(can.TRCReader):
+    """python-can's TRC reader, except that a frame line it cannot parse (too few
+    columns: a line cut in the middle of the log) stops reading, as in every other text
+    log; python-can left it out with a warning of its own, a frame lost uncounted."""
+
+    def _parse_line(self, line: str) -> can.Message | None:
+        if not line.strip():  # python-can's header reading hands on an empty file's ''
+            return None
+        try:
+            return self._parse_cols(tuple(line.split(maxsplit=self._num_columns)))
+        except IndexError as exc:
+            raise ValueError(f"a frame line with too few columns: {line.strip()!r}") from exc
+
+
+#: Our readers where python-can's read a suffix wrongly.
+_OWN_READERS: dict[str, type[TextIOMessageReader]] = {".asc": AscReader, ".trc": TrcReader}
 
 
 def _open(path: Path) -> IO[bytes]:

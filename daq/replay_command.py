@@ -6,10 +6,13 @@ be used; the reason is one line on stderr.
 """
 
 import argparse
+import os
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import IO
 
+from daq.errors import RecordingError
 from daq.replay import replay
 from daq.subcommand import PROG, Subcommand, add_channel_option, fail, setup_logging
 from dbc.errors import ConfigError, DbcError, PortalDaqError
@@ -34,8 +37,10 @@ def replay_main(args: Sequence[str]) -> int:
         if options.out is None:
             replay(options.recording, sys.stdout, options.config, options.channel)
         else:
-            with open(options.out, "w", newline="") as out:
-                replay(options.recording, out, options.config, options.channel)
+            write_then_replace(
+                options.out,
+                lambda out: replay(options.recording, out, options.config, options.channel),
+            )
     except (ConfigError, DbcError) as exc:
         return fail(exc, 2)
     except BrokenPipeError:
@@ -43,6 +48,25 @@ def replay_main(args: Sequence[str]) -> int:
     except (PortalDaqError, OSError) as exc:
         return fail(exc, 1)
     return 0
+
+
+def write_then_replace(path: Path, write: Callable[[IO[str]], object]) -> None:
+    """``write`` into a file beside ``path`` (``.NAME.part``) that replaces ``path`` once
+    it is done: a replay that fails (a bad config, a log that is not there or stops
+    being readable) leaves a file of that name as it was, not emptied or half written."""
+    if path.is_dir():
+        raise RecordingError(path, "cannot write it: it is a directory")
+    part = path.with_name(f".{path.name}.part")
+    try:
+        try:
+            with open(part, "w", newline="") as out:
+                write(out)
+            os.replace(part, path)
+        except OSError as exc:
+            raise RecordingError(path, f"cannot write it: {exc.strerror or exc}") from exc
+    except BaseException:
+        part.unlink(missing_ok=True)
+        raise
 
 
 SUBCOMMAND = Subcommand(

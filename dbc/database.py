@@ -19,6 +19,9 @@ _BOM_ENCODINGS = (
     (codecs.BOM_UTF16_LE, "utf-16"),
     (codecs.BOM_UTF16_BE, "utf-16"),
 )
+#: CAN databases of other formats (cantools reads them; the config takes a DBC, which a
+#: recording embeds): what their text starts with, and the format's name.
+_OTHER_FORMATS = (("<NetworkDefinition", "KCD"), ("<AUTOSAR", "ARXML"), ("FormatVersion=", "SYM"))
 
 
 def load_database(path: str | Path) -> Database:
@@ -33,7 +36,19 @@ def load_database(path: str | Path) -> Database:
         raise DbcError(path, "no such file; set machine.dbc in the config to the DBC") from exc
     except OSError as exc:
         raise DbcError(path, f"cannot read it: {exc.strerror or exc}") from exc
-    return load_database_bytes(data, str(path))
+    try:
+        return load_database_bytes(data, str(path))
+    except DbcError as exc:
+        head = data[:4096].decode("utf-8", errors="replace")
+        kind = next((kind for start, kind in _OTHER_FORMATS if start in head), None)
+        if kind is None:
+            raise
+        dbc_path = Path(path).with_suffix(".dbc")
+        raise DbcError(
+            path,
+            f"a {kind} file, not a DBC: portal-daq reads DBC only; convert it with "
+            f"`cantools convert {path} {dbc_path}`",
+        ) from exc
 
 
 def load_database_string(text: str, source: str) -> Database:

@@ -46,10 +46,11 @@ FRAMES_LOG_SUFFIXES = (".log", ".blf", ".asc")
 
 def load_source(source: SourceOptions, config: MachineConfig) -> SimulationResult:
     """The cycle to play: the external export when given, else the model's simulation."""
+    legs = leg_map(config)  # first: legs the bridge cannot play stop before the model runs
     if source.input_path is not None and source.mapping_path is not None:
         from sim_bridge.external import load_external
 
-        result = load_external(source.input_path, source.mapping_path)
+        result = load_external(source.input_path, source.mapping_path, legs.simulated)
         logger.info(
             "cycle: %s via %s, %d samples of %g s",
             source.input_path,
@@ -200,7 +201,7 @@ def main(options: BridgeOptions) -> int:
     config, database = load_machine_config(options.source.config_path)
     result = load_source(options.source, config)
     builder = FrameBuilder(config, database)
-    logger.info("legs played (config=simulated): %s, by %s", builder.leg_map, builder.leg_map.rule)
+    logger.info("legs played (config=simulated, by %s): %s", builder.leg_map.rule, builder.leg_map)
     if builder.skipped:
         logger.info(
             "not sent (the simulation has none of their signals, or multiplexed): %s",

@@ -10,7 +10,8 @@ The export holds a time column and pressure columns under any names; a mapping f
     force_unit = "kN"        # "N" or "kN"                    (or force_scale = factor to N)
     dt_s = 0.01              # step of the uniform grid the data is resampled to
 
-    [legs.SB1_F1]            # one table per leg SB1_F1 .. SB2_F3, all six required
+    [legs.SB1_F1]            # one table per leg SB1_F1 .. SB2_F3 (or the machine
+                             # config's leg that plays it), all six required
     piston = "p_cap_1"       # piston chamber pressure column
     rod = "p_ann_1"          # rod chamber pressure column
     force = "Fz_1"           # optional: the true foot force (ground truth)
@@ -32,6 +33,10 @@ Any column entry may be a number instead of a name: a constant in the mapping's 
 is filled with constants: inclination-cylinder pressures 0 Pa, strokes 0 m, angles 0 deg,
 carriage 0 m, phase 0 (``idle``), no slipping; the true force and the ground compression,
 which nothing can stand in for, are NaN (the truth files then say "unknown").
+
+A ``[legs.<LEG>]`` table may name a leg of the machine configuration instead of a
+simulated leg (``legs``: config leg -> simulated leg, :class:`~sim_bridge.leg_map.LegMap`),
+so a mapping written for a machine with other leg names needs no translation.
 
 Samples are linearly interpolated onto the grid ``0, dt_s, 2 dt_s, ...`` from the first
 time stamp (the phase is held, not interpolated). A .mat file holds one variable per
@@ -63,11 +68,14 @@ DEFAULT_DT_S = 0.01
 Columns = Mapping[str, FloatArray]
 
 
-def load_external(data_path: str | Path, mapping_path: str | Path) -> SimulationResult:
-    """Read an export and its mapping into a :class:`SimulationResult`."""
+def load_external(
+    data_path: str | Path, mapping_path: str | Path, legs: Mapping[str, str] | None = None
+) -> SimulationResult:
+    """Read an export and its mapping into a :class:`SimulationResult`; ``legs``: the
+    config leg -> simulated leg names the mapping's leg tables may use."""
     mapping = read_toml(mapping_path)
     columns = read_columns(data_path)
-    return build_result(columns, mapping, str(mapping_path), str(data_path))
+    return build_result(columns, mapping, str(mapping_path), str(data_path), legs)
 
 
 def read_columns(path: str | Path) -> dict[str, FloatArray]:
@@ -201,10 +209,34 @@ def _scale(table: TomlTable, unit_key: str, scale_key: str, units: Mapping[str, 
     return units[unit]
 
 
+def _leg_tables(legs: TomlTable, config_legs: Mapping[str, str]) -> list[TomlTable]:
+    """The table of each simulated leg, in LEGS order: named after it, or after the
+    config leg that plays it (``config_legs``: config leg -> simulated leg)."""
+    legs.reject_unknown((*LEGS, *config_legs))
+    names: dict[str, str] = {}
+    for name in legs.data:
+        simulated = config_legs.get(name, name)
+        if simulated in names:
+            raise legs.error(name, f"maps {simulated} again (legs.{names[simulated]} does)")
+        names[simulated] = name
+    tables = []
+    for leg in LEGS:
+        if leg not in names:
+            name = next((c for c, s in config_legs.items() if s == leg), leg)
+            raise legs.error(name, f"missing; map every leg ({', '.join(LEGS)}), a number for none")
+        tables.append(legs.table(names[leg]))
+    return tables
+
+
 def build_result(
-    columns: Columns, mapping: dict[str, Any], source: str, data_source: str
+    columns: Columns,
+    mapping: dict[str, Any],
+    source: str,
+    data_source: str,
+    legs: Mapping[str, str] | None = None,
 ) -> SimulationResult:
-    """A :class:`SimulationResult` from named ``columns`` per the parsed ``mapping``."""
+    """A :class:`SimulationResult` from named ``columns`` per the parsed ``mapping``;
+    ``legs``: config leg -> simulated leg, for leg tables named after config legs."""
     root = TomlTable(mapping, source)
     root.reject_unknown(("input", "legs", "bases", "signals"))
     head = root.table("input")
@@ -226,13 +258,9 @@ def build_result(
     if n < 2:
         raise head.error("dt_s", f"{dt_s} s leaves fewer than 2 samples in the export")
 
-    legs = root.table("legs")
-    legs.reject_unknown(LEGS)
+    leg_tables = _leg_tables(root.table("legs"), legs or {})
     per_leg: dict[str, list[FloatArray]] = {"piston": [], "rod": [], "force": [], "stroke": []}
-    for leg in LEGS:
-        if leg not in legs:
-            raise legs.error(leg, f"missing; map every leg ({', '.join(LEGS)}), a number for none")
-        table = legs.table(leg)
+    for table in leg_tables:
         table.reject_unknown(per_leg)
         for key in ("piston", "rod"):
             if key not in table:

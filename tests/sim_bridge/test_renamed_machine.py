@@ -5,27 +5,32 @@ DBC's quantization allows, the faults take the config's leg names, and the truth
 names the config's legs."""
 
 import csv
+import tomllib
 import uuid
+from collections import defaultdict
 from pathlib import Path
 
 import can
 import numpy as np
 import pytest
+from cantools.database.can import Database
 
 from daq.frames import RawFrame
 from daq.pipeline import Pipeline
 from dbc.decoding import FrameDecoder
-from dbc.machine import load_machine_config
+from dbc.machine import MachineConfig, load_machine_config, parse_machine_config
 from sim_bridge.__main__ import cli
 from sim_bridge.faults import FaultConfig, FaultWindow
 from sim_bridge.leg_map import leg_map
 from sim_bridge.plot import cycle_figure
 from sim_bridge.result import LEGS, SimulationResult
 from sim_bridge.schedule import instants, schedule
+from tests.helpers import ROOT
 from tests.sim_bridge.synthetic import make_playout, make_result, write_export
 from tests.sim_bridge.test_leg_map import RENAMED, RENAMED_LEGS
 
 CONFIG, DATABASE = load_machine_config(RENAMED)
+J1939_EXAMPLE = ROOT / "daq" / "examples" / "j1939" / "portal-daq.toml"
 #: The renamed DBC's pressure signals: 1000 Pa per bit, offset -1 MPa (the default's).
 SCALE_PA, OFFSET_PA = 1000.0, -1.0e6
 
@@ -128,6 +133,11 @@ def test_faults_name_the_config_legs(result: SimulationResult) -> None:
 def test_the_bridge_command_plays_it_and_the_truth_names_its_legs(tmp_path: Path) -> None:
     result = make_result(duration_s=0.5)
     data, mapping = write_export(tmp_path, result)
+    # the export's mapping may name the config's legs (SB1's here) or the simulation's
+    text = mapping.read_text()
+    for leg in ("near_tip", "near_left", "near_right"):
+        text = text.replace(f"[legs.{RENAMED_LEGS[leg]}]", f"[legs.{leg}]")
+    mapping.write_text(text)
     channel, truth_csv = f"renamed-{uuid.uuid4()}", tmp_path / "truth.csv"
     args = ["--config", str(RENAMED), "--interface", "virtual", "--channel", channel]
     args += ["--input", str(data), "--mapping", str(mapping), "--as-fast-as-possible"]
@@ -167,3 +177,51 @@ def test_the_plot_draws_each_config_leg_from_its_simulated_leg(result: Simulatio
         assert np.array_equal(lines[leg].get_ydata(), force_kN)
         # SB1's feet solid, SB2's dashed, as the simulated leg's base
         assert lines[leg].get_linestyle() == ("-" if simulated < "SB2" else "--")
+
+
+def estimates_by_leg(config: MachineConfig, database: Database, result: SimulationResult):  # type: ignore[no-untyped-def]
+    """(t, p_piston, p_rod, force_raw) of each leg's estimates, 0.5 s of ``result`` played."""
+    playout = make_playout(result, FaultConfig(seed=1), config, database)
+    pipeline = Pipeline.from_config(config, database)
+    by_leg = defaultdict(list)
+    for instant in instants(schedule(playout.cycles, end_sim_ns=round(0.5e9))):
+        for item in playout.frames(instant)[1]:
+            frame = item.frame
+            raw = RawFrame(instant.sim_t_ns / 1e9, frame.arbitration_id, True, frame.data)
+            for e in pipeline.process(raw).estimates:
+                assert e.valid, e
+                by_leg[e.leg].append((e.t_s, e.p_piston_Pa, e.p_rod_Pa, e.force_raw_N))
+    assert pipeline.bad == {}
+    return by_leg
+
+
+def test_j1939_transducers_under_other_leg_names_go_by_the_legs_order(
+    result: SimulationResult,
+) -> None:
+    """The J1939 example (one transducer per chamber, no [stability]) with its legs renamed
+    and their tables shuffled: the n-th leg plays the n-th simulated leg, whichever
+    transducers it has, and gets what the example's leg of that name gets."""
+    data = tomllib.loads(J1939_EXAMPLE.read_text())
+    tables = data["legs"]
+    renamed = ("right_rear", "left_mid", "left_front", "right_front", "left_rear", "right_mid")
+    shuffled = ("SB2_F3", "SB1_F2", "SB2_F1", "SB1_F1", "SB1_F3", "SB2_F2")
+    data["legs"] = {name: tables[old] for name, old in zip(renamed, shuffled, strict=True)}
+    example, database = load_machine_config(J1939_EXAMPLE)
+    config = parse_machine_config(data, "renamed-j1939.toml", database, example.dbc_path)
+    assert dict(leg_map(config).simulated) == dict(zip(renamed, LEGS, strict=True))
+    got = estimates_by_leg(config, database, result)
+    expected = estimates_by_leg(example, database, result)
+    assert len(got) == 6 and all(len(values) == 50 for values in got.values())
+    for leg, simulated in zip(renamed, LEGS, strict=True):
+        assert got[leg] == expected[simulated], leg
+
+
+def test_an_export_mapping_may_not_map_a_leg_twice(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    data, mapping = write_export(tmp_path, make_result(duration_s=0.2))
+    mapping.write_text(mapping.read_text() + "[legs.far_tip]\npiston = 0.0\nrod = 0.0\n")
+    args = ["plot", "--config", str(RENAMED), "--input", str(data), "--mapping", str(mapping)]
+    assert cli([*args, "--out", str(tmp_path / "x.png")]) == 2
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert line.endswith("mapping.toml: legs.far_tip: maps SB2_F1 again (legs.SB2_F1 does)")

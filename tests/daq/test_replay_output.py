@@ -1,0 +1,85 @@
+"""``portal-daq replay ... --out FILE``: the CSV replaces FILE only once the replay is
+done; a replay refused or failed leaves FILE as it was, and says why in one line."""
+
+from pathlib import Path
+from subprocess import CompletedProcess
+
+import pytest
+
+from tests.daq.test_cli import assert_one_line_error, run_cli
+from tests.helpers import EXAMPLE_CONFIG
+
+#: Two LEG_SB1_F1 frames as the simulator sends them (counter 0 and 1, CRC-8).
+LOG = (
+    "(1750000000.000000) can0 100#461208070000001C\n(1750000000.010000) can0 100#4612080701000093\n"
+)
+
+
+@pytest.fixture
+def earlier(tmp_path: Path) -> Path:
+    """The CSV of an earlier replay, which a failed one must not touch."""
+    path = tmp_path / "est.csv"
+    path.write_text("leg,t\nSB1_F1,1.0\n")
+    return path
+
+
+def _left_alone(path: Path) -> None:
+    assert path.read_text() == "leg,t\nSB1_F1,1.0\n"
+    assert sorted(p.name for p in path.parent.iterdir() if p.name.endswith(".part")) == []
+
+
+def replay_into(log: Path, out: Path, config: Path = EXAMPLE_CONFIG) -> CompletedProcess[str]:
+    return run_cli("replay", str(log), "--config", str(config), "--out", str(out))
+
+
+def test_a_bad_config_leaves_the_output_as_it_was(tmp_path: Path, earlier: Path) -> None:
+    """It was emptied: a typo in the config cost the CSV of the run before."""
+    (tmp_path / "cycle.log").write_text(LOG)
+    (tmp_path / "bad.toml").write_text("x = [\n")
+    result = replay_into(tmp_path / "cycle.log", earlier, tmp_path / "bad.toml")
+    assert_one_line_error(result, 2, "bad.toml: not valid TOML")
+    _left_alone(earlier)
+
+
+def test_a_missing_log_leaves_the_output_as_it_was(tmp_path: Path, earlier: Path) -> None:
+    result = replay_into(tmp_path / "cylce.log", earlier)
+    assert_one_line_error(result, 1, "cylce.log: cannot read it as a CAN log: no such file")
+    _left_alone(earlier)
+
+
+def test_a_replay_that_is_done_replaces_the_output(tmp_path: Path, earlier: Path) -> None:
+    (tmp_path / "cycle.log").write_text(LOG)
+    result = replay_into(tmp_path / "cycle.log", earlier)
+    assert result.returncode == 0, result.stderr
+    rows = earlier.read_text().splitlines()
+    assert rows[0].startswith("leg,t,force_N,") and len(rows) == 3
+    assert [row.split(",")[0] for row in rows[1:]] == ["SB1_F1", "SB1_F1"]
+
+
+@pytest.mark.parametrize(
+    ("out", "reason"),
+    [
+        ("nowhere/est.csv", "nowhere/est.csv: cannot write it: No such file or directory"),
+        (".", ": cannot write it: it is a directory"),
+    ],
+)
+def test_an_output_that_cannot_be_written_is_one_line(
+    tmp_path: Path, out: str, reason: str
+) -> None:
+    """It was Python's "[Errno 2] No such file or directory: '...'"."""
+    (tmp_path / "cycle.log").write_text(LOG)
+    result = replay_into(tmp_path / "cycle.log", tmp_path / out)
+    assert_one_line_error(result, 1, reason)
+    assert "Errno" not in result.stderr
+
+
+@pytest.mark.parametrize("suffix", [".blf", ".log", ".trc"])
+def test_an_empty_log_of_any_format_is_a_header_and_a_warning(tmp_path: Path, suffix: str) -> None:
+    """0 bytes (the logger stopped at once): a BLF was "cannot read it as a CAN log:
+    unpack requires a buffer of 72 bytes", exit 1, where the text logs gave the header."""
+    log = tmp_path / f"empty{suffix}"
+    log.write_bytes(b"")
+    result = run_cli("replay", str(log), "--config", str(EXAMPLE_CONFIG))
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.startswith("leg,t,force_N,") and len(result.stdout.splitlines()) == 1
+    assert "no CAN frame in it" in result.stderr
