@@ -15,6 +15,7 @@ starts and finds that file cut short (:func:`is_cut_short`), in place.
 
 import logging
 import os
+import stat
 from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any, cast
@@ -137,18 +138,23 @@ def recover_file(path: Path, out: Path | None = None, *, compression: str = "zst
     Raises :class:`RecordingError` when a file cannot be read or written.
     """
     target = out if out is not None else path.with_name(path.name + ".recovering")
+    # Only a file this call makes is removed on failure: never what ``out`` named before
+    # (a device such as /dev/null, or a file of the user's).
+    made = out is None or not out.exists()
     try:
         with open(path, "rb") as source, open(target, "wb") as sink:
             result = recover(source, sink, compression=compression, name=str(path))
             sink.flush()
-            os.fsync(sink.fileno())
+            if stat.S_ISREG(os.fstat(sink.fileno()).st_mode):  # a device cannot be synced
+                os.fsync(sink.fileno())
         if out is None:
             os.replace(target, path)
     except RecordingError:  # not an MCAP file: nothing to write
-        target.unlink(missing_ok=True)
+        if made:
+            target.unlink(missing_ok=True)
         raise
     except OSError as exc:
-        if out is None:
+        if made:
             target.unlink(missing_ok=True)
         raise RecordingError(exc.filename or path, f"cannot recover: {exc.strerror}") from exc
     return result

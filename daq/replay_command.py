@@ -53,19 +53,26 @@ def replay_main(args: Sequence[str]) -> int:
 def write_then_replace(path: Path, write: Callable[[IO[str]], object]) -> None:
     """``write`` into a file beside ``path`` (``.NAME.part``) that replaces ``path`` once
     it is done: a replay that fails (a bad config, a log that is not there or stops
-    being readable) leaves a file of that name as it was, not emptied or half written."""
+    being readable) leaves a file of that name as it was, not emptied or half written.
+
+    What is there and no regular file (``/dev/null``, ``/dev/stdout``, a named pipe) is
+    written to as it is: replacing it would put a regular file in its place.
+    """
     if path.is_dir():
         raise RecordingError(path, "cannot write it: it is a directory")
-    part = path.with_name(f".{path.name}.part")
+    direct = path.exists() and not path.is_file()
+    target = path if direct else path.with_name(f".{path.name}.part")
     try:
         try:
-            with open(part, "w", newline="") as out:
+            with open(target, "w", newline="") as out:
                 write(out)
-            os.replace(part, path)
+            if not direct:
+                os.replace(target, path)
         except OSError as exc:
             raise RecordingError(path, f"cannot write it: {exc.strerror or exc}") from exc
     except BaseException:
-        part.unlink(missing_ok=True)
+        if not direct:
+            target.unlink(missing_ok=True)
         raise
 
 

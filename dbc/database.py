@@ -1,13 +1,17 @@
 """Loading the CAN database (DBC) with cantools, with errors a person can act on."""
 
 import codecs
+import logging
 from pathlib import Path
 
 import cantools
-from cantools.database.can import Database
+from cantools.database.can import Database, Message
+from cantools.database.errors import Error as CantoolsError
 from cantools.database.errors import UnsupportedDatabaseFormatError
 
 from dbc.errors import DbcError
+
+logger = logging.getLogger(__name__)
 
 #: How a DBC file's bytes are read (cantools' ``load_file`` default for DBC: Vector's tools
 #: write Windows-1252, e.g. a unit "°C"), the file and a recording's copy of it alike.
@@ -25,7 +29,8 @@ _OTHER_FORMATS = (("<NetworkDefinition", "KCD"), ("<AUTOSAR", "ARXML"), ("Format
 
 
 def load_database(path: str | Path) -> Database:
-    """Load a DBC file strictly (overlapping signals etc. are errors).
+    """Load a DBC file with cantools' checks (a message whose signals overlap or do not
+    fit in it is read without them, with a warning: :func:`_without_layout_checks`).
 
     Raises :class:`DbcError` naming the file when it is missing, unreadable,
     malformed or not a CAN database.
@@ -56,10 +61,40 @@ def load_database_string(text: str, source: str) -> Database:
     try:
         database = cantools.database.load_string(text, database_format="dbc", strict=True)
     except (UnsupportedDatabaseFormatError, ValueError, KeyError) as exc:
-        raise DbcError(source, f"not a valid DBC: {_first_line(exc)}") from exc
+        database = _without_layout_checks(text, source, exc)
     if not isinstance(database, Database) or not database.messages:
         raise DbcError(source, "holds no CAN messages")
     return database
+
+
+def _without_layout_checks(text: str, source: str, refused: Exception) -> Database:
+    """The DBC as cantools reads it without its checks of the signals' layout, where
+    those alone refused it: a whole vehicle's DBC may have a message whose signals
+    overlap or do not fit (CANdb++ warns and saves it) that no leg uses. The machine
+    config refuses such a message where it uses one (:func:`unsound`)."""
+    try:
+        database = cantools.database.load_string(text, database_format="dbc", strict=False)
+    except (UnsupportedDatabaseFormatError, ValueError, KeyError):
+        raise DbcError(source, f"not a valid DBC: {_first_line(refused)}") from refused
+    if not isinstance(database, Database):
+        raise DbcError(source, "holds no CAN messages")
+    problems = [problem for problem in map(unsound, database.messages) if problem]
+    logger.warning(
+        "%s: read as cantools reads it, without its checks: %s",
+        source,
+        "; ".join(problems or [_first_line(refused)]),
+    )
+    return database
+
+
+def unsound(message: Message) -> str | None:
+    """Why cantools' checks refuse ``message`` (signals that overlap, or do not fit in
+    its length); None where they pass."""
+    try:
+        message.refresh(strict=True)
+    except CantoolsError as exc:
+        return str(exc)
+    return None
 
 
 def load_database_bytes(data: bytes, source: str) -> Database:

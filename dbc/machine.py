@@ -22,7 +22,7 @@ from typing import Any
 from cantools.database.can import Database, Message, Signal
 
 from dbc import DEFAULT_DBC_PATH
-from dbc.database import load_database
+from dbc.database import load_database, unsound
 from dbc.decoding import is_j1939, j1939_pgn
 from dbc.errors import ConfigError
 from dbc.protection import CRC_ALGORITHMS, DEFAULT_CRC_ALGORITHM, Protection, counter_modulo
@@ -322,6 +322,7 @@ def parse_machine_config(
         for name, table in legs_table.subtables()
     }
     _check_simulated_legs(legs_table, legs)
+    _check_own_chambers(legs_table, legs)
     sender_cycle_times_ms = _sender_cycle_times_ms(legs_table, legs, cycle_times_ms)
     protection = {
         name: _protection(name, table, database, cycle_times_ms, sender_cycle_times_ms)
@@ -428,6 +429,22 @@ def _check_simulated_legs(legs_table: TomlTable, legs: Mapping[str, LegConfig]) 
         taken[leg.simulated_leg] = name
 
 
+def _check_own_chambers(legs_table: TomlTable, legs: Mapping[str, LegConfig]) -> None:
+    """No leg reads both chambers of another (a leg table copied and not edited: its
+    forces would be the other's, the weight check would count one foot twice). One
+    chamber's transducer may be shared: chambers on a common line."""
+    taken: dict[tuple[str, str], str] = {}
+    for name, leg in legs.items():
+        chambers = (str(leg.piston), str(leg.rod))
+        if chambers in taken:
+            raise legs_table.error(
+                name,
+                f"reads the chambers of legs.{taken[chambers]} ({', '.join(chambers)}): "
+                "each leg needs its own",
+            )
+        taken[chambers] = name
+
+
 def _split_ref(table: TomlTable, key: str, text: str, database: Database) -> tuple[Message, str]:
     message_name, dot, signal_name = text.partition(".")
     if not dot or not message_name or not signal_name:
@@ -472,6 +489,12 @@ def _chamber(
             where,
             f"signal {message.name}.{signal_name} has unit {unit!r}, not a pressure unit; "
             f"set unit = one of {ACCEPTED_PRESSURE_UNITS}",
+        )
+    if signal.scale == 0:  # cantools takes it: a constant, published as a valid pressure
+        raise chamber.error(
+            signal_key,
+            f"signal {message.name}.{signal_name} has factor 0 in the DBC: every value "
+            f"would be its offset, {signal.offset:g} {unit}",
         )
     status = None
     if "status" in chamber:
@@ -687,7 +710,25 @@ def _status_check(
             ok.add(value)
             if value in choices:
                 ok.add(str(choices[value]))
+    signal = message.get_signal_by_name(signal_name)
+    low, high = _decoded_bounds(signal)
+    if not any(isinstance(value, str) or low <= value <= high for value in status_ok):
+        raise table.error(
+            key,
+            f"{message.name}.{signal_name} takes {low:g}..{high:g}: none of {list(status_ok)} "
+            "is one of them (every sample would be invalid)",
+        )
     return StatusCheck(signal=signal_name, ok=frozenset(ok), nominal=status_ok[0])
+
+
+def _decoded_bounds(signal: Signal) -> tuple[float, float]:
+    """The least and greatest value a signal's bits decode to (unbounded: a float)."""
+    if signal.is_float:
+        return (-math.inf, math.inf)
+    bits = signal.length - 1 if signal.is_signed else signal.length
+    low_raw, high_raw = (-(1 << bits) if signal.is_signed else 0), (1 << bits) - 1
+    ends = (low_raw * signal.scale + signal.offset, high_raw * signal.scale + signal.offset)
+    return (min(ends), max(ends))
 
 
 def _leg_status(table: TomlTable, database: Database) -> tuple[Message, str, int | None]:
@@ -725,11 +766,15 @@ def _attach_leg_status(
 
 def _message(table: TomlTable, key: str, name: str, database: Database) -> Message:
     """The DBC's message ``name``; one whose name or ID another message has too is an
-    error (cantools keeps the last: the config would read another message's frames)."""
+    error (cantools keeps the last: the config would read another message's frames),
+    and so is one whose signals overlap or do not fit in it."""
     try:
         message = database.get_message_by_name(name)
     except KeyError:
         raise table.error(key, f"no message {name!r} in the DBC") from None
+    problem = unsound(message)  # a message cantools' checks refused (see dbc.database)
+    if problem is not None:
+        raise table.error(key, f"message {name} of the DBC: {problem}")
     wire = _wire(message)
     for other in database.messages:
         if other is message:

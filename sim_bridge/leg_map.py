@@ -9,7 +9,7 @@ estimates and the truth line up. The rules, in this order:
 1. **Stated**: ``simulated_leg = "SB1_F1"`` in the leg's ``[legs.<LEG>]`` table (checked
    when the config is loaded: a simulated leg, none twice).
 2. **By name**: a leg named like a simulated leg (and not stated by another) is that one.
-3. **Derived**, only when neither rule maps any leg and the config has exactly six:
+3. **Derived**, only when neither rule maps any leg and the config has at most six:
 
    - from ``[stability.bases.*]``: the first base (it stands first, as SB1 does) is SB1,
      the second SB2; within a base, each foot by its angle about the centre of the
@@ -17,11 +17,12 @@ estimates and the truth line up. The rules, in this order:
      240 deg (:data:`~sim_bridge.params.FOOT_ANGLES_DEG`) when every foot is within
      :data:`ANGLE_TOLERANCE_DEG` of a different one of them; else by the feet's order
      in ``feet_m``;
-   - without ``[stability]`` (or unless its bases have three feet each): the legs' order
-     in the config, the first three SB1_F1..F3, the next three SB2_F1..F3.
+   - without ``[stability]`` (or when its bases do not have three feet each, e.g. a
+     machine of fewer legs): the legs' order in the config, the first three SB1_F1..F3,
+     the next three SB2_F1..F3.
 
-Anything else (legs left over after rules 1 and 2, or a number of legs other than six
-with none mapped) is a :class:`~dbc.errors.ConfigError` naming the leg and what to add.
+Anything else (legs left over after rules 1 and 2, or more than six legs) is a
+:class:`~dbc.errors.ConfigError` naming the leg and what to add.
 Derived maps only matter for the stability margin (which foot stands where); the truth
 lines up with the estimates under any of them.
 
@@ -95,17 +96,16 @@ def leg_map(config: MachineConfig) -> LegMap:
         )
         hint = f"add simulated_leg = one of {', '.join(free)}" if free else "remove the leg"
         raise ConfigError(config.source, f"legs.{name}", f"{why}; {hint}")
-    if len(config.legs) != len(LEGS):
+    if len(config.legs) > len(LEGS):
         raise ConfigError(
             config.source,
             "legs",
             f"the simulation has {len(LEGS)} legs ({', '.join(LEGS)}), the config "
-            f"{len(config.legs)} ({', '.join(config.legs)}): name the legs like those, or add "
-            'simulated_leg = "<one of them>" to each [legs.<LEG>] table',
+            f"{len(config.legs)} ({', '.join(config.legs)}): the bridge plays six at most",
         )
     derived = _by_bases(config.stability.layout.bases) if config.stability else None
     if derived is None:
-        return LegMap(dict(zip(config.legs, LEGS, strict=True)), "the legs' order in the config")
+        return LegMap(dict(zip(config.legs, LEGS, strict=False)), "the legs' order in the config")
     simulated, rule = derived
     return LegMap({leg: simulated[leg] for leg in config.legs}, rule)
 

@@ -198,3 +198,29 @@ def test_a_damaged_chunk_costs_its_own_messages_only(
         assert summary is not None and summary.statistics is not None
         assert summary.statistics.message_count > 0
     assert recorded_raw_frames(damaged) == left
+
+
+def test_what_out_named_before_is_never_removed(tmp_path: Path) -> None:
+    """``recover NOT_MCAP -o /dev/null`` removed /dev/null (a failed recovery unlinked its
+    output): only a file the recovery made is removed. A named pipe stands in for
+    /dev/null, which a regression must not break on the test machine."""
+    import stat
+    import threading
+
+    from daq.errors import RecordingError
+    from daq.recover import recover_file
+
+    not_mcap = tmp_path / "notes.txt"
+    not_mcap.write_text("not a recording\n")
+    pipe = tmp_path / "sink"
+    os.mkfifo(pipe)
+    drained = threading.Thread(target=pipe.read_bytes, daemon=True)
+    drained.start()
+    with pytest.raises(RecordingError, match="notes.txt"):
+        recover_file(not_mcap, pipe)
+    drained.join(timeout=WAIT_S)
+    assert stat.S_ISFIFO(pipe.stat().st_mode)
+    fresh = tmp_path / "out.mcap"
+    with pytest.raises(RecordingError):
+        recover_file(not_mcap, fresh)
+    assert not fresh.exists()  # what it made, it removes

@@ -1,6 +1,9 @@
 """``portal-daq replay ... --out FILE``: the CSV replaces FILE only once the replay is
 done; a replay refused or failed leaves FILE as it was, and says why in one line."""
 
+import os
+import stat
+import threading
 from pathlib import Path
 from subprocess import CompletedProcess
 
@@ -83,3 +86,21 @@ def test_an_empty_log_of_any_format_is_a_header_and_a_warning(tmp_path: Path, su
     assert result.returncode == 0, result.stderr
     assert result.stdout.startswith("leg,t,force_N,") and len(result.stdout.splitlines()) == 1
     assert "no CAN frame in it" in result.stderr
+
+
+def test_a_named_pipe_is_written_to_not_replaced(tmp_path: Path) -> None:
+    """``--out /dev/null`` had /dev/null replaced by a regular file (the CSV written beside
+    it, then renamed onto it): a device or pipe is written as it is. A named pipe stands
+    in for /dev/null here, which a regression must not break on the test machine."""
+    (tmp_path / "cycle.log").write_text(LOG)
+    pipe = tmp_path / "estimates"
+    os.mkfifo(pipe)
+    read: list[str] = []
+    reader = threading.Thread(target=lambda: read.append(pipe.read_text()), daemon=True)
+    reader.start()
+    result = replay_into(tmp_path / "cycle.log", pipe)
+    reader.join(timeout=60)
+    assert result.returncode == 0, result.stderr
+    assert stat.S_ISFIFO(pipe.stat().st_mode)
+    assert read[0].startswith("leg,") and read[0].count("\nSB1_F1,") == 2
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["cycle.log", "estimates"]

@@ -5,6 +5,7 @@ the one-line errors where none applies."""
 import math
 import tomllib
 from pathlib import Path
+from types import SimpleNamespace as Leg
 from typing import Any
 
 import pytest
@@ -177,14 +178,29 @@ def test_a_leg_named_like_a_stated_one_is_left_over() -> None:
         leg_map(parse_machine_config(data, "m.toml", load_machine_config(EXAMPLE_CONFIG)[1]))
 
 
-def test_another_number_of_legs_than_six_says_what_to_add() -> None:
+def test_fewer_legs_than_six_go_by_their_order_and_more_are_refused() -> None:
+    """A machine of fewer legs (a held-out hub of two) plays the first simulated legs; a
+    seventh leg has no simulated leg to play."""
     data = renamed_data()
     del data["legs"]["far_right"]
+    del data["legs"]["far_tip"]
     del data["stability"]
+    legs = leg_map(parsed(data))
+    assert legs.simulated == {
+        "far_left": "SB1_F1",
+        "near_right": "SB1_F2",
+        "near_tip": "SB1_F3",
+        "near_left": "SB2_F1",
+    }
+    assert legs.rule == "the legs' order in the config"
+    seven = [f"leg{i}" for i in range(7)]
+    config = Leg(
+        source="m.toml", stability=None, legs={name: Leg(simulated_leg=None) for name in seven}
+    )
     with pytest.raises(ConfigError) as error:
-        leg_map(parsed(data))
+        leg_map(config)
     assert str(error.value) == (
         "m.toml: legs: the simulation has 6 legs (SB1_F1, SB1_F2, SB1_F3, SB2_F1, SB2_F2, "
-        "SB2_F3), the config 5 (far_left, near_right, near_tip, far_tip, near_left): name the "
-        'legs like those, or add simulated_leg = "<one of them>" to each [legs.<LEG>] table'
+        "SB2_F3), the config 7 (leg0, leg1, leg2, leg3, leg4, leg5, leg6): the bridge plays "
+        "six at most"
     )

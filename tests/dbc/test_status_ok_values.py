@@ -1,0 +1,40 @@
+"""A status that no frame can make "fine": ``status_ok`` numbers that the status signal
+cannot take (7 of a 2-bit signal) made every sample of the leg invalid
+(``status_0``, ``status_1``, ...), with nothing said at start."""
+
+from pathlib import Path
+
+import pytest
+
+from dbc.errors import ConfigError
+from dbc.machine import load_machine_config
+from tests.dbc.test_held_out_machines import STRANGER
+
+
+def _load(tmp_path: Path, status_ok: str) -> None:
+    (tmp_path / "j1939_propa.dbc").write_bytes((STRANGER / "j1939_propa.dbc").read_bytes())
+    text = (STRANGER / "j1939_propa.toml").read_text()
+    old = 'status_ok = ["ok", "warn"]'
+    assert old in text
+    (tmp_path / "machine.toml").write_text(text.replace(old, f"status_ok = {status_ok}"))
+    load_machine_config(tmp_path / "machine.toml")
+
+
+@pytest.mark.parametrize(
+    ("status_ok", "expected"), [("4", "[4]"), ("[4, -1]", "[4, -1]"), ("[7]", "[7]")]
+)
+def test_status_ok_numbers_the_status_signal_cannot_take_stop_the_config(
+    tmp_path: Path, status_ok: str, expected: str
+) -> None:
+    with pytest.raises(ConfigError) as refused:
+        _load(tmp_path, status_ok)
+    assert refused.value.key == "legs.left-front.piston.status_ok"  # [sensors]' value here
+    assert refused.value.reason == (
+        f"PRESS_A.Diag takes 0..3: none of {expected} is one of them (every sample would be "
+        "invalid)"
+    )
+
+
+@pytest.mark.parametrize("status_ok", ["[0, 7]", "3", '["ok", 1]'])
+def test_one_value_the_status_can_take_is_enough(tmp_path: Path, status_ok: str) -> None:
+    _load(tmp_path, status_ok)
