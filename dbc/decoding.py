@@ -7,7 +7,8 @@ counter of each protected message (per source address for J1939).
 Frames are found by ID; messages the DBC marks as J1939 (``VFrameFormat``
 ``J1939PG``) by their PGN, whatever the priority and source address of the frame
 (the source address is kept on the decoded frame). Pressure signals come out in
-Pa (``to_si``, from :mod:`dbc.units`); everything else in the DBC's units.
+Pa (``to_si``, from :mod:`dbc.units`; a J1939 transducer sending in its own unit by
+``sender_to_si``, through a codec of its own); everything else in the DBC's units.
 
 Two paths give the same frames: the precompiled one (:mod:`dbc._compiled_codec`
 and table-driven CRCs), used by default, and the reference one (cantools'
@@ -205,7 +206,7 @@ class _MessageCodec:
             return None
         counter = self._counters.get(source_address)
         if counter is None:
-            counter = self.protection.counter_check(self.message)
+            counter = self.protection.counter_check(self.message, source_address)
             assert counter is not None
             self._counters[source_address] = counter
         return counter

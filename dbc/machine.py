@@ -60,7 +60,7 @@ LEG_SIGNAL_KEYS = ("piston", "rod", "status", "status_ok", "trigger", "max_skew_
 #: The service itself never reads the key.
 SIMULATED_LEGS = ("SB1_F1", "SB1_F2", "SB1_F3", "SB2_F1", "SB2_F2", "SB2_F3")
 #: Keys of a chamber written as a table: ``piston = { signal = "M.S", ... }``.
-CHAMBER_KEYS = ("signal", "source_address", "unit", "status", "status_ok")
+CHAMBER_KEYS = ("signal", "source_address", "unit", "status", "status_ok", "cycle_time_ms")
 PROTECTION_KEYS = ("counter", "crc", "crc_algorithm", "data_id", "max_delta_counter")
 #: Keys of ``[messages.<MESSAGE>]``: what the config says of a message the DBC leaves out.
 MESSAGE_KEYS = ("cycle_time_ms",)
@@ -215,6 +215,9 @@ class MachineConfig:
     #: cycle_time_ms``, else the DBC's ``GenMsgCycleTime`` (the config wins). What
     #: staleness, skew, the counter's resynchronisation and the simulator's schedule use.
     cycle_times_ms: Mapping[str, float] = field(default_factory=dict)
+    #: The cycle time of a J1939 transducer whose chamber gives it another than its
+    #: message's (a chamber's ``cycle_time_ms``), ms, by message and source address.
+    sender_cycle_times_ms: Mapping[tuple[str, int], float] = field(default_factory=dict)
     #: ``[sensors] status_ok``: the status values meaning "fine" where a leg does not say.
     status_ok: tuple[str | int, ...] = ("ok",)
     #: Feet, bridge and pose signals for the stability margin; None: not configured.
@@ -223,6 +226,13 @@ class MachineConfig:
     @property
     def weight_N(self) -> float:
         return self.mass_kg * G_M_S2
+
+    def cycle_time_ms(self, message: str, source_address: int | None = None) -> float | None:
+        """How often ``message`` is sent (by the J1939 sender ``source_address``), ms;
+        None: neither the DBC nor the config says (the message is not periodic)."""
+        if source_address is not None and (message, source_address) in self.sender_cycle_times_ms:
+            return self.sender_cycle_times_ms[(message, source_address)]
+        return self.cycle_times_ms.get(message)
 
 
 def load_machine_config(path: str | Path) -> tuple[MachineConfig, Database]:
@@ -313,8 +323,9 @@ def parse_machine_config(
     }
     _check_simulated_legs(legs_table, legs)
     _check_own_chambers(legs_table, legs)
+    sender_cycle_times_ms = _sender_cycle_times_ms(legs_table, legs, cycle_times_ms)
     protection = {
-        name: _protection(name, table, database, cycle_times_ms)
+        name: _protection(name, table, database, cycle_times_ms, sender_cycle_times_ms)
         for name, table in root.table("protection", required=False).subtables()
     }
     _check_senders(legs_table, legs, database)
@@ -330,6 +341,7 @@ def parse_machine_config(
         unit_factors=unit_factors,
         sender_unit_factors=sender_unit_factors,
         cycle_times_ms=cycle_times_ms,
+        sender_cycle_times_ms=sender_cycle_times_ms,
         status_ok=status_ok,
         stability=parse_stability(
             root.table("stability", required=False),
@@ -506,7 +518,7 @@ def _chamber(
         source_address=source_address,
         unit=unit,
         status=status,
-        cycle_time_s=_cycle_time_s(chamber, signal_key, message, cycle_times_ms),
+        cycle_time_s=_cycle_time_s(chamber, signal_key, message, source_address, cycle_times_ms),
         mux_ids=_mux_ids(message, signal_name),
         range_Pa=_range_Pa(signal, unit, is_j1939(message)),
     )
@@ -565,8 +577,22 @@ def _shares_pgn(message: Message, database: Database) -> bool:
 
 
 def _cycle_time_s(
-    table: TomlTable, key: str, message: Message, cycle_times_ms: Mapping[str, float]
+    table: TomlTable,
+    key: str,
+    message: Message,
+    source_address: int | None,
+    cycle_times_ms: Mapping[str, float],
 ) -> float:
+    """A chamber's cycle time: its transducer's ``cycle_time_ms`` (one pinned by source
+    address), else its message's (:func:`_cycle_times_ms`)."""
+    if "cycle_time_ms" in table:
+        if source_address is None:
+            raise table.error(
+                "cycle_time_ms",
+                "only for a transducer pinned by source_address (a chamber without one "
+                f"reads every sender); for the message: [messages.{message.name}] cycle_time_ms",
+            )
+        return _positive_ms(table) / 1000.0
     if message.name not in cycle_times_ms:
         raise table.error(
             key,
@@ -574,6 +600,16 @@ def _cycle_time_s(
             f"[messages.{message.name}] cycle_time_ms (staleness and skew are judged on it)",
         )
     return cycle_times_ms[message.name] / 1000.0
+
+
+def _positive_ms(table: TomlTable) -> float:
+    """``cycle_time_ms`` of ``table``: a period, > 0."""
+    cycle_time_ms = table.number("cycle_time_ms")
+    if cycle_time_ms <= 0:
+        raise table.error(
+            "cycle_time_ms", f"must be > 0 (the message's period), got {cycle_time_ms}"
+        )
+    return cycle_time_ms
 
 
 def _cycle_times_ms(table: TomlTable, database: Database) -> dict[str, float]:
@@ -588,13 +624,36 @@ def _cycle_times_ms(table: TomlTable, database: Database) -> dict[str, float]:
         message_table.reject_unknown(MESSAGE_KEYS)
         _message(message_table, "", name, database)
         if "cycle_time_ms" in message_table:
-            cycle_time_ms = message_table.number("cycle_time_ms")
-            if cycle_time_ms <= 0:
-                raise message_table.error(
-                    "cycle_time_ms", f"must be > 0 (the message's period), got {cycle_time_ms}"
-                )
-            times[name] = cycle_time_ms
+            times[name] = _positive_ms(message_table)
     return times
+
+
+def _sender_cycle_times_ms(
+    legs_table: TomlTable, legs: Mapping[str, LegConfig], cycle_times_ms: Mapping[str, float]
+) -> dict[tuple[str, int], float]:
+    """The J1939 transducers whose chamber gives them another cycle time than their
+    message's, ms, by message and source address; one transducer has one cycle time."""
+    times: dict[tuple[str, int], tuple[float, str]] = {}
+    for leg in legs.values():
+        for key in TRIGGERS:
+            chamber: ChamberSignal = getattr(leg, key)
+            if chamber.source_address is None:
+                continue
+            where = f"legs.{leg.name}.{key}"
+            sender = (chamber.message, chamber.source_address)
+            cycle_s, other = times.setdefault(sender, (chamber.cycle_time_s, where))
+            if cycle_s != chamber.cycle_time_s:
+                raise legs_table.table(leg.name).error(
+                    key,
+                    f"{chamber.message}@0x{chamber.source_address:02X} is sent every "
+                    f"{1000 * chamber.cycle_time_s:g} ms here and every {1000 * cycle_s:g} ms "
+                    f"for {other}: one transducer has one cycle time (give cycle_time_ms to both)",
+                )
+    return {
+        sender: 1000.0 * cycle_s
+        for sender, (cycle_s, _) in times.items()
+        if sender[0] not in cycle_times_ms or cycle_s != cycle_times_ms[sender[0]] / 1000.0
+    }
 
 
 def _status_ref(table: TomlTable, message: Message, database: Database) -> tuple[Message, str]:
@@ -769,9 +828,10 @@ def _check_senders(
 def _unit_factors(
     legs_table: TomlTable, legs: Mapping[str, LegConfig], database: Database
 ) -> tuple[dict[str, dict[str, float]], dict[tuple[str, int], dict[str, float]]]:
-    """Pa per DBC unit of every pressure signal: by message (what frames of any sender
-    are decoded with: the DBC's unit, or that of a chamber pinning no sender), and by
-    message and J1939 sender, for the transducers whose chamber gives another unit.
+    """Pa per DBC unit of every pressure signal: by message, what frames of any sender
+    are decoded with (the unit of a chamber pinning no sender, else the DBC's; where the
+    DBC's is none, the one unit all chambers of the signal agree on), and by message and
+    J1939 sender, for the transducers whose chamber gives another unit than that.
 
     One sender has one unit: two for one source address, or a chamber pinning no sender
     in one unit and another chamber of the signal in another, stop the config.
@@ -806,8 +866,16 @@ def _unit_factors(
                     f"legs.{other_leg}.{other_key} ({sender}); one transducer has one unit",
                 )
             others.append((address, factor, chamber.unit, leg.name, key))
-            if address is None:
-                _set_factor(factors.setdefault(chamber.message, {}), chamber.signal, factor)
+    for (message_name, signal_name), chambers in readers.items():
+        unpinned = [factor for address, factor, *_ in chambers if address is None]
+        agreed = {factor for _, factor, *_ in chambers}
+        signal = database.get_message_by_name(message_name).get_signal_by_name(signal_name)
+        in_dbc = pressure_factor_to_Pa(signal.unit or "")
+        default = unpinned[0] if unpinned else in_dbc
+        if default is None and len(agreed) == 1:
+            default = agreed.pop()
+        if default is not None:
+            _set_factor(factors.setdefault(message_name, {}), signal_name, default)
     by_sender: dict[tuple[str, int], dict[str, float]] = {}
     for (message_name, signal_name), chambers in readers.items():
         defaults = factors.get(message_name, {})
@@ -827,7 +895,11 @@ def _set_factor(factors: dict[str, float], signal: str, factor: float) -> None:
 
 
 def _protection(
-    name: str, table: TomlTable, database: Database, cycle_times_ms: Mapping[str, float]
+    name: str,
+    table: TomlTable,
+    database: Database,
+    cycle_times_ms: Mapping[str, float],
+    sender_cycle_times_ms: Mapping[tuple[str, int], float],
 ) -> Protection:
     table.reject_unknown(PROTECTION_KEYS)
     message = _message(table, "", name, database)
@@ -871,6 +943,11 @@ def _protection(
         data_id=data_id,
         max_delta_counter=max_delta,
         cycle_time_s=cycle_times_ms[name] / 1000.0 if name in cycle_times_ms else None,
+        sender_cycle_times_s=tuple(
+            (address, ms / 1000.0)
+            for (message, address), ms in sorted(sender_cycle_times_ms.items())
+            if message == name
+        ),
     )
 
 

@@ -305,6 +305,9 @@ class Protection:
     #: The message's cycle time (:attr:`dbc.machine.MachineConfig.cycle_times_ms`), s;
     #: None: none known, the counter check then never resynchronises on a silence.
     cycle_time_s: float | None = None
+    #: (J1939 source address, cycle time s) of the transducers that send at their own
+    #: (a chamber's ``cycle_time_ms``): their counters resynchronise on that.
+    sender_cycle_times_s: tuple[tuple[int, float], ...] = ()
 
     def crc_check(self, message: Message, *, compiled: bool = True) -> CrcCheck | None:
         """The CRC check of this profile on ``message``'s layout; None without a CRC."""
@@ -322,11 +325,18 @@ class Protection:
             compiled=compiled,
         )
 
-    def counter_check(self, message: Message) -> CounterCheck | None:
-        """A fresh counter check for ``message``; None without a counter."""
+    def counter_check(
+        self, message: Message, source_address: int | None = None
+    ) -> CounterCheck | None:
+        """A fresh counter check for ``message`` (from the J1939 sender ``source_address``);
+        None without a counter."""
         if self.counter is None:
             return None
         modulo = counter_modulo(message, self.counter)
+        own = [
+            cycle_s for address, cycle_s in self.sender_cycle_times_s if address == source_address
+        ]
+        cycle_time_s = own[0] if own else self.cycle_time_s
         # A whole turn of the counter: longer silent, it cannot count what was lost.
-        resync_after_s = modulo * self.cycle_time_s if self.cycle_time_s else math.inf
+        resync_after_s = modulo * cycle_time_s if cycle_time_s else math.inf
         return CounterCheck(modulo, self.max_delta_counter, resync_after_s)

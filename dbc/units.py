@@ -5,7 +5,8 @@ Pressures (the legs' chambers) go to Pa; the bridge angles of ``[stability]`` to
 A DBC signal's physical value is in the unit its ``unit`` string names; the
 service works in SI inside, so every pressure signal is converted to Pa when it
 is decoded, and back when the simulator encodes one. The unit comes from the DBC
-or, where the DBC's is empty or wrong, from the config (``unit = "bar"``).
+or, where the DBC's is empty or wrong, from the config (``unit = "bar"``), for one
+J1939 transducer of a shared signal where the chamber pins its source address.
 
 >>> pressure_factor_to_Pa("bar")
 100000.0

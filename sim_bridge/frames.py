@@ -196,18 +196,25 @@ class FrameBuilder:
         #: Periodic messages not sent: the simulation supplies none of their signals, or
         #: they have nested multiplexing (no leg's chamber may be in such a message).
         self.skipped: list[str] = []
-        #: The senders built, with their cycle times (the DBC's, or the config's
-        #: ``[messages.<MESSAGE>] cycle_time_ms``), in DBC order.
+        #: The senders built, with their cycle times (the DBC's, or the config's: the
+        #: message's or the transducer's ``cycle_time_ms``), in DBC order.
         self.cycles: list[MessageCycle] = []
         for message in database.messages:
-            cycle_time_ms = config.cycle_times_ms.get(message.name)
-            if cycle_time_ms is None:
-                continue
             pages = multiplexer_pages(message)
             addresses = sorted(
                 {address for name, address in chambers_by_sender if name == message.name},
                 key=lambda address: -1 if address is None else address,
             ) or [None]
+            cycle_times_ms = {
+                address: cycle_time_ms
+                for address in addresses
+                if (cycle_time_ms := config.cycle_time_ms(message.name, address)) is not None
+            }
+            if not cycle_times_ms:  # not periodic
+                continue
+            if pages is None:
+                self.skipped.append(message.name)
+                continue
             plans = [
                 _plan(
                     message,
@@ -217,8 +224,8 @@ class FrameBuilder:
                     getters,
                     config.protection.get(message.name),
                 )
-                for address in addresses
-                for page in pages or ()
+                for address in cycle_times_ms
+                for page in pages
             ]
             if not any(plan.chambers or plan.named for plan in plans):
                 self.skipped.append(message.name)
@@ -226,6 +233,7 @@ class FrameBuilder:
             # A sender carrying a leg's trigger chamber without the other goes after the
             # others of its message (sorted is stable: address, then page order otherwise).
             for plan in sorted(plans, key=_pairs_late):
+                cycle_time_ms = cycle_times_ms[plan.source_address]
                 self.defaulted += [
                     name
                     for name in (f"{message.name}.{signal.name}" for signal, _ in plan.constants)

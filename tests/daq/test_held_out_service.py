@@ -2,6 +2,7 @@
 chamber) run by the service on python-can's virtual bus, with kernel-style receive
 filters, a real Zenoh session on loopback: what it publishes and counts."""
 
+import json
 import shutil
 import time
 import uuid
@@ -11,7 +12,8 @@ import can
 import pytest
 import zenoh
 
-from daq.runner import bus_factory
+from daq.mcap_reading import RecordedMessage, RecordingStream
+from daq.runner import build_recorder, bus_factory
 from daq.service import Service
 from daq.service_config import load_service_config
 from daq.zenoh_session import zenoh_config
@@ -87,7 +89,8 @@ def test_the_service_runs_transducers_in_their_own_units_without_dbc_cycle_times
 ) -> None:
     """tests/files/stranger/j1939_units: one PGN from four transducers in psi, bar and MPa,
     a DBC without cycle times (the config gives them). The legs' forces are eq. (4) of
-    the pressures converted here; /signals is in Pa for each sender."""
+    the pressures converted here; /signals and the signals recording are in Pa for each
+    sender."""
     shutil.copy(STRANGER / "j1939_units.dbc", tmp_path)
     port, channel = free_port(), f"held-out-{uuid.uuid4().hex}"
     (tmp_path / "portal-daq.toml").write_text(
@@ -105,6 +108,10 @@ multicast_scouting = false
 [publish]
 status_period_s = 0.2
 signals_max_rate_hz = 0
+
+[recording]
+directory = "{tmp_path / "recordings"}"
+signals = true
 """
         + (STRANGER / "j1939_units.toml").read_text()
     )
@@ -113,7 +120,12 @@ signals_max_rate_hz = 0
     prefix = config.zenoh.key_prefix
     frames = units_frames()
     with zenoh.open(zenoh_config(config.zenoh)) as session:
-        service = Service(config, open_bus=bus_factory(config.bus, filters), session=session)
+        service = Service(
+            config,
+            open_bus=bus_factory(config.bus, filters),
+            session=session,
+            recorder=build_recorder(config),
+        )
         with running(service), subscriber_session(port) as subscriber:
             collector = Collector(subscriber, f"{prefix}/**")
             collector.wait_for(f"{prefix}/status")
@@ -139,7 +151,17 @@ signals_max_rate_hz = 0
         leg: (True, pytest.approx(force_N, rel=1e-12)) for leg, force_N in UNITS_FORCES_N.items()
     }
     published = {s["source_address"]: s["signals"]["Pressure"] for s in collector.of(signals_key)}
-    assert published == {
+    expected_Pa = {
         source: pytest.approx(value * unit, rel=1e-12) for source, value, unit in UNITS_SENT
     }
+    assert published == expected_Pa
+    (recording,) = (tmp_path / "recordings").glob("*.mcap")
+    with open(recording, "rb") as file:
+        recorded = [
+            json.loads(record.data)
+            for record in RecordingStream(file)
+            if isinstance(record, RecordedMessage) and record.topic == "/signals/XDCR"
+        ]
+    assert {s["source_address"]: s["signals"]["Pressure"] for s in recorded} == expected_Pa
+    assert len(recorded) == len(frames)
     assert status["bad"] == {"unmapped_source": 1}

@@ -6,6 +6,7 @@ takes the same one (tests/files/stranger/j1939_units: a DBC without any)."""
 import subprocess
 import sys
 import tomllib
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -17,7 +18,7 @@ from daq.pipeline import Pipeline
 from dbc.database import load_database
 from dbc.errors import ConfigError
 from dbc.machine import MachineConfig, load_machine_config, parse_machine_config
-from tests.dbc.test_held_out_machines import PSI_PA, STRANGER, eq4_N
+from tests.dbc.test_held_out_machines import PSI_PA, STRANGER, eq4_N, press_a
 from tests.dbc.test_transducers import BASE, DATABASE, config_of
 from tests.helpers import ROOT
 
@@ -142,3 +143,93 @@ def test_a_bad_cycle_time_exits_2_with_one_line(tmp_path: Path) -> None:
 def test_load_machine_config_reads_the_table_from_a_file() -> None:
     config, _ = load_machine_config(STRANGER / "j1939_units.toml")
     assert config.cycle_times_ms["MC_STATE"] == 100.0
+
+
+FRONT_ROD = 'rod = { signal = "XDCR.Pressure", source_address = 0x52 }'
+
+
+def test_a_transducer_may_have_its_own_cycle_time() -> None:
+    """front's rod transducer (0x52) sends every 50 ms: the default skew of front's piston
+    samples is 50 ms; rear's rod trigger (0x54, every 10 ms) is stale after 30 ms."""
+    text = UNITS_TOML.replace(FRONT_ROD, FRONT_ROD.replace(" }", ", cycle_time_ms = 50 }"))
+    text = text.replace(
+        'source_address = 0x54, unit = "MPa" }',
+        'source_address = 0x54, unit = "MPa", cycle_time_ms = 10 }',
+    )
+    config, database = units_config(text)
+    assert config.sender_cycle_times_ms == {("XDCR", 0x52): 50.0, ("XDCR", 0x54): 10.0}
+    assert (config.cycle_time_ms("XDCR", 0x52), config.cycle_time_ms("XDCR", 0x51)) == (50, 20)
+    front, rear = config.legs["front"], config.legs["rear"]
+    assert (front.cycle_time_s, front.max_skew_s) == (0.020, 0.050)
+    assert (rear.cycle_time_s, rear.max_skew_s) == (0.010, 0.020)
+    pipeline = Pipeline.from_config(config, database)
+    pipeline.process(xdcr(0x52, 80.0, T0_S))
+    (estimate,) = pipeline.process(xdcr(0x51, 2000.0, T0_S + 0.045)).estimates
+    assert estimate.valid
+    pipeline.process(xdcr(0x53, 1500.0, T0_S + 0.045))
+    pipeline.process(xdcr(0x54, 4.5, T0_S + 0.046))
+    assert pipeline.snapshot(T0_S + 0.046 + 0.029).legs["rear"].valid
+    assert not pipeline.snapshot(T0_S + 0.046 + 0.031).legs["rear"].valid
+
+
+def test_one_transducer_has_one_cycle_time() -> None:
+    text = UNITS_TOML.replace(FRONT_ROD, FRONT_ROD.replace(" }", ", cycle_time_ms = 50 }"))
+    text = text.replace('source_address = 0x54, unit = "MPa"', "source_address = 0x52")
+    error = units_refused(text)
+    assert error.key == "legs.rear.rod"
+    assert "XDCR@0x52 is sent every 20 ms here and every 50 ms for legs.front.rod" in error.reason
+
+
+@pytest.mark.parametrize(
+    ("chamber", "key", "reason"),
+    [
+        (
+            '{ signal = "XDCR.Pressure", source_address = 0x52, cycle_time_ms = 0 }',
+            "rod.cycle_time_ms",
+            "must be > 0",
+        ),
+        (
+            '{ signal = "XDCR.Pressure", source_address = 0x52, cycle_time_ms = "50" }',
+            "rod.cycle_time_ms",
+            "must be a number",
+        ),
+    ],
+)
+def test_a_bad_transducer_cycle_time_stops_the_config(chamber: str, key: str, reason: str) -> None:
+    error = units_refused(UNITS_TOML.replace(FRONT_ROD, f"rod = {chamber}"))
+    assert error.key == f"legs.front.{key}" and reason in error.reason
+
+
+def test_a_cycle_time_on_a_chamber_reading_every_sender_is_refused() -> None:
+    text = BASE.replace(
+        'rod = "LEG_PSI.pRod"', 'rod = { signal = "LEG_PSI.pRod", cycle_time_ms = 5 }'
+    )
+    with pytest.raises(ConfigError) as info:
+        config_of(text)
+    assert info.value.key == "legs.PSI.rod.cycle_time_ms"
+    assert "for the message: [messages.LEG_PSI] cycle_time_ms" in info.value.reason
+
+
+def test_a_transducers_counter_resynchronises_on_its_own_cycle_time() -> None:
+    """PRESS_A (20 ms in the DBC, a 4-bit counter per sender): 0x31 sends every 100 ms, so
+    a jump 1 s after its last frame is within a counter turn (1.6 s): a counter fault;
+    0x30's turn is 0.32 s, after which its check starts anew."""
+    text = (STRANGER / "j1939_propa.toml").read_text()
+    rod = 'source_address = 0x31, status = "Diag" }'
+    assert rod in text
+    database = load_database(STRANGER / "j1939_propa.dbc")
+    config = parse_machine_config(
+        tomllib.loads(text.replace(rod, rod.replace(" }", ", cycle_time_ms = 100 }"))),
+        "m.toml",
+        database,
+    )
+    assert config.protection["PRESS_A"].sender_cycle_times_s == ((0x31, 0.1),)
+    pipeline = Pipeline.from_config(config, database)
+    faults = {}
+    for source in (0x30, 0x31):
+        for t_s, counter in ((0.0, 0), (1.0, 5)):
+            frame = replace(press_a(6, 0xFE, source, counter, 1000), t_s=T0_S + t_s)
+            decoded = pipeline.process(frame).decoded
+            assert decoded is not None
+            faults[(source, t_s)] = decoded.faults
+    assert faults[(0x30, 1.0)] == () and faults[(0x31, 1.0)] == ("counter",)

@@ -490,3 +490,31 @@ def test_a_candump_log_of_transducers_in_their_own_units_replays_to_eq4(tmp_path
         leg: pytest.approx(force_N, rel=1e-9) for leg, force_N in UNITS_FORCES_N.items()
     }
     assert all(row["valid"] == "1" for row in rows.values())
+
+
+@pytest.mark.parametrize(
+    ("all_in_bar", "unmapped"),
+    [(True, pytest.approx(12.5e5, rel=1e-12)), (False, pytest.approx(12.5, rel=1e-12))],
+)
+def test_an_unmapped_sender_of_a_signal_without_a_dbc_unit_takes_the_agreed_one(
+    tmp_path: Path, all_in_bar: bool, unmapped: object
+) -> None:
+    """The vendor DBC gives XDCR.Pressure no unit, each chamber one: an unmapped sender's
+    frames are in the unit all chambers agree on (bar), else left in the DBC's number."""
+    dbc = (STRANGER / "j1939_units.dbc").read_text()
+    (tmp_path / "j1939_units.dbc").write_text(dbc.replace('100000] "bar"', '100000] ""'))
+    toml = (STRANGER / "j1939_units.toml").read_text()
+    toml = toml.replace("source_address = 0x52 }", 'source_address = 0x52, unit = "bar" }')
+    if all_in_bar:
+        toml = toml.replace('"psi"', '"bar"').replace('"MPa"', '"bar"')
+    (tmp_path / "machine.toml").write_text(toml)
+    config, database = load_machine_config(tmp_path / "machine.toml")
+    pipeline = Pipeline.from_config(config, database)
+    values = {}
+    for frame in units_frames():
+        decoded = pipeline.process(frame).decoded
+        assert decoded is not None and decoded.source_address is not None
+        values[decoded.source_address] = decoded.signals["Pressure"]
+    assert values[0x5F] == unmapped
+    expected_0x51 = 2000.0 * (1e5 if all_in_bar else PSI_PA)
+    assert (values[0x52], values[0x51]) == (pytest.approx(80e5), pytest.approx(expected_0x51))

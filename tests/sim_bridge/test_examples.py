@@ -112,18 +112,19 @@ def test_transducers_in_their_own_units_on_a_cycle_time_from_the_config_round_tr
     tmp_path: Path,
 ) -> None:
     """The j1939 example with SB1_F1's transducers set to MPa (piston) and psi (rod), and
-    HYD_PRESS's cycle time given by the config, not the DBC: the bridge sends each
-    transducer in its own unit every 10 ms, the service decodes eq. (4) of them in Pa."""
+    HYD_PRESS's cycle time given by the config, not the DBC (10 ms; SB1_F1's rod 20 ms):
+    the bridge sends each transducer in its own unit on its own cycle, the service
+    decodes eq. (4) of them in Pa."""
     dbc = J1939.parent / "transducers_j1939.dbc"
     text = dbc.read_text(encoding="cp1252")
     cycle_line = 'BA_ "GenMsgCycleTime" BO_ 2566856737 10;\n'
     assert cycle_line in text
     (tmp_path / dbc.name).write_text(text.replace(cycle_line, ""), encoding="cp1252")
     config = J1939.read_text()
-    for address, unit in ((0x21, "MPa"), (0x22, "psi")):
+    for address, keys in ((0x21, 'unit = "MPa"'), (0x22, 'unit = "psi", cycle_time_ms = 20')):
         where = f"source_address = 0x{address:02X}, "
         assert config.count(where) == 1
-        config = config.replace(where, f'{where}unit = "{unit}", ')
+        config = config.replace(where, f"{where}{keys}, ")
     config_path = tmp_path / "portal-daq.toml"
     config_path.write_text(config + "\n[messages.HYD_PRESS]\ncycle_time_ms = 10\n")
     machine, database = load_machine_config(config_path)
@@ -131,6 +132,7 @@ def test_transducers_in_their_own_units_on_a_cycle_time_from_the_config_round_tr
     assert (machine.legs["SB1_F1"].piston.unit, machine.legs["SB1_F1"].rod.unit) == ("MPa", "psi")
     cycles = {cycle.message: cycle.cycle_ns for cycle in FrameBuilder(machine, database).cycles}
     assert cycles["HYD_PRESS@0x21"] == cycles["HYD_PRESS@0x2C"] == 10_000_000
+    assert cycles["HYD_PRESS@0x22"] == 20_000_000
     assert_eq_4_of_the_pressures_sent(config_path)
 
 
