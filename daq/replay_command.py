@@ -56,18 +56,20 @@ def write_then_replace(path: Path, write: Callable[[IO[str]], object]) -> None:
     being readable) leaves a file of that name as it was, not emptied or half written.
 
     What is there and no regular file (``/dev/null``, ``/dev/stdout``, a named pipe) is
-    written to as it is: replacing it would put a regular file in its place.
+    written to as it is: replacing it would put a regular file in its place. A symbolic
+    link stays one: the file it names is replaced.
     """
     if path.is_dir():
         raise RecordingError(path, "cannot write it: it is a directory")
     direct = path.exists() and not path.is_file()
-    target = path if direct else path.with_name(f".{path.name}.part")
+    real = path.resolve() if path.is_symlink() else path
+    target = path if direct else real.with_name(f".{real.name}.part")
     try:
         try:
             with open(target, "w", newline="") as out:
                 write(out)
             if not direct:
-                os.replace(target, path)
+                os.replace(target, real)
         except OSError as exc:
             raise RecordingError(path, f"cannot write it: {exc.strerror or exc}") from exc
     except BaseException:

@@ -104,3 +104,18 @@ def test_a_named_pipe_is_written_to_not_replaced(tmp_path: Path) -> None:
     assert stat.S_ISFIFO(pipe.stat().st_mode)
     assert read[0].startswith("leg,") and read[0].count("\nSB1_F1,") == 2
     assert sorted(p.name for p in tmp_path.iterdir()) == ["cycle.log", "estimates"]
+
+
+def test_a_symbolic_link_keeps_pointing_at_the_csv_it_names(tmp_path: Path) -> None:
+    """``--out latest.csv`` a link to ``runs/42.csv``: the link was replaced by a regular
+    file and ``42.csv`` kept the earlier estimates."""
+    (tmp_path / "cycle.log").write_text(LOG)
+    (tmp_path / "runs").mkdir()
+    (tmp_path / "runs" / "42.csv").write_text("leg,t\n")
+    link = tmp_path / "latest.csv"
+    link.symlink_to(Path("runs") / "42.csv")
+    result = replay_into(tmp_path / "cycle.log", link)
+    assert result.returncode == 0, result.stderr
+    assert link.is_symlink() and link.readlink() == Path("runs") / "42.csv"
+    assert (tmp_path / "runs" / "42.csv").read_text().count("\nSB1_F1,") == 2
+    assert sorted(p.name for p in (tmp_path / "runs").iterdir()) == ["42.csv"]
