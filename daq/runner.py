@@ -25,6 +25,9 @@ from dbc.decoding import FrameDecoder, ReceiveFilter
 
 logger = logging.getLogger(__name__)
 
+#: The most receive filters a SocketCAN socket takes (the kernel's CAN_RAW_FILTER_MAX).
+SOCKETCAN_MAX_FILTERS = 512
+
 
 def kernel_filters(filters: list[ReceiveFilter]) -> list[CanFilter]:
     """python-can ``can_filters`` of the given receive filters."""
@@ -43,6 +46,14 @@ def bus_factory(settings: BusSettings, filters: list[ReceiveFilter]) -> BusFacto
     is warned about once.
     """
     ids = filters if settings.kernel_filters else None
+    if ids is not None and settings.interface == "socketcan" and len(ids) > SOCKETCAN_MAX_FILTERS:
+        logger.warning(
+            "[bus] kernel_filters: the DBC needs %d kernel filters, SocketCAN takes %d: "
+            "frames are filtered in the service instead (other IDs counted as unknown_id)",
+            len(ids),
+            SOCKETCAN_MAX_FILTERS,
+        )
+        ids = None  # setting them fails (EINVAL): the bus would never open
     warned = False
 
     def open_socketcan() -> FrameSource:

@@ -26,7 +26,7 @@ from dbc.database import load_database, unsound
 from dbc.decoding import is_j1939, j1939_pgn
 from dbc.errors import ConfigError
 from dbc.protection import CRC_ALGORITHMS, DEFAULT_CRC_ALGORITHM, Protection, counter_modulo
-from dbc.signal_range import value_range
+from dbc.signal_range import decoded_bounds, value_range
 from dbc.stability_config import StabilityConfig, parse_stability
 from dbc.toml_table import TomlTable
 from dbc.units import ACCEPTED_PRESSURE_UNITS, pressure_factor_to_Pa
@@ -711,7 +711,7 @@ def _status_check(
             if value in choices:
                 ok.add(str(choices[value]))
     signal = message.get_signal_by_name(signal_name)
-    low, high = _decoded_bounds(signal)
+    low, high = decoded_bounds(signal)
     if not any(isinstance(value, str) or low <= value <= high for value in status_ok):
         raise table.error(
             key,
@@ -719,16 +719,6 @@ def _status_check(
             "is one of them (every sample would be invalid)",
         )
     return StatusCheck(signal=signal_name, ok=frozenset(ok), nominal=status_ok[0])
-
-
-def _decoded_bounds(signal: Signal) -> tuple[float, float]:
-    """The least and greatest value a signal's bits decode to (unbounded: a float)."""
-    if signal.is_float:
-        return (-math.inf, math.inf)
-    bits = signal.length - 1 if signal.is_signed else signal.length
-    low_raw, high_raw = (-(1 << bits) if signal.is_signed else 0), (1 << bits) - 1
-    ends = (low_raw * signal.scale + signal.offset, high_raw * signal.scale + signal.offset)
-    return (min(ends), max(ends))
 
 
 def _leg_status(table: TomlTable, database: Database) -> tuple[Message, str, int | None]:

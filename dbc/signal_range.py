@@ -31,3 +31,14 @@ def value_range(signal: Signal, j1939: bool) -> tuple[float, float]:
         if signal.scale > 0:
             high = min(high, (raw_max + 0.5) * signal.scale + signal.offset)
     return (low, high)
+
+
+def decoded_bounds(signal: Signal) -> tuple[float, float]:
+    """The least and greatest value the signal's bits decode to (scale and offset
+    applied; a float signal: unbounded)."""
+    if signal.is_float:
+        return (-math.inf, math.inf)
+    bits = signal.length - 1 if signal.is_signed else signal.length
+    low_raw, high_raw = (-(1 << bits) if signal.is_signed else 0), (1 << bits) - 1
+    ends = (low_raw * signal.scale + signal.offset, high_raw * signal.scale + signal.offset)
+    return (min(ends), max(ends))

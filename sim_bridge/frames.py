@@ -43,6 +43,7 @@ from dbc.decoding import SignalValue
 from dbc.errors import ConfigError
 from dbc.machine import TRIGGERS, ChamberSignal, LegConfig, MachineConfig
 from dbc.protection import Protection
+from dbc.signal_range import decoded_bounds
 from dbc.units import pressure_factor_to_Pa
 from sim_bridge.getters import Getter, named_getters, phase_getter, scaled
 from sim_bridge.leg_map import LegMap, leg_map
@@ -331,8 +332,8 @@ class FrameBuilder:
 
 
 def clip(signal: Signal, value: SignalValue, to_si: float = 1.0) -> SignalValue:
-    """``value`` (SI) clipped into the signal's DBC range (in its unit, ``to_si`` per unit);
-    names pass unchanged, NaN becomes 0."""
+    """``value`` (SI) clipped into the signal's DBC range (in its unit, ``to_si`` per unit)
+    and what its bits hold (a DBC without a range); names pass unchanged, NaN becomes 0."""
     if isinstance(value, str):
         return value
     number = float(value)
@@ -342,6 +343,8 @@ def clip(signal: Signal, value: SignalValue, to_si: float = 1.0) -> SignalValue:
         number = max(number, float(signal.minimum) * to_si)
     if signal.maximum is not None:
         number = min(number, float(signal.maximum) * to_si)
+    low, high = decoded_bounds(signal)  # a DBC without a range: what the bits hold
+    number = min(max(number, low * to_si), high * to_si)
     if not signal.is_float and signal.scale == 1 and signal.offset == 0 and to_si == 1.0:
         return round(number)
     return number
