@@ -154,10 +154,11 @@ class FrameBuilder:
     message go out in address and page order, except that one carrying a leg's trigger
     chamber without its other chamber goes after the others: each leg sample then pairs
     the chamber values of one simulation row (skew 0), from the very first sample on.
-    Values are in SI; the encoder turns
-    them into the DBC's units. Constructed once from the machine configuration and
-    the DBC; raises :class:`~dbc.errors.ConfigError` when the config's legs cannot be
-    mapped onto the simulated legs (:func:`~sim_bridge.leg_map.leg_map`).
+    Values are in SI; the encoder turns them into the DBC's units. Constructed once
+    from the machine configuration and the DBC; raises :class:`~dbc.errors.ConfigError`
+    when the config's legs cannot be mapped onto the simulated legs
+    (:func:`~sim_bridge.leg_map.leg_map`), or a leg's chamber is in a message with
+    nested multiplexing.
     """
 
     def __init__(self, config: MachineConfig, database: Database) -> None:

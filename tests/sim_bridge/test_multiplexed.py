@@ -4,6 +4,8 @@ fd_float: 12-byte CAN FD frames, float32 MPa, counter and E2E profile 5 CRC on e
 page), played into the service's pipeline: each leg's estimates are eq. (4), worked out
 here, of the pressures quantized as the DBC sends them, with no fault and no frame lost."""
 
+import csv
+import io
 import uuid
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -16,6 +18,7 @@ from crccheck.crc import Crc8SaeJ1850
 
 from daq.frames import RawFrame
 from daq.pipeline import Pipeline
+from daq.replay import replay
 from dbc.encoding import FrameEncoder
 from dbc.errors import ConfigError
 from dbc.machine import load_machine_config
@@ -233,3 +236,30 @@ def test_the_encoder_puts_counter_and_crc_on_the_page_that_has_them() -> None:
         page1_bytes + bytes(3),
         expected0[1] + bytes([Crc8SaeJ1850.calc(expected0[1])]),
     ]
+
+
+def test_the_movement_cycle_played_onto_a_hub_replays_to_eq4_of_the_truth(
+    tmp_path: Path,
+) -> None:
+    """The model's cycle (its first second) through ``portal-sim`` into a frame log,
+    replayed by the service: each estimate is eq. (4) of the truth's pressures of its
+    instant, as the hub's page quantized them."""
+    log, truth = tmp_path / "hub.log", tmp_path / "truth.csv"
+    args = ["--config", str(MUX_PAGES), "--interface", "virtual", "--channel", str(uuid.uuid4())]
+    args += ["--as-fast-as-possible", "--duration", "1", "--frames-log", str(log)]
+    assert cli([*args, "--truth-csv", str(truth)]) == 0
+    out = io.StringIO()
+    assert replay(log, out, MUX_PAGES) == 200
+    rows = list(csv.DictReader(io.StringIO(out.getvalue())))
+    with open(truth, newline="") as stream:
+        samples = list(csv.DictReader(stream))
+    assert len(samples) == 100 and [row["leg"] for row in rows] == ["bank-0", "bank-1"] * 100
+    for i, row in enumerate(rows):
+        sample = samples[i // 2]  # one instant: page 0, page 1
+        assert float(row["t"]) == pytest.approx(float(sample["t_unix_s"]), abs=1e-3)
+        p_piston_Pa, p_rod_Pa = (
+            mpa_steps_Pa(max(0.0, float(sample[f"{chamber}_Pa_{row['leg']}"])))
+            for chamber in ("p_piston", "p_rod")
+        )
+        assert row["valid"] == "1" and row["reasons"] == ""
+        assert float(row["force_raw_N"]) == pytest.approx(eq4_N(p_piston_Pa, p_rod_Pa), abs=1.0)
