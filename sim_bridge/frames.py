@@ -133,8 +133,9 @@ class _MessagePlan:
     multiplexer: str | None
     page: int | None
     chambers: tuple[_ChamberSignals, ...]
-    #: Signals found by name, with their getters.
-    named: tuple[tuple[Signal, Getter], ...]
+    #: Signals found by name, with their getters and the factor from the signal's DBC
+    #: unit to SI (what the encoder divides by: a pressure in bar is clipped in bar).
+    named: tuple[tuple[Signal, Getter, float], ...]
     #: Signals sent as a constant (nobody supplies them).
     constants: tuple[tuple[Signal, SignalValue], ...]
     #: The frames carry the message's rolling counter (all but a multiplexed message's
@@ -225,6 +226,7 @@ class FrameBuilder:
                     chambers_by_sender.get((message.name, address), ()),
                     getters,
                     config.protection.get(message.name),
+                    _sender_to_si(config, message.name, address),
                 )
                 for address in cycle_times_ms
                 for page in pages
@@ -312,8 +314,8 @@ class FrameBuilder:
             values[chamber.pressure.name] = clip(chamber.pressure, p_Pa, chamber.to_Pa)
             if chamber.status is not None:
                 values[chamber.status.name] = status
-        for signal, getter in plan.named:
-            values[signal.name] = clip(signal, getter(result, row, cycle))
+        for signal, getter, to_si in plan.named:
+            values[signal.name] = clip(signal, getter(result, row, cycle), to_si)
         for signal, constant in plan.constants:
             values[signal.name] = constant
         return values
@@ -376,29 +378,32 @@ def _plan(
     chambers: Iterable[_ChamberSignals],
     getters: Mapping[str, Getter],
     protection: Protection | None,
+    to_si: Mapping[str, float],
 ) -> _MessagePlan:
     """What the frames of one sender carry: ``page``'s signals (None: all) of ``message``
-    from ``source_address``; ``getters`` by signal name, or by ``MESSAGE.SIGNAL``."""
+    from ``source_address``; ``getters`` by signal name, or by ``MESSAGE.SIGNAL``;
+    ``to_si``: the factors the encoder converts this sender's signals by."""
     mine = tuple(chamber for chamber in chambers if on_page(chamber.pressure, page))
     taken = {s.name for c in mine for s in (c.pressure, c.status) if s is not None}
     if protection is not None:
         taken |= {name for name in (protection.counter, protection.crc) if name is not None}
-    named: list[tuple[Signal, Getter]] = []
+    named: list[tuple[Signal, Getter, float]] = []
     constants: list[tuple[Signal, SignalValue]] = []
     multiplexer = None
     for signal in message.signals:
+        factor = to_si.get(signal.name, 1.0)
         if signal.is_multiplexer:
             multiplexer = signal.name
         elif not on_page(signal, page) or signal.name in taken:
             continue
         elif f"{message.name}.{signal.name}" in getters:
-            named.append((signal, getters[f"{message.name}.{signal.name}"]))
+            named.append((signal, getters[f"{message.name}.{signal.name}"], factor))
         elif signal.name == "Machine_Phase":
-            named.append((signal, phase_getter(signal)))
+            named.append((signal, phase_getter(signal), factor))
         elif signal.name in getters:
-            named.append((signal, getters[signal.name]))
+            named.append((signal, getters[signal.name], factor))
         else:
-            constants.append((signal, clip(signal, 0.0)))
+            constants.append((signal, clip(signal, 0.0, factor)))
 
     def carried(name: str | None) -> bool:
         return name is not None and on_page(message.get_signal_by_name(name), page)
@@ -414,6 +419,17 @@ def _plan(
         counted=protection is None or protection.counter is None or carried(protection.counter),
         crc=protection is not None and carried(protection.crc),
     )
+
+
+def _sender_to_si(
+    config: MachineConfig, message: str, source_address: int | None
+) -> Mapping[str, float]:
+    """The factors to SI the encoder converts ``message``'s signals from
+    ``source_address`` by (:meth:`dbc.encoding.FrameEncoder.encode`)."""
+    factors = config.unit_factors.get(message, {})
+    if source_address is None:
+        return factors
+    return config.sender_unit_factors.get((message, source_address), factors)
 
 
 def _pairs_late(plan: _MessagePlan) -> bool:

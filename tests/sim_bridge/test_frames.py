@@ -2,6 +2,7 @@
 
 import math
 import tomllib
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -9,10 +10,10 @@ import pytest
 from dbc.decoding import FrameDecoder
 from dbc.encoding import FrameEncoder
 from dbc.errors import ConfigError
-from dbc.machine import parse_machine_config
+from dbc.machine import load_machine_config, parse_machine_config
 from sim_bridge.frames import FrameBuilder, LegOverride, Timeline
 from sim_bridge.result import BASES, LEGS, PHASES, SimulationResult
-from tests.helpers import EXAMPLE_CONFIG
+from tests.helpers import EXAMPLE_CONFIG, ROOT
 from tests.sim_bridge.synthetic import CONFIG, DATABASE, frames_of, make_result, play
 
 #: Half a step of each signal's scale: the most rounding may move a value.
@@ -186,3 +187,35 @@ def test_the_bridge_angles_go_out_in_the_unit_of_their_signal(result: Simulation
     assert result.rotation_deg[row] > 10.0
     assert motion["Bridge_RotationAngle"] == pytest.approx(math.radians(result.rotation_deg[row]))
     assert pose["Bridge_FoldAngle"] == pytest.approx(result.fold_deg[row])
+
+
+def test_pressures_found_by_name_go_out_in_the_unit_of_their_signal(
+    result: SimulationResult, tmp_path: Path
+) -> None:
+    """The e2e example's inclination cylinders are in MPa ([-0.1|65.435]): their Pa were
+    clipped against that range as if it were Pa (65.435 Pa at most), so the bridge sent
+    ~0 MPa for every row. A pressure nobody supplies (here one in bar, [1|400]) is
+    clipped in its unit too: 1 bar, not 1 Pa (below the range: cantools refused it)."""
+    example = ROOT / "daq" / "examples" / "e2e"
+    extra = ' SG_ INCL_SB1_pAccu : 48|16@1+ (0.01,0) [1|400] "bar" PortalDAQ\n'
+    text = (example / "e2e_sensors.dbc").read_text(encoding="cp1252")
+    after = text.index("\n", text.index(" SG_ INCL_SB1_pRod ")) + 1
+    (tmp_path / "e2e_sensors.dbc").write_text(text[:after] + extra + text[after:], "cp1252")
+    (tmp_path / "portal-daq.toml").write_text((example / "portal-daq.toml").read_text())
+    config, database = load_machine_config(tmp_path / "portal-daq.toml")
+    builder = FrameBuilder(config, database)
+    encoder = FrameEncoder.from_config(config, database)
+    decoder = FrameDecoder(database, config.protection, config.unit_factors)
+    row = 37
+    decoded = {}
+    for b, base in enumerate(BASES):
+        frame = encoder.encode(f"INCL_{base}", builder.signals(f"INCL_{base}", result, row, 0))
+        signals = decoded[base] = decoder.decode(frame.arbitration_id, frame.data, 0.0).signals
+        assert signals[f"INCL_{base}_pPiston"] == pytest.approx(
+            result.incl_p_piston_Pa[row, b], abs=PRESSURE_TOLERANCE_PA
+        )
+        assert signals[f"INCL_{base}_pRod"] == pytest.approx(
+            result.incl_p_rod_Pa[row, b], abs=PRESSURE_TOLERANCE_PA
+        )
+    assert decoded["SB1"]["INCL_SB1_pAccu"] == pytest.approx(1e5)
+    assert "INCL_SB1.INCL_SB1_pAccu" in builder.defaulted
