@@ -142,7 +142,8 @@ class ChamberSignal:
     unit: str
     #: The chamber's own sensor status, judged with its own frame; None: never judged.
     status: StatusCheck | None
-    #: GenMsgCycleTime of the message.
+    #: How often the transducer sends, s: its chamber's ``cycle_time_ms``, else its
+    #: message's (:attr:`MachineConfig.cycle_times_ms`).
     cycle_time_s: float
     #: The multiplexer values of the frames that carry the signal; None: every frame.
     mux_ids: tuple[int, ...] | None = None
@@ -689,7 +690,8 @@ def _status_check(
     signal_name: str,
     status_ok: tuple[StatusValue, ...],
 ) -> StatusCheck:
-    choices: Mapping[int, object] = message.get_signal_by_name(signal_name).choices or {}
+    signal = message.get_signal_by_name(signal_name)
+    choices: Mapping[int, object] = signal.choices or {}
     by_name = {str(name): int(raw) for raw, name in choices.items()}
     ok: set[StatusValue] = set()
     for value in status_ok:
@@ -710,7 +712,6 @@ def _status_check(
             ok.add(value)
             if value in choices:
                 ok.add(str(choices[value]))
-    signal = message.get_signal_by_name(signal_name)
     low, high = decoded_bounds(signal)
     if not any(isinstance(value, str) or low <= value <= high for value in status_ok):
         raise table.error(
