@@ -15,7 +15,7 @@ import zenoh
 from daq.mcap_reading import RecordedMessage, RecordingStream
 from daq.runner import build_recorder, bus_factory
 from daq.service import Service
-from daq.service_config import load_service_config
+from daq.service_config import ServiceConfig, load_service_config
 from daq.zenoh_session import zenoh_config
 from dbc.decoding import FrameDecoder
 from tests.daq.service_support import Collector, free_port, running, subscriber_session
@@ -29,8 +29,13 @@ from tests.dbc.test_held_out_machines import (
 )
 
 
-def test_the_service_runs_a_held_out_j1939_machine(tmp_path: Path) -> None:
-    shutil.copy(STRANGER / "j1939_propa.dbc", tmp_path)
+def held_out_service_config(
+    tmp_path: Path, machine: str, publish: str = "", tables: str = ""
+) -> tuple[ServiceConfig, int, str]:
+    """The service config of the held-out ``machine`` (its DBC copied beside it) on a
+    fresh virtual bus with kernel-style filters and Zenoh on a free loopback port, with
+    more ``[publish]`` keys and more ``tables``; and that port and bus channel."""
+    shutil.copy(STRANGER / f"{machine}.dbc", tmp_path)
     port, channel = free_port(), f"held-out-{uuid.uuid4().hex}"
     (tmp_path / "portal-daq.toml").write_text(
         f"""
@@ -46,10 +51,16 @@ multicast_scouting = false
 
 [publish]
 status_period_s = 0.2
+{publish}
+{tables}
 """
-        + (STRANGER / "j1939_propa.toml").read_text()
+        + (STRANGER / f"{machine}.toml").read_text()
     )
-    config = load_service_config(tmp_path / "portal-daq.toml")
+    return load_service_config(tmp_path / "portal-daq.toml"), port, channel
+
+
+def test_the_service_runs_a_held_out_j1939_machine(tmp_path: Path) -> None:
+    config, port, channel = held_out_service_config(tmp_path, "j1939_propa")
     filters = FrameDecoder(config.database, config.machine.protection).receive_filters
     prefix = config.zenoh.key_prefix
     t0 = time.time()
@@ -91,31 +102,12 @@ def test_the_service_runs_transducers_in_their_own_units_without_dbc_cycle_times
     a DBC without cycle times (the config gives them). The legs' forces are eq. (4) of
     the pressures converted here; /signals and the signals recording are in Pa for each
     sender."""
-    shutil.copy(STRANGER / "j1939_units.dbc", tmp_path)
-    port, channel = free_port(), f"held-out-{uuid.uuid4().hex}"
-    (tmp_path / "portal-daq.toml").write_text(
-        f"""
-[bus]
-interface = "virtual"
-channel = "{channel}"
-kernel_filters = true
-
-[zenoh]
-mode = "peer"
-listen = ["tcp/127.0.0.1:{port}"]
-multicast_scouting = false
-
-[publish]
-status_period_s = 0.2
-signals_max_rate_hz = 0
-
-[recording]
-directory = "{tmp_path / "recordings"}"
-signals = true
-"""
-        + (STRANGER / "j1939_units.toml").read_text()
+    config, port, channel = held_out_service_config(
+        tmp_path,
+        "j1939_units",
+        publish="signals_max_rate_hz = 0",
+        tables=f'[recording]\ndirectory = "{tmp_path / "recordings"}"\nsignals = true',
     )
-    config = load_service_config(tmp_path / "portal-daq.toml")
     filters = FrameDecoder(config.database, config.machine.protection).receive_filters
     prefix = config.zenoh.key_prefix
     frames = units_frames()
