@@ -149,8 +149,9 @@ class FrameBuilder:
     """Builds each periodic sender's signal values from a simulation row.
 
     A *sender* (:mod:`sim_bridge.senders`) is one message, or for a J1939 message mapped
-    to several source addresses (one transducer per chamber) one per address
-    (``HYD_PRESS@0x21``), or for a multiplexed message one per page (``MUXHUB#1``);
+    to source addresses one per address (``HYD_PRESS@0x21``; a chamber of the message
+    pinning none, reading every sender, is in each of their frames), or for a
+    multiplexed message one per page (``MUXHUB#1``);
     each sends at its message's cycle time. Within one instant the senders of a
     message go out in address and page order, except that one carrying a leg's trigger
     chamber without its other chamber goes after the others: each leg sample then pairs
@@ -204,10 +205,15 @@ class FrameBuilder:
         self.cycles: list[MessageCycle] = []
         for message in database.messages:
             pages = multiplexer_pages(message)
-            addresses = sorted(
-                {address for name, address in chambers_by_sender if name == message.name},
-                key=lambda address: -1 if address is None else address,
-            ) or [None]
+            # A chamber pinning no sender reads every sender's frames: where others pin
+            # senders, it is in each of theirs (a frame of the DBC's ID besides would come
+            # from one of them, or from a sender nobody reads, its other chambers 0).
+            any_sender = chambers_by_sender.get((message.name, None), [])
+            addresses: list[int | None] = [
+                *sorted(
+                    a for name, a in chambers_by_sender if name == message.name and a is not None
+                )
+            ] or [None]
             cycle_times_ms = {
                 address: cycle_time_ms
                 for address in addresses
@@ -223,7 +229,10 @@ class FrameBuilder:
                     message,
                     address,
                     page,
-                    chambers_by_sender.get((message.name, address), ()),
+                    [
+                        *chambers_by_sender.get((message.name, address), ()),
+                        *(any_sender if address is not None else ()),
+                    ],
                     getters,
                     config.protection.get(message.name),
                     _sender_to_si(config, message.name, address),

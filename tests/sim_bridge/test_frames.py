@@ -7,13 +7,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from daq.frames import RawFrame
+from daq.pipeline import Pipeline
 from dbc.decoding import FrameDecoder
 from dbc.encoding import FrameEncoder
 from dbc.errors import ConfigError
 from dbc.machine import load_machine_config, parse_machine_config
 from sim_bridge.frames import FrameBuilder, LegOverride, Timeline
 from sim_bridge.result import BASES, LEGS, PHASES, SimulationResult
-from tests.helpers import EXAMPLE_CONFIG, ROOT
+from tests.helpers import EXAMPLE_CONFIG, LEG_DEFAULTS_TOML, ROOT, dbc_text
 from tests.sim_bridge.synthetic import CONFIG, DATABASE, frames_of, make_result, play
 
 #: Half a step of each signal's scale: the most rounding may move a value.
@@ -219,3 +221,44 @@ def test_pressures_found_by_name_go_out_in_the_unit_of_their_signal(
         )
     assert decoded["SB1"]["INCL_SB1_pAccu"] == pytest.approx(1e5)
     assert "INCL_SB1.INCL_SB1_pAccu" in builder.defaulted
+
+
+def test_a_chamber_of_any_sender_is_in_the_frames_of_the_pinned_one(
+    result: SimulationResult, tmp_path: Path
+) -> None:
+    """A J1939 message of two pressures whose piston is pinned to 0x21 and whose rod reads
+    any sender: the bridge sent the rod from the DBC's ID (source address 0x21 too) with
+    the piston 0, and from 0x21 with the rod 0, so both chambers read 0 every other
+    frame. One sender now carries both."""
+    (tmp_path / "m.dbc").write_text(
+        dbc_text(
+            """
+BO_ 2566856737 HYD: 8 Hub
+ SG_ P1 : 0|16@1+ (1000,0) [0|65535000] "Pa" DAQ
+ SG_ P2 : 16|16@1+ (1000,0) [0|65535000] "Pa" DAQ
+""",
+            'BA_ "GenMsgCycleTime" BO_ 2566856737 10;\nBA_ "VFrameFormat" BO_ 2566856737 3;\n',
+        )
+    )
+    (tmp_path / "m.toml").write_text(
+        '[machine]\nid = "m"\nmass_kg = 1000.0\ndbc = "m.dbc"\n'
+        + LEG_DEFAULTS_TOML
+        + '[legs.SB1_F1]\npiston = { signal = "HYD.P1", source_address = 0x21 }\n'
+        + 'rod = "HYD.P2"\n'
+    )
+    config, database = load_machine_config(tmp_path / "m.toml")
+    builder = FrameBuilder(config, database)
+    pipeline = Pipeline.from_config(config, database)
+    encoder = FrameEncoder.from_config(config, database)
+    estimates = []
+    for row in range(20):
+        for sender, signals in builder.frames(result, row, builder.messages, 0):
+            message, address = builder.target(sender)
+            frame = encoder.encode(message, signals, source_address=address)
+            raw = RawFrame(0.01 * row, frame.arbitration_id, True, frame.data)
+            estimates += pipeline.process(raw).estimates
+    assert [(e.p_piston_Pa, e.p_rod_Pa) for e in estimates] == [
+        (pytest.approx(p, abs=500), pytest.approx(r, abs=500))
+        for p, r in zip(result.p_piston_Pa[:20, 0], result.p_rod_Pa[:20, 0], strict=True)
+    ]
+    assert builder.messages == ["HYD@0x21"]  # no frame of the DBC's ID besides
