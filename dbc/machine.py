@@ -21,7 +21,7 @@ from typing import Any
 
 from cantools.database.can import Database, Message, Signal
 
-from dbc import DEFAULT_DBC_PATH
+from dbc import DEFAULT_DBC_PATH, _across_legs
 from dbc.database import load_database, unsound
 from dbc.decoding import is_j1939, j1939_pgn
 from dbc.errors import ConfigError
@@ -322,15 +322,15 @@ def parse_machine_config(
         name: _leg(name, table, leg_defaults, database, status_ok, cycle_times_ms)
         for name, table in legs_table.subtables()
     }
-    _check_simulated_legs(legs_table, legs)
-    _check_own_chambers(legs_table, legs)
-    sender_cycle_times_ms = _sender_cycle_times_ms(legs_table, legs, cycle_times_ms)
+    _across_legs.check_simulated_legs(legs_table, legs)
+    _across_legs.check_own_chambers(legs_table, legs)
+    sender_cycle_times_ms = _across_legs.sender_cycle_times_ms(legs_table, legs, cycle_times_ms)
     protection = {
         name: _protection(name, table, database, cycle_times_ms, sender_cycle_times_ms)
         for name, table in root.table("protection", required=False).subtables()
     }
-    _check_senders(legs_table, legs, database)
-    unit_factors, sender_unit_factors = _unit_factors(legs_table, legs, database)
+    _across_legs.check_senders(legs_table, legs, database)
+    unit_factors, sender_unit_factors = _across_legs.unit_factors(legs_table, legs, database)
     return MachineConfig(
         source=source,
         machine_id=machine.string("id", pattern=NAME_PATTERN),
@@ -413,37 +413,6 @@ def _leg(
         max_skew_s=max_skew_s,
         simulated_leg=simulated_leg,
     )
-
-
-def _check_simulated_legs(legs_table: TomlTable, legs: Mapping[str, LegConfig]) -> None:
-    """Each simulated leg is played onto one config leg at most."""
-    taken: dict[str, str] = {}
-    for name, leg in legs.items():
-        if leg.simulated_leg is None:
-            continue
-        if leg.simulated_leg in taken:
-            raise legs_table.error(
-                f"{name}.simulated_leg",
-                f"{leg.simulated_leg} is already legs.{taken[leg.simulated_leg]}'s simulated "
-                "leg; each simulated leg plays onto one leg",
-            )
-        taken[leg.simulated_leg] = name
-
-
-def _check_own_chambers(legs_table: TomlTable, legs: Mapping[str, LegConfig]) -> None:
-    """No leg reads both chambers of another (a leg table copied and not edited: its
-    forces would be the other's, the weight check would count one foot twice). One
-    chamber's transducer may be shared: chambers on a common line."""
-    taken: dict[tuple[str, str], str] = {}
-    for name, leg in legs.items():
-        chambers = (str(leg.piston), str(leg.rod))
-        if chambers in taken:
-            raise legs_table.error(
-                name,
-                f"reads the chambers of legs.{taken[chambers]} ({', '.join(chambers)}): "
-                "each leg needs its own",
-            )
-        taken[chambers] = name
 
 
 def _split_ref(table: TomlTable, key: str, text: str, database: Database) -> tuple[Message, str]:
@@ -629,34 +598,6 @@ def _cycle_times_ms(table: TomlTable, database: Database) -> dict[str, float]:
     return times
 
 
-def _sender_cycle_times_ms(
-    legs_table: TomlTable, legs: Mapping[str, LegConfig], cycle_times_ms: Mapping[str, float]
-) -> dict[tuple[str, int], float]:
-    """The J1939 transducers whose chamber gives them another cycle time than their
-    message's, ms, by message and source address; one transducer has one cycle time."""
-    times: dict[tuple[str, int], tuple[float, str]] = {}
-    for leg in legs.values():
-        for key in TRIGGERS:
-            chamber: ChamberSignal = getattr(leg, key)
-            if chamber.source_address is None:
-                continue
-            where = f"legs.{leg.name}.{key}"
-            sender = (chamber.message, chamber.source_address)
-            cycle_s, other = times.setdefault(sender, (chamber.cycle_time_s, where))
-            if cycle_s != chamber.cycle_time_s:
-                raise legs_table.table(leg.name).error(
-                    key,
-                    f"{chamber.message}@0x{chamber.source_address:02X} is sent every "
-                    f"{1000 * chamber.cycle_time_s:g} ms here and every {1000 * cycle_s:g} ms "
-                    f"for {other}: one transducer has one cycle time (give cycle_time_ms to both)",
-                )
-    return {
-        sender: 1000.0 * cycle_s
-        for sender, (cycle_s, _) in times.items()
-        if sender[0] not in cycle_times_ms or cycle_s != cycle_times_ms[sender[0]] / 1000.0
-    }
-
-
 def _status_ref(table: TomlTable, message: Message, database: Database) -> tuple[Message, str]:
     """A chamber's ``status``: ``SIGNAL`` of its own message, or ``MESSAGE.SIGNAL``."""
     text = table.string("status")
@@ -787,102 +728,6 @@ def _wire(message: Message) -> tuple[int, ...]:
     if is_j1939(message):
         return (1, j1939_pgn(message.frame_id), message.frame_id & 0xFF)
     return (0, message.frame_id, int(bool(message.is_extended_frame)))
-
-
-def _check_senders(
-    legs_table: TomlTable, legs: Mapping[str, LegConfig], database: Database
-) -> None:
-    """A J1939 signal that several chambers read (one transducer each, one PGN) needs each
-    chamber's source address: without it, every transducer's frames would feed it."""
-    readers: dict[tuple[str, str], list[tuple[str, str, int | None]]] = {}
-    for leg in legs.values():
-        for key in TRIGGERS:
-            chamber: ChamberSignal = getattr(leg, key)
-            where = (chamber.message, chamber.signal)
-            readers.setdefault(where, []).append((leg.name, key, chamber.source_address))
-    for (message, signal), chambers in readers.items():
-        if len(chambers) < 2 or not is_j1939(database.get_message_by_name(message)):
-            continue
-        for leg_name, key, address in chambers:
-            if address is None:
-                other_leg, other_key, other_address = next(
-                    c for c in chambers if c[:2] != (leg_name, key)
-                )
-                sender = "any sender" if other_address is None else f"0x{other_address:02X}"
-                raise legs_table.table(leg_name).error(
-                    key,
-                    f"{message}.{signal} is also legs.{other_leg}.{other_key}'s (from {sender}): "
-                    "give each chamber its transducer's source_address",
-                )
-
-
-def _unit_factors(
-    legs_table: TomlTable, legs: Mapping[str, LegConfig], database: Database
-) -> tuple[dict[str, dict[str, float]], dict[tuple[str, int], dict[str, float]]]:
-    """Pa per DBC unit of every pressure signal: by message, what frames of any sender
-    are decoded with (the unit of a chamber pinning no sender, else the DBC's; where the
-    DBC's is none, the one unit all chambers of the signal agree on), and by message and
-    J1939 sender, for the transducers whose chamber gives another unit than that.
-
-    One sender has one unit: two for one source address, or a chamber pinning no sender
-    in one unit and another chamber of the signal in another, stop the config.
-    """
-    factors: dict[str, dict[str, float]] = {}
-    for message in database.messages:
-        for signal in message.signals:
-            factor = pressure_factor_to_Pa(signal.unit or "")
-            if factor is not None and factor != 1.0:
-                factors.setdefault(message.name, {})[signal.name] = factor
-    # (message, signal) -> [(source address, factor, unit, leg, chamber key)]
-    readers: dict[tuple[str, str], list[tuple[int | None, float, str, str, str]]] = {}
-    for leg in legs.values():
-        for key in TRIGGERS:
-            chamber: ChamberSignal = getattr(leg, key)
-            factor = pressure_factor_to_Pa(chamber.unit)
-            assert factor is not None  # checked when the chamber was read
-            address = chamber.source_address
-            others = readers.setdefault((chamber.message, chamber.signal), [])
-            for other_address, other_factor, other_unit, other_leg, other_key in others:
-                pinned = None not in (address, other_address)
-                if other_factor == factor or (pinned and address != other_address):
-                    continue
-                sender = (
-                    f"both from 0x{address:02X}"
-                    if pinned and address is not None
-                    else "a chamber without source_address reads every sender"
-                )
-                raise legs_table.table(leg.name).error(
-                    key,
-                    f"{chamber} is in {chamber.unit!r} here and in {other_unit!r} for "
-                    f"legs.{other_leg}.{other_key} ({sender}); one transducer has one unit",
-                )
-            others.append((address, factor, chamber.unit, leg.name, key))
-    for (message_name, signal_name), chambers in readers.items():
-        unpinned = [factor for address, factor, *_ in chambers if address is None]
-        agreed = {factor for _, factor, *_ in chambers}
-        signal = database.get_message_by_name(message_name).get_signal_by_name(signal_name)
-        in_dbc = pressure_factor_to_Pa(signal.unit or "")
-        default = unpinned[0] if unpinned else in_dbc
-        if default is None and len(agreed) == 1:
-            default = agreed.pop()
-        if default is not None:
-            _set_factor(factors.setdefault(message_name, {}), signal_name, default)
-    by_sender: dict[tuple[str, int], dict[str, float]] = {}
-    for (message_name, signal_name), chambers in readers.items():
-        defaults = factors.get(message_name, {})
-        for address, factor, *_ in chambers:
-            if address is not None and factor != defaults.get(signal_name, 1.0):
-                table = by_sender.setdefault((message_name, address), dict(defaults))
-                _set_factor(table, signal_name, factor)
-    return {name: table for name, table in factors.items() if table}, by_sender
-
-
-def _set_factor(factors: dict[str, float], signal: str, factor: float) -> None:
-    """``signal``'s factor to Pa in ``factors``; none for Pa (the value as decoded)."""
-    if factor == 1.0:
-        factors.pop(signal, None)
-    else:
-        factors[signal] = factor
 
 
 def _protection(
