@@ -64,6 +64,9 @@ CHAMBER_KEYS = ("signal", "source_address", "unit", "status", "status_ok", "cycl
 PROTECTION_KEYS = ("counter", "crc", "crc_algorithm", "data_id", "max_delta_counter")
 #: Keys of ``[messages.<MESSAGE>]``: what the config says of a message the DBC leaves out.
 MESSAGE_KEYS = ("cycle_time_ms",)
+#: The shortest cycle time a config may give: an 8-byte frame takes ~0.11 ms at 1 Mbit/s
+#: (a shorter period also rounds to nothing in the simulator's nanosecond schedule).
+MIN_CYCLE_TIME_MS = 0.1
 ESTIMATOR_KEYS = (
     "filter",
     "median_window",
@@ -573,11 +576,13 @@ def _cycle_time_s(
 
 
 def _positive_ms(table: TomlTable) -> float:
-    """``cycle_time_ms`` of ``table``: a period, > 0."""
+    """``cycle_time_ms`` of ``table``: a period, at least :data:`MIN_CYCLE_TIME_MS`."""
     cycle_time_ms = table.number("cycle_time_ms")
-    if cycle_time_ms <= 0:
+    if not cycle_time_ms >= MIN_CYCLE_TIME_MS:
         raise table.error(
-            "cycle_time_ms", f"must be > 0 (the message's period), got {cycle_time_ms}"
+            "cycle_time_ms",
+            f"must be at least {MIN_CYCLE_TIME_MS:g} ms (the message's period; one frame "
+            f"takes about that long on the bus), got {cycle_time_ms:g}",
         )
     return cycle_time_ms
 
