@@ -5,6 +5,8 @@ SocketCAN ``vcan0``; they are skipped where there is none. ``tests/vcan/with-vca
 runs pytest inside User-Mode Linux with ``vcan0`` up, and ``./dev test`` uses it.
 """
 
+import logging
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -35,3 +37,19 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
 
 
 # --- end vcan -----------------------------------------------------------------
+
+
+@pytest.fixture(autouse=True)
+def _root_logging_restored() -> Iterator[None]:
+    """The root logger as it was before each test: a CLI run in-process configures logging
+    (``logging.basicConfig``) onto the test's captured stderr, which closes after the test;
+    a later test's log line then went to a closed file and its own output had
+    ``ValueError: I/O operation on closed file`` in it (seen in one test order only)."""
+    root = logging.getLogger()
+    handlers, level = root.handlers[:], root.level
+    yield
+    for handler in root.handlers:
+        if handler not in handlers:
+            root.removeHandler(handler)
+            handler.close()
+    root.setLevel(level)
