@@ -15,7 +15,6 @@ starts and finds that file cut short (:func:`is_cut_short`), in place.
 
 import logging
 import os
-import stat
 from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any, cast
@@ -26,6 +25,7 @@ from mcap.writer import Writer
 from daq.errors import RecordingError
 from daq.mcap_file import COMPRESSION
 from daq.mcap_reading import RecordsToTheCut, summary_channels
+from daq.output_file import replacing
 
 logger = logging.getLogger(__name__)
 
@@ -133,28 +133,14 @@ def _register(
 
 
 def recover_file(path: Path, out: Path | None = None, *, compression: str = "zstd") -> Recovered:
-    """Recover ``path`` into ``out``, or in place (through a temporary file beside it).
+    """Recover ``path`` into ``out``, or in place, through
+    :func:`~daq.output_file.replacing`: a recovery that fails leaves what was there as it
+    was (a file of the user's, a device such as /dev/null, the cut file itself).
 
     Raises :class:`RecordingError` when a file cannot be read or written.
     """
-    target = out if out is not None else path.with_name(path.name + ".recovering")
-    # Only a file this call makes is removed on failure: never what ``out`` named before
-    # (a device such as /dev/null, or a file of the user's).
-    made = out is None or not out.exists()
     try:
-        with open(path, "rb") as source, open(target, "wb") as sink:
-            result = recover(source, sink, compression=compression, name=str(path))
-            sink.flush()
-            if stat.S_ISREG(os.fstat(sink.fileno()).st_mode):  # a device cannot be synced
-                os.fsync(sink.fileno())
-        if out is None:
-            os.replace(target, path)
-    except RecordingError:  # not an MCAP file: nothing to write
-        if made:
-            target.unlink(missing_ok=True)
-        raise
+        with open(path, "rb") as source, replacing(out or path, "wb") as sink:
+            return recover(source, sink, compression=compression, name=str(path))
     except OSError as exc:
-        if made:
-            target.unlink(missing_ok=True)
         raise RecordingError(exc.filename or path, f"cannot recover: {exc.strerror}") from exc
-    return result

@@ -6,13 +6,12 @@ be used; the reason is one line on stderr.
 """
 
 import argparse
-import os
 import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from pathlib import Path
-from typing import IO
 
 from daq.errors import RecordingError
+from daq.output_file import replacing
 from daq.replay import replay
 from daq.subcommand import PROG, Subcommand, add_channel_option, fail, setup_logging
 from dbc.errors import ConfigError, DbcError, PortalDaqError
@@ -37,10 +36,7 @@ def replay_main(args: Sequence[str]) -> int:
         if options.out is None:
             replay(options.recording, sys.stdout, options.config, options.channel)
         else:
-            write_then_replace(
-                options.out,
-                lambda out: replay(options.recording, out, options.config, options.channel),
-            )
+            write_csv_to(options.out, options)
     except (ConfigError, DbcError) as exc:
         return fail(exc, 2)
     except BrokenPipeError:
@@ -50,32 +46,14 @@ def replay_main(args: Sequence[str]) -> int:
     return 0
 
 
-def write_then_replace(path: Path, write: Callable[[IO[str]], object]) -> None:
-    """``write`` into a file beside ``path`` (``.NAME.part``) that replaces ``path`` once
-    it is done: a replay that fails (a bad config, a log that is not there or stops
-    being readable) leaves a file of that name as it was, not emptied or half written.
-
-    What is there and no regular file (``/dev/null``, ``/dev/stdout``, a named pipe) is
-    written to as it is: replacing it would put a regular file in its place. A symbolic
-    link stays one: the file it names is replaced.
-    """
-    if path.is_dir():
-        raise RecordingError(path, "cannot write it: it is a directory")
-    direct = path.exists() and not path.is_file()
-    real = path.resolve() if path.is_symlink() else path
-    target = path if direct else real.with_name(f".{real.name}.part")
+def write_csv_to(path: Path, options: argparse.Namespace) -> None:
+    """The replay's CSV into ``path`` (:func:`~daq.output_file.replacing`: a replay that
+    fails leaves what was there as it was)."""
     try:
-        try:
-            with open(target, "w", newline="") as out:
-                write(out)
-            if not direct:
-                os.replace(target, real)
-        except OSError as exc:
-            raise RecordingError(path, f"cannot write it: {exc.strerror or exc}") from exc
-    except BaseException:
-        if not direct:
-            target.unlink(missing_ok=True)
-        raise
+        with replacing(path) as out:
+            replay(options.recording, out, options.config, options.channel)
+    except OSError as exc:
+        raise RecordingError(path, f"cannot write it: {exc.strerror or exc}") from exc
 
 
 SUBCOMMAND = Subcommand(

@@ -202,8 +202,9 @@ def test_a_damaged_chunk_costs_its_own_messages_only(
 
 def test_what_out_named_before_is_never_removed(tmp_path: Path) -> None:
     """``recover NOT_MCAP -o /dev/null`` removed /dev/null (a failed recovery unlinked its
-    output): only a file the recovery made is removed. A named pipe stands in for
-    /dev/null, which a regression must not break on the test machine."""
+    output), and ``-o FILE`` left the user's file emptied: a failed recovery leaves what
+    was there as it was. A named pipe stands in for /dev/null, which a regression must not
+    break on the test machine."""
     import stat
     import threading
 
@@ -224,3 +225,9 @@ def test_what_out_named_before_is_never_removed(tmp_path: Path) -> None:
     with pytest.raises(RecordingError):
         recover_file(not_mcap, fresh)
     assert not fresh.exists()  # what it made, it removes
+    earlier = tmp_path / "earlier.mcap"
+    earlier.write_bytes(b"the user's file")
+    with pytest.raises(RecordingError):
+        recover_file(not_mcap, earlier)
+    assert earlier.read_bytes() == b"the user's file"  # was left emptied
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["earlier.mcap", "notes.txt", "sink"]
