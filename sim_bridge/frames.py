@@ -45,7 +45,7 @@ from dbc.machine import TRIGGERS, ChamberSignal, LegConfig, MachineConfig
 from dbc.protection import Protection
 from dbc.signal_range import decoded_bounds
 from dbc.units import pressure_factor_to_Pa
-from sim_bridge.getters import Getter, named_getters, phase_getter, scaled
+from sim_bridge.getters import Getter, in_angle_unit, named_getters, phase_getter, scaled
 from sim_bridge.leg_map import LegMap, leg_map
 from sim_bridge.result import SimulationResult
 from sim_bridge.schedule import NS_PER_MS, NS_PER_S, MessageCycle
@@ -410,7 +410,7 @@ def _plan(
         elif signal.name == "Machine_Phase":
             named.append((signal, phase_getter(signal), factor))
         elif signal.name in getters:
-            named.append((signal, getters[signal.name], factor))
+            named.append((signal, in_angle_unit(signal, getters[signal.name]), factor))
         else:
             constants.append((signal, clip(signal, 0.0, factor)))
 

@@ -5,11 +5,13 @@ found by name carries (see :mod:`sim_bridge.frames`). Pure computation.
 ['Bridge_FoldAngle', 'Bridge_RotationAngle', 'Carriage_Position']
 """
 
+import math
 from collections.abc import Callable, Mapping
 
 from cantools.database.can import Signal
 
 from dbc.decoding import SignalValue
+from dbc.units import angle_factor_to_rad
 from sim_bridge.result import BASES, LEGS, PHASES, SimulationResult
 
 #: A signal's value at one row: (result, row, completed cycles) -> physical value or name.
@@ -28,6 +30,15 @@ def scaled(getter: Getter, factor: float) -> Getter:
     if factor == 1.0:
         return getter
     return lambda result, row, cycle: float(getter(result, row, cycle)) * factor
+
+
+def in_angle_unit(signal: Signal, getter: Getter) -> Getter:
+    """A getter of degrees (the simulation's angles: the ``...Angle`` getters) for
+    ``signal``, in its DBC unit where that is another angle unit (rad, mrad)."""
+    rad_per_unit = angle_factor_to_rad(signal.unit or "")
+    if not signal.name.endswith("Angle") or rad_per_unit is None:
+        return getter
+    return scaled(getter, math.radians(1.0) / rad_per_unit)
 
 
 def phase_getter(signal: Signal) -> Getter:

@@ -262,3 +262,36 @@ BO_ 2566856737 HYD: 8 Hub
         for p, r in zip(result.p_piston_Pa[:20, 0], result.p_rod_Pa[:20, 0], strict=True)
     ]
     assert builder.messages == ["HYD@0x21"]  # no frame of the DBC's ID besides
+
+
+def test_angles_found_by_name_go_out_in_the_unit_of_their_signal(
+    result: SimulationResult,
+) -> None:
+    """Without [stability] the bridge finds the angles by name; a DBC with them in radians
+    got degrees (the service's /signals and recordings then showed 57x the angle)."""
+    from dbc.database import load_database_string
+    from dbc.machine import DEFAULT_DBC_PATH
+
+    text = DEFAULT_DBC_PATH.read_text(encoding="cp1252")
+    text = text.replace(
+        'Bridge_FoldAngle : 32|16@1- (0.01,0) [-5|95] "deg"',
+        'Bridge_FoldAngle : 32|16@1- (0.0001,0) [-0.1|1.7] "rad"',
+    )
+    text = text.replace(
+        'SB1_InclinationAngle : 0|16@1- (0.01,0) [-12|12] "deg"',
+        'SB1_InclinationAngle : 0|16@1- (0.01,0) [-210|210] "mrad"',
+    )
+    assert text.count('"rad"') == 1 and text.count('"mrad"') == 1
+    database = load_database_string(text, "radians.dbc")
+    data = tomllib.loads(EXAMPLE_CONFIG.read_text())
+    del data["stability"]
+    builder = FrameBuilder(parse_machine_config(data, "radians.toml", database), database)
+    row = 150  # the bridge folded, SB2 lifted by its inclination
+    pose = builder.signals("BRIDGE_POSE", result, row, 0)
+    assert result.fold_deg[row] > 10.0
+    assert pose["Bridge_FoldAngle"] == pytest.approx(math.radians(result.fold_deg[row]), abs=1e-4)
+    assert pose["SB1_InclinationAngle"] == pytest.approx(
+        1000 * math.radians(result.inclination_deg[row, 0]), abs=0.01
+    )
+    assert pose["SB2_InclinationAngle"] == pytest.approx(result.inclination_deg[row, 1], abs=0.01)
+    assert abs(result.inclination_deg[row, 0]) > 1.0  # 1.25 deg: 21.8 mrad
