@@ -45,7 +45,13 @@ from dbc.machine import TRIGGERS, ChamberSignal, LegConfig, MachineConfig
 from dbc.protection import Protection
 from dbc.signal_range import decoded_bounds
 from dbc.units import pressure_factor_to_Pa
-from sim_bridge.getters import Getter, in_angle_unit, named_getters, phase_getter, scaled
+from sim_bridge.getters import (
+    Getter,
+    degrees_in,
+    in_angle_unit,
+    named_getters,
+    phase_getter,
+)
 from sim_bridge.leg_map import LegMap, leg_map
 from sim_bridge.result import SimulationResult
 from sim_bridge.schedule import NS_PER_MS, NS_PER_S, MessageCycle
@@ -190,10 +196,7 @@ class FrameBuilder:
                 (stability.rotation, stability.rotation_rad_per_unit, "Bridge_RotationAngle"),
                 (stability.fold, stability.fold_rad_per_unit, "Bridge_FoldAngle"),
             ):
-                # The simulation's angles are in degrees; the DBC's signal may be in another unit.
-                getters[f"{ref.message}.{ref.signal}"] = scaled(
-                    getters[name], math.radians(1.0) / rad_per_unit
-                )
+                getters[f"{ref.message}.{ref.signal}"] = degrees_in(getters[name], rad_per_unit)
         self._plans: dict[str, _MessagePlan] = {}
         #: Signals sent as a constant 0, as "MESSAGE.SIGNAL".
         self.defaulted: list[str] = []

@@ -32,13 +32,19 @@ def scaled(getter: Getter, factor: float) -> Getter:
     return lambda result, row, cycle: float(getter(result, row, cycle)) * factor
 
 
+def degrees_in(getter: Getter, rad_per_unit: float) -> Getter:
+    """A getter of degrees (the simulation's angles) giving the angle in a unit of
+    ``rad_per_unit`` radians."""
+    return scaled(getter, math.radians(1.0) / rad_per_unit)
+
+
 def in_angle_unit(signal: Signal, getter: Getter) -> Getter:
-    """A getter of degrees (the simulation's angles: the ``...Angle`` getters) for
-    ``signal``, in its DBC unit where that is another angle unit (rad, mrad)."""
+    """A getter of degrees (the ``...Angle`` getters) for ``signal``, in its DBC unit where
+    that is another angle unit (rad, mrad)."""
     rad_per_unit = angle_factor_to_rad(signal.unit or "")
     if not signal.name.endswith("Angle") or rad_per_unit is None:
         return getter
-    return scaled(getter, math.radians(1.0) / rad_per_unit)
+    return degrees_in(getter, rad_per_unit)
 
 
 def phase_getter(signal: Signal) -> Getter:
