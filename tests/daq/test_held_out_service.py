@@ -59,6 +59,16 @@ status_period_s = 0.2
     return load_service_config(tmp_path / "portal-daq.toml"), port, channel
 
 
+def send_on(channel: str, messages: list[can.Message]) -> None:
+    """``messages`` onto python-can's virtual bus ``channel``, their time stamps kept."""
+    bus = can.Bus(interface="virtual", channel=channel, preserve_timestamps=True)
+    try:
+        for message in messages:
+            bus.send(message)
+    finally:
+        bus.shutdown()
+
+
 def test_the_service_runs_a_held_out_j1939_machine(tmp_path: Path) -> None:
     config, port, channel = held_out_service_config(tmp_path, "j1939_propa")
     filters = FrameDecoder(config.database, config.machine.protection).receive_filters
@@ -78,12 +88,7 @@ def test_the_service_runs_a_held_out_j1939_machine(tmp_path: Path) -> None:
         with running(service), subscriber_session(port) as subscriber:
             collector = Collector(subscriber, f"{prefix}/**")
             collector.wait_for(f"{prefix}/status")
-            bus = can.Bus(interface="virtual", channel=channel, preserve_timestamps=True)
-            try:
-                for message in messages:
-                    bus.send(message)
-            finally:
-                bus.shutdown()
+            send_on(channel, messages)
             estimate = collector.wait_for(f"{prefix}/leg/left-front/ground")
             status = collector.wait_for(
                 f"{prefix}/status", lambda s: s["frames"]["processed"] == len(sent)
@@ -121,18 +126,15 @@ def test_the_service_runs_transducers_in_their_own_units_without_dbc_cycle_times
         with running(service), subscriber_session(port) as subscriber:
             collector = Collector(subscriber, f"{prefix}/**")
             collector.wait_for(f"{prefix}/status")
-            bus = can.Bus(interface="virtual", channel=channel, preserve_timestamps=True)
-            try:
-                for frame in frames:
-                    bus.send(
-                        can.Message(
-                            timestamp=frame.t_s,
-                            arbitration_id=frame.arbitration_id,
-                            data=frame.data,
-                        )
+            send_on(
+                channel,
+                [
+                    can.Message(
+                        timestamp=frame.t_s, arbitration_id=frame.arbitration_id, data=frame.data
                     )
-            finally:
-                bus.shutdown()
+                    for frame in frames
+                ],
+            )
             status = collector.wait_for(
                 f"{prefix}/status", lambda s: s["frames"]["processed"] == len(frames)
             )
