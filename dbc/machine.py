@@ -29,7 +29,7 @@ from dbc.protection import CRC_ALGORITHMS, DEFAULT_CRC_ALGORITHM, Protection, co
 from dbc.signal_range import decoded_bounds, value_range
 from dbc.stability_config import StabilityConfig, parse_stability
 from dbc.toml_table import TomlTable
-from dbc.units import ACCEPTED_PRESSURE_UNITS, pressure_factor_to_Pa
+from dbc.units import ACCEPTED_PRESSURE_UNITS, is_absolute, pressure_factor_to_Pa
 from estimator.geometry import LegGeometry
 from estimator.settings import EstimatorSettings
 
@@ -458,6 +458,13 @@ def _chamber(
     unit = chamber.string("unit") if "unit" in chamber else (signal.unit or "")
     if pressure_factor_to_Pa(unit) is None:
         where = "unit" if "unit" in chamber else signal_key
+        if is_absolute(unit):  # asking for the gauge unit would read it ~1 bar high
+            raise chamber.error(
+                where,
+                f"signal {message.name}.{signal_name} has unit {unit!r}, an absolute "
+                "pressure: eq. (4) takes gauge pressures (about 1 bar less); set unit = "
+                "its gauge unit only if the transducer sends gauge pressure",
+            )
         raise chamber.error(
             where,
             f"signal {message.name}.{signal_name} has unit {unit!r}, not a pressure unit; "
