@@ -45,7 +45,7 @@ def _rear_in(tmp_path: Path, unit: str) -> Path:
 
 
 def test_a_german_relative_pressure_unit_is_bar(tmp_path: Path) -> None:
-    """"bar(ü)" (Überdruck, gauge) stopped the config as no pressure unit."""
+    """ "bar(ü)" (Überdruck, gauge) stopped the config as no pressure unit."""
     config, database = load_machine_config(_rear_in(tmp_path, "bar(\u00fc)"))
     pipeline = Pipeline.from_config(config, database)
     frame = RawFrame(1.0, 0x00FF0002, True, _hub_frame(0, 1500, 200))
