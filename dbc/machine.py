@@ -215,6 +215,11 @@ class MachineConfig:
     #: for the senders whose chamber gives another unit than the message's: a transducer's
     #: frames are converted by its own unit, other senders' by ``unit_factors``.
     sender_unit_factors: Mapping[tuple[str, int], Mapping[str, float]] = field(default_factory=dict)
+    #: What the decoded values of a signal are in where that is not its DBC unit, by
+    #: message and signal: ``"Pa"`` for a pressure signal (converted when decoded, by
+    #: the factors above), also one whose DBC unit is empty and a chamber's ``unit`` says;
+    #: where only some J1939 senders are converted, which. The label of ``/signals``.
+    decoded_units: Mapping[str, Mapping[str, str]] = field(default_factory=dict)
     #: The cycle time of every message that has one, ms: ``[messages.<MESSAGE>]
     #: cycle_time_ms``, else the DBC's ``GenMsgCycleTime`` (the config wins). What
     #: staleness, skew, the counter's resynchronisation and the simulator's schedule use.
@@ -333,7 +338,9 @@ def parse_machine_config(
         for name, table in root.table("protection", required=False).subtables()
     }
     _across_legs.check_senders(legs_table, legs, database)
-    unit_factors, sender_unit_factors = _across_legs.unit_factors(legs_table, legs, database)
+    unit_factors, sender_unit_factors, decoded_units = _across_legs.unit_factors(
+        legs_table, legs, database
+    )
     return MachineConfig(
         source=source,
         machine_id=machine.string("id", pattern=NAME_PATTERN),
@@ -344,6 +351,7 @@ def parse_machine_config(
         protection=protection,
         unit_factors=unit_factors,
         sender_unit_factors=sender_unit_factors,
+        decoded_units=decoded_units,
         cycle_times_ms=cycle_times_ms,
         sender_cycle_times_ms=sender_cycle_times_ms,
         status_ok=status_ok,
