@@ -437,19 +437,10 @@ def _split_ref(table: TomlTable, key: str, text: str, database: Database) -> tup
 
 
 def _signal(table: TomlTable, key: str, database: Database) -> SignalRef:
-    """``key`` of ``table``: a ``MESSAGE.SIGNAL`` of the DBC."""
-    message, signal = _split_ref(table, key, table.string(key), database)
+    """The ``signal`` of a signal table (:meth:`TomlTable.signal_table`): a
+    ``MESSAGE.SIGNAL`` of the DBC; errors name ``key``."""
+    message, signal = _split_ref(table, key, table.string("signal"), database)
     return SignalRef(message.name, signal)
-
-
-def _chamber_table(table: TomlTable, key: str, allowed: tuple[str, ...]) -> tuple[TomlTable, str]:
-    """The chamber's keys as a table (``"M.S"`` is ``{ signal = "M.S" }``), and the key
-    that names its signal in messages (the chamber's own key for the short form)."""
-    if isinstance(table.data.get(key), dict):
-        chamber = table.table(key)
-        chamber.reject_unknown(allowed)
-        return chamber, "signal"
-    return TomlTable({"signal": table.string(key)}, table.source, table.key(key)), ""
 
 
 def _chamber(
@@ -459,7 +450,7 @@ def _chamber(
     status_ok: tuple[StatusValue, ...],
     cycle_times_ms: Mapping[str, float],
 ) -> ChamberSignal:
-    chamber, signal_key = _chamber_table(table, key, CHAMBER_KEYS)
+    chamber, signal_key = table.signal_table(key, CHAMBER_KEYS)
     message, signal_name = _split_ref(chamber, signal_key, chamber.string("signal"), database)
     source_address = _source_address(chamber, message, database)
     signal = message.get_signal_by_name(signal_name)
@@ -678,7 +669,7 @@ def _status_check(
 
 def _leg_status(table: TomlTable, database: Database) -> tuple[Message, str, int | None]:
     """The leg-level ``status`` (``"M.S"`` or ``{ signal, source_address }``)."""
-    status, signal_key = _chamber_table(table, "status", ("signal", "source_address"))
+    status, signal_key = table.signal_table("status", ("signal", "source_address"))
     message, signal = _split_ref(status, signal_key, status.string("signal"), database)
     return message, signal, _source_address(status, message, database)
 
