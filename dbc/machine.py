@@ -215,6 +215,11 @@ class MachineConfig:
     #: for the senders whose chamber gives another unit than the message's: a transducer's
     #: frames are converted by its own unit, other senders' by ``unit_factors``.
     sender_unit_factors: Mapping[tuple[str, int], Mapping[str, float]] = field(default_factory=dict)
+    #: What the decoded values of a signal are in where that is not its DBC unit, by
+    #: message and signal: ``"Pa"`` for a pressure signal (converted when decoded, by
+    #: the factors above), also one whose DBC unit is empty and a chamber's ``unit`` says;
+    #: where only some J1939 senders are converted, which. The label of ``/signals``.
+    decoded_units: Mapping[str, Mapping[str, str]] = field(default_factory=dict)
     #: The cycle time of every message that has one, ms: ``[messages.<MESSAGE>]
     #: cycle_time_ms``, else the DBC's ``GenMsgCycleTime`` (the config wins). What
     #: staleness, skew, the counter's resynchronisation and the simulator's schedule use.
@@ -333,7 +338,9 @@ def parse_machine_config(
         for name, table in root.table("protection", required=False).subtables()
     }
     _across_legs.check_senders(legs_table, legs, database)
-    unit_factors, sender_unit_factors = _across_legs.unit_factors(legs_table, legs, database)
+    unit_factors, sender_unit_factors, decoded_units = _across_legs.unit_factors(
+        legs_table, legs, database
+    )
     return MachineConfig(
         source=source,
         machine_id=machine.string("id", pattern=NAME_PATTERN),
@@ -344,6 +351,7 @@ def parse_machine_config(
         protection=protection,
         unit_factors=unit_factors,
         sender_unit_factors=sender_unit_factors,
+        decoded_units=decoded_units,
         cycle_times_ms=cycle_times_ms,
         sender_cycle_times_ms=sender_cycle_times_ms,
         status_ok=status_ok,
@@ -429,19 +437,10 @@ def _split_ref(table: TomlTable, key: str, text: str, database: Database) -> tup
 
 
 def _signal(table: TomlTable, key: str, database: Database) -> SignalRef:
-    """``key`` of ``table``: a ``MESSAGE.SIGNAL`` of the DBC."""
-    message, signal = _split_ref(table, key, table.string(key), database)
+    """The ``signal`` of a signal table (:meth:`TomlTable.signal_table`): a
+    ``MESSAGE.SIGNAL`` of the DBC; errors name ``key``."""
+    message, signal = _split_ref(table, key, table.string("signal"), database)
     return SignalRef(message.name, signal)
-
-
-def _chamber_table(table: TomlTable, key: str, allowed: tuple[str, ...]) -> tuple[TomlTable, str]:
-    """The chamber's keys as a table (``"M.S"`` is ``{ signal = "M.S" }``), and the key
-    that names its signal in messages (the chamber's own key for the short form)."""
-    if isinstance(table.data.get(key), dict):
-        chamber = table.table(key)
-        chamber.reject_unknown(allowed)
-        return chamber, "signal"
-    return TomlTable({"signal": table.string(key)}, table.source, table.key(key)), ""
 
 
 def _chamber(
@@ -451,7 +450,7 @@ def _chamber(
     status_ok: tuple[StatusValue, ...],
     cycle_times_ms: Mapping[str, float],
 ) -> ChamberSignal:
-    chamber, signal_key = _chamber_table(table, key, CHAMBER_KEYS)
+    chamber, signal_key = table.signal_table(key, CHAMBER_KEYS)
     message, signal_name = _split_ref(chamber, signal_key, chamber.string("signal"), database)
     source_address = _source_address(chamber, message, database)
     signal = message.get_signal_by_name(signal_name)
@@ -677,7 +676,7 @@ def _status_check(
 
 def _leg_status(table: TomlTable, database: Database) -> tuple[Message, str, int | None]:
     """The leg-level ``status`` (``"M.S"`` or ``{ signal, source_address }``)."""
-    status, signal_key = _chamber_table(table, "status", ("signal", "source_address"))
+    status, signal_key = table.signal_table("status", ("signal", "source_address"))
     message, signal = _split_ref(status, signal_key, status.string("signal"), database)
     return message, signal, _source_address(status, message, database)
 
