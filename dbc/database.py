@@ -13,8 +13,9 @@ from dbc.errors import DbcError
 
 logger = logging.getLogger(__name__)
 
-#: How a DBC file's bytes are read (cantools' ``load_file`` default for DBC: Vector's tools
-#: write Windows-1252, e.g. a unit "°C"), the file and a recording's copy of it alike.
+#: How a DBC file's bytes are read where they are not UTF-8 (cantools' ``load_file`` default
+#: for DBC: Vector's tools write Windows-1252, e.g. a unit "°C"), the file and a
+#: recording's copy of it alike.
 DBC_ENCODING = "cp1252"
 #: Byte-order marks a DBC may start with (an editor's "UTF-8 with BOM", Windows'
 #: "Unicode" = UTF-16), each with the encoding it declares: it wins over DBC_ENCODING.
@@ -99,9 +100,19 @@ def unsound(message: Message) -> str | None:
 
 def load_database_bytes(data: bytes, source: str) -> Database:
     """Load a DBC from the bytes of its file (the file itself, or the copy embedded in a
-    recording): in the encoding its byte-order mark declares, else :data:`DBC_ENCODING`."""
-    encoding = next((enc for bom, enc in _BOM_ENCODINGS if data.startswith(bom)), DBC_ENCODING)
-    return load_database_string(data.decode(encoding, errors="replace"), source)
+    recording): in the encoding its byte-order mark declares, else as UTF-8 where it is
+    UTF-8 (an editor's default: read as :data:`DBC_ENCODING`, a unit ``bar(ü)`` was
+    ``bar(Ã¼)``, ``°`` was ``Â°``), else :data:`DBC_ENCODING`. Text in Windows-1252 with
+    any letter beyond ASCII is practically never valid UTF-8 (``°C`` is ``B0 43``)."""
+    encoding = next((enc for bom, enc in _BOM_ENCODINGS if data.startswith(bom)), None)
+    if encoding is not None:
+        text = data.decode(encoding, errors="replace")
+    else:
+        try:
+            text = data.decode("utf-8")
+        except UnicodeDecodeError:
+            text = data.decode(DBC_ENCODING, errors="replace")
+    return load_database_string(text, source)
 
 
 def _first_line(exc: BaseException) -> str:
