@@ -45,13 +45,7 @@ from dbc.machine import TRIGGERS, ChamberSignal, LegConfig, MachineConfig
 from dbc.protection import Protection
 from dbc.signal_range import decoded_bounds
 from dbc.units import pressure_factor_to_Pa
-from sim_bridge.getters import (
-    Getter,
-    degrees_in,
-    in_angle_unit,
-    named_getters,
-    phase_getter,
-)
+from sim_bridge.getters import Getter, configured_getters, in_angle_unit, named_getters
 from sim_bridge.leg_map import LegMap, leg_map
 from sim_bridge.result import SimulationResult
 from sim_bridge.schedule import NS_PER_MS, NS_PER_S, MessageCycle
@@ -188,15 +182,8 @@ class FrameBuilder:
                 chambers_by_sender.setdefault((mapped.message, mapped.source_address), []).append(
                     _chamber_signals(message, leg, columns[leg.name], chamber, mapped)
                 )
-        getters = named_getters(config.status_ok[0], columns)
-        # The bridge angles where [stability] says they are, whatever the DBC calls them.
-        if config.stability is not None:
-            stability = config.stability
-            for ref, rad_per_unit, name in (
-                (stability.rotation, stability.rotation_rad_per_unit, "Bridge_RotationAngle"),
-                (stability.fold, stability.fold_rad_per_unit, "Bridge_FoldAngle"),
-            ):
-                getters[f"{ref.message}.{ref.signal}"] = degrees_in(getters[name], rad_per_unit)
+        # Where the config places a signal, whatever the DBC calls it; else by its name.
+        getters = named_getters(columns) | configured_getters(config, database)
         self._plans: dict[str, _MessagePlan] = {}
         #: Signals sent as a constant 0, as "MESSAGE.SIGNAL".
         self.defaulted: list[str] = []
@@ -410,8 +397,6 @@ def _plan(
             continue
         elif f"{message.name}.{signal.name}" in getters:
             named.append((signal, getters[f"{message.name}.{signal.name}"], factor))
-        elif signal.name == "Machine_Phase":
-            named.append((signal, phase_getter(signal), factor))
         elif signal.name in getters:
             named.append((signal, in_angle_unit(signal, getters[signal.name]), factor))
         else:
