@@ -9,10 +9,13 @@ import uuid
 from pathlib import Path
 
 import can
+import numpy as np
 import pytest
 
 from daq.frames import RawFrame
+from daq.mcap_file import CONFIG_ATTACHMENT, DBC_ATTACHMENT, McapFile
 from daq.pipeline import Pipeline
+from daq.report.loading import load_recording
 from dbc.machine import load_machine_config
 from sim_bridge.__main__ import cli
 from sim_bridge.faults import FaultConfig
@@ -101,3 +104,43 @@ def test_without_signals_the_bridge_says_once_what_it_does_not_send(
     # nothing of theirs goes out: the messages only they are in are not sent at all
     assert not sent & {"VEHICLE_STATE", "TILT_NEAR", "TILT_FAR"}
     assert "HYD_NEAR_TIP" in sent
+
+
+def test_the_report_finds_the_cycles_in_the_renamed_machine_state(tmp_path: Path) -> None:
+    """``portal-sim --frames-log`` on the renamed machine, then the report's reading of
+    that log with its config: the cycles and phases the simulation played."""
+    result = make_result(duration_s=1.0)
+    data, mapping = write_export(tmp_path, result)
+    log = tmp_path / "cycle.log"
+    args = ["--config", str(RENAMED), "--interface", "virtual", "--channel", str(uuid.uuid4())]
+    args += ["--input", str(data), "--mapping", str(mapping), "--as-fast-as-possible"]
+    assert cli([*args, "--cycles", "2", "--frames-log", str(log)]) == 0
+    state = load_recording(log, RENAMED).state
+    assert list(state.cycle_count) == [0] * 10 + [1] * 10
+    assert list(state.phase) == [PHASES[i] for i in result.phase[::10]] * 2
+    assert state.cycle_time_s == pytest.approx(np.tile(result.t_s[::10], 2), abs=0.005)
+
+
+def test_a_recording_of_it_finds_them_by_its_embedded_config(tmp_path: Path) -> None:
+    """The service's recording (the config and DBC embedded) reports its cycles without
+    ``--config``: the embedded config says where the machine state is."""
+    result = make_result(duration_s=1.0)
+    playout = make_playout(result, FaultConfig(seed=1), CONFIG, DATABASE)
+    pipeline = Pipeline.from_config(CONFIG, DATABASE)
+    attachments = {
+        CONFIG_ATTACHMENT: RENAMED.read_bytes(),
+        DBC_ATTACHMENT: CONFIG.dbc_path.read_bytes(),
+    }
+    path = tmp_path / "renamed-1_run.mcap"
+    with open(path, "wb") as stream, McapFile(stream, DATABASE) as mcap:
+        mcap.start(attachments, 1000.0, None)
+        for instant in instants(schedule(playout.cycles, end_sim_ns=round(1e9))):
+            for item in playout.frames(instant)[1]:
+                frame = item.frame
+                raw = RawFrame(
+                    1000.0 + instant.sim_t_ns / 1e9, frame.arbitration_id, False, frame.data
+                )
+                mcap.write_result(pipeline.process(raw))
+    state = load_recording(path).state
+    assert list(state.phase) == [PHASES[i] for i in result.phase[::10]]
+    assert list(state.cycle_count) == [0] * 10
