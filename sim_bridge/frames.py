@@ -10,12 +10,14 @@ Pure computation. Which signal carries what:
   are in Pa here; the encoder converts them into the DBC signal's unit.
 - **The bridge angles** are the ``[stability]`` ``rotation`` and ``fold`` signals where
   the config has that table, whatever their DBC names.
-- **Every other signal** is found by its name in the DBC: ``INCL_<BASE>_pPiston`` /
-  ``_pRod`` / ``_Status``, ``<LEG>_Stroke`` (a simulated or a config leg),
-  ``<BASE>_InclinationAngle``,
-  ``Bridge_FoldAngle``, ``Bridge_RotationAngle``, ``Carriage_Position``,
-  ``Machine_Phase`` (value-table name), ``Machine_CycleCount`` (completed cycles) and
-  ``Machine_CycleTime`` (time since the cycle started).
+- **The machine state, the carriage and the inclination cylinders** are the config's
+  ``[signals]`` (:mod:`dbc.machine_signals`; by default the project DBC's names wherever
+  the DBC has them): the phase by its value-table name, the completed cycles, the time
+  since the cycle started, the carriage position, each base's inclination angle (in its
+  unit), chamber pressures and status.
+- **Every other signal** is found by its name in the DBC: ``<LEG>_Stroke`` (a simulated
+  or a config leg), and ``Bridge_FoldAngle``, ``Bridge_RotationAngle`` without
+  ``[stability]``.
 - Counter and CRC signals (``[protection.<MESSAGE>]``) are left to the
   :class:`~dbc.encoding.FrameEncoder`. A signal nobody supplies is sent as 0 (clipped into
   its range) and listed in :attr:`FrameBuilder.defaulted`; a periodic message none of whose
