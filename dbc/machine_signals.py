@@ -126,12 +126,12 @@ def parse_signals(
         return signal(at, key) if key in at else find(default)
 
     state = {key: ref(table, key, default) for key, default in STATE_DEFAULTS.items()}
-    messages = {ref.message for ref in state.values() if ref is not None}
-    if len(messages) > 1:
-        given = next((key for key in STATE_DEFAULTS if key in table), "phase")
-        where = ", ".join(f"{key} = {ref}" for key, ref in state.items())
+    refs = [(key, ref) for key, ref in state.items() if ref is not None]
+    other = next((key for key, ref in refs if ref.message != refs[0][1].message), None)
+    if other is not None:
+        where = ", ".join(f"{key} = {ref}" for key, ref in refs)
         raise table.error(
-            given,
+            other,
             f"the machine state is one message's (the report reads cycles and phases from "
             f"its frames); got {where}",
         )
