@@ -218,6 +218,9 @@ class McapFile:
     recorder's thread lets the GIL go there now and then (:class:`daq.recorder.GilYield`),
     so that writing a batch holds up the thread that processes frames for a fraction of
     a millisecond, not for the interpreter's switch interval (measured: the paced p99).
+    ``decoded_units``: the machine config's :attr:`~dbc.machine.MachineConfig.decoded_units`,
+    the units the ``/signals`` schemas name where the decoder converted a signal
+    (a pressure to Pa); without them, each signal is described by its DBC unit.
     """
 
     def __init__(
@@ -225,6 +228,7 @@ class McapFile:
         stream: "IO[bytes] | CountingFile",
         database: Database,
         *,
+        decoded_units: Mapping[str, Mapping[str, str]] = {},
         compression: str = "zstd",
         chunk_size: int = 1024 * 1024,
         pause: Callable[[], object] = lambda: None,
@@ -237,6 +241,7 @@ class McapFile:
             compression=COMPRESSION[compression],
         )
         self._messages = {message.name: message for message in database.messages}
+        self._decoded_units = decoded_units
         self._channels: dict[str, int] = {}
         self._schemas: dict[str, int] = {}
         self._started = False
@@ -367,7 +372,7 @@ class McapFile:
     def _json_channel(self, topic: str, schema_name: str, schema: schemas.Schema | None) -> int:
         if schema is None:  # a signals channel: the schema comes from the DBC
             message = self._messages[schema_name.removeprefix("portal.signals.")]
-            schema = schemas.signals_schema(message)
+            schema = schemas.signals_schema(message, self._decoded_units.get(message.name, {}))
         return self._register(topic, schema_name, "jsonschema", json.dumps(schema).encode(), "json")
 
     def _raw_channel(self) -> int:

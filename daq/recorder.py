@@ -125,6 +125,7 @@ class Recorder(Worker):
         *,
         machine_id: str,
         attachments: Mapping[str, bytes] = {},
+        decoded_units: Mapping[str, Mapping[str, str]] = {},
         now: Callable[[], float] = time.time,
         run_id: str | None = None,
         items: ItemQueue | None = None,
@@ -140,6 +141,7 @@ class Recorder(Worker):
         self._database = database
         self._machine_id = machine_id
         self._attachments = dict(attachments)
+        self._decoded_units = decoded_units
         self._now = now
         #: Names this run of the service in every file's metadata; drawn at start if None.
         self.run_id = run_id
@@ -367,6 +369,7 @@ class Recorder(Worker):
         mcap = McapFile(
             stream,
             self._database,
+            decoded_units=self._decoded_units,
             compression=self.settings.compression,
             chunk_size=self.settings.chunk_size,
             pause=GilYield() if self._shares_gil else lambda: None,

@@ -172,6 +172,7 @@ class RecorderProcess:
         *,
         machine_id: str,
         attachments: Mapping[str, bytes] = {},
+        decoded_units: Mapping[str, Mapping[str, str]] = {},
     ) -> None:
         if settings.directory is None:
             raise ValueError("settings.directory is None: recording is off")
@@ -180,6 +181,7 @@ class RecorderProcess:
         self._database = database
         self._machine_id = machine_id
         self._attachments = dict(attachments)
+        self._decoded_units = {name: dict(units) for name, units in decoded_units.items()}
         self._items: multiprocessing.Queue[Item] | None = None
         self._shared: _Shared | None = None
         self._process: SpawnProcess | None = None
@@ -215,6 +217,7 @@ class RecorderProcess:
                 self._database,
                 self._machine_id,
                 self._attachments,
+                self._decoded_units,
                 self._items,
                 self._shared,
                 logging.getLevelName(logging.getLogger("daq").getEffectiveLevel()),
@@ -347,6 +350,7 @@ def _child_main(
     database: Database,
     machine_id: str,
     attachments: Mapping[str, bytes],
+    decoded_units: Mapping[str, Mapping[str, str]],
     items: "multiprocessing.Queue[Item]",
     shared: _Shared,
     log_level: str,
@@ -364,6 +368,7 @@ def _child_main(
         database,
         machine_id=machine_id,
         attachments=attachments,
+        decoded_units=decoded_units,
         items=_TakenCounter(items, shared),
     )
     try:

@@ -115,6 +115,7 @@ def build_recorder(config: ServiceConfig) -> Recorder | RecorderProcess | None:
         config.database,
         machine_id=config.machine.machine_id,
         attachments=recording_attachments(config),
+        decoded_units=config.machine.decoded_units,
     )
 
 

@@ -5,11 +5,10 @@ are written as ``null`` (see :func:`daq.payloads.json_bytes`), hence the
 ``["number", "null"]`` types.
 """
 
+from collections.abc import Mapping
 from typing import Any
 
 from cantools.database.can import Message
-
-from dbc.units import pressure_factor_to_Pa
 
 Schema = dict[str, Any]
 
@@ -143,14 +142,14 @@ SIM_TRUTH: Schema = {
 }
 
 
-def signals_schema(message: Message) -> Schema:
-    """Schema of ``/signals/<MESSAGE>``: the message's signals by name."""
+def signals_schema(message: Message, units: Mapping[str, str] = {}) -> Schema:
+    """Schema of ``/signals/<MESSAGE>``: the message's signals by name, each described
+    by its unit: ``units``' (what the decoder converted it to, from
+    :attr:`dbc.machine.MachineConfig.decoded_units`), else the DBC's."""
     signal_types: dict[str, Any] = {}
     for signal in message.signals:
         types = ["number", "null"] + (["string"] if signal.choices else [])
-        description = signal.unit or ""
-        if pressure_factor_to_Pa(description) is not None:
-            description = "Pa"  # pressures are converted to SI when decoded
+        description = units.get(signal.name, signal.unit or "")
         signal_types[signal.name] = {"type": types, "description": description}
     return _object(
         f"portal.signals.{message.name}",

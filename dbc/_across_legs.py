@@ -109,21 +109,30 @@ def check_senders(
                 )
 
 
+#: By message and signal name: the unit of the decoded values where it is not the DBC's.
+DecodedUnits = dict[str, dict[str, str]]
+
+
 def unit_factors(
     legs_table: TomlTable, legs: Mapping[str, "LegConfig"], database: Database
-) -> tuple[dict[str, dict[str, float]], dict[tuple[str, int], dict[str, float]]]:
+) -> tuple[dict[str, dict[str, float]], dict[tuple[str, int], dict[str, float]], DecodedUnits]:
     """Pa per DBC unit of every pressure signal: by message, what frames of any sender
     are decoded with (the unit of a chamber pinning no sender, else the DBC's; where the
     DBC's is none, the one unit all chambers of the signal agree on), and by message and
-    J1939 sender, for the transducers whose chamber gives another unit than that.
+    J1939 sender, for the transducers whose chamber gives another unit than that; and
+    what the decoded values are in, where that is not the DBC's unit (the label of
+    ``/signals``: ``Pa``, or which senders are in Pa where the others are not).
 
     One sender has one unit: two for one source address, or a chamber pinning no sender
     in one unit and another chamber of the signal in another, stop the config.
     """
     factors: dict[str, dict[str, float]] = {}
+    in_Pa: set[tuple[str, str]] = set()  # decoded in Pa, whichever the sender
     for message in database.messages:
         for signal in message.signals:
             factor = pressure_factor_to_Pa(signal.unit or "")
+            if factor is not None:
+                in_Pa.add((message.name, signal.name))
             if factor is not None and factor != 1.0:
                 factors.setdefault(message.name, {})[signal.name] = factor
     # (message, signal) -> [(source address, factor, unit, leg, chamber key)]
@@ -159,6 +168,7 @@ def unit_factors(
             default = agreed.pop()
         if default is not None:
             _set_factor(factors.setdefault(message_name, {}), signal_name, default)
+            in_Pa.add((message_name, signal_name))
     by_sender: dict[tuple[str, int], dict[str, float]] = {}
     for (message_name, signal_name), chambers in readers.items():
         defaults = factors.get(message_name, {})
@@ -166,7 +176,23 @@ def unit_factors(
             if address is not None and factor != defaults.get(signal_name, 1.0):
                 table = by_sender.setdefault((message_name, address), dict(defaults))
                 _set_factor(table, signal_name, factor)
-    return {name: table for name, table in factors.items() if table}, by_sender
+    units: DecodedUnits = {}
+    for (message_name, signal_name), chambers in readers.items():
+        if (message_name, signal_name) not in in_Pa:  # only some senders are converted
+            senders = {address for address, *_ in chambers if address is not None}
+            addresses = ", ".join(f"0x{address:02X}" for address in sorted(senders))
+            unit = _dbc_unit(database, message_name, signal_name)
+            units.setdefault(message_name, {})[signal_name] = (
+                f"Pa from {addresses}; other senders as sent ({unit or 'no unit'} in the DBC)"
+            )
+    for message_name, signal_name in in_Pa:
+        if _dbc_unit(database, message_name, signal_name) != "Pa":
+            units.setdefault(message_name, {})[signal_name] = "Pa"
+    return {name: table for name, table in factors.items() if table}, by_sender, units
+
+
+def _dbc_unit(database: Database, message: str, signal: str) -> str:
+    return database.get_message_by_name(message).get_signal_by_name(signal).unit or ""
 
 
 def _set_factor(factors: dict[str, float], signal: str, factor: float) -> None:

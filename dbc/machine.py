@@ -30,7 +30,12 @@ from dbc.protection import CRC_ALGORITHMS, DEFAULT_CRC_ALGORITHM, Protection, co
 from dbc.signal_range import decoded_bounds, value_range
 from dbc.stability_config import StabilityConfig, angle_signal, parse_stability
 from dbc.toml_table import TomlTable
-from dbc.units import ACCEPTED_PRESSURE_UNITS, angle_factor_to_rad, pressure_factor_to_Pa
+from dbc.units import (
+    ACCEPTED_PRESSURE_UNITS,
+    angle_factor_to_rad,
+    is_absolute,
+    pressure_factor_to_Pa,
+)
 from estimator.geometry import LegGeometry
 from estimator.settings import EstimatorSettings
 
@@ -217,6 +222,11 @@ class MachineConfig:
     #: for the senders whose chamber gives another unit than the message's: a transducer's
     #: frames are converted by its own unit, other senders' by ``unit_factors``.
     sender_unit_factors: Mapping[tuple[str, int], Mapping[str, float]] = field(default_factory=dict)
+    #: What the decoded values of a signal are in where that is not its DBC unit, by
+    #: message and signal: ``"Pa"`` for a pressure signal (converted when decoded, by
+    #: the factors above), also one whose DBC unit is empty and a chamber's ``unit`` says;
+    #: where only some J1939 senders are converted, which. The label of ``/signals``.
+    decoded_units: Mapping[str, Mapping[str, str]] = field(default_factory=dict)
     #: The cycle time of every message that has one, ms: ``[messages.<MESSAGE>]
     #: cycle_time_ms``, else the DBC's ``GenMsgCycleTime`` (the config wins). What
     #: staleness, skew, the counter's resynchronisation and the simulator's schedule use.
@@ -337,7 +347,9 @@ def parse_machine_config(
         for name, table in root.table("protection", required=False).subtables()
     }
     _across_legs.check_senders(legs_table, legs, database)
-    unit_factors, sender_unit_factors = _across_legs.unit_factors(legs_table, legs, database)
+    unit_factors, sender_unit_factors, decoded_units = _across_legs.unit_factors(
+        legs_table, legs, database
+    )
 
     def signal_unit(ref: SignalRef) -> str | None:
         unit: str | None = (
@@ -347,6 +359,10 @@ def parse_machine_config(
 
     def signal_ref(table: TomlTable, key: str) -> SignalRef:
         return _signal(table, key, database)
+
+    def named_ref(table: TomlTable, key: str) -> SignalRef:
+        """``key``: a ``MESSAGE.SIGNAL``."""
+        return signal_ref(*table.signal_table(key, ("signal",)))
 
     stability = parse_stability(
         root.table("stability", required=False), legs, signal_ref, signal_unit
@@ -361,6 +377,7 @@ def parse_machine_config(
         protection=protection,
         unit_factors=unit_factors,
         sender_unit_factors=sender_unit_factors,
+        decoded_units=decoded_units,
         cycle_times_ms=cycle_times_ms,
         sender_cycle_times_ms=sender_cycle_times_ms,
         status_ok=status_ok,
@@ -368,7 +385,7 @@ def parse_machine_config(
         signals=parse_signals(
             root.table("signals", required=False),
             [base.name for base in stability.layout.bases] if stability is not None else None,
-            signal_ref,
+            named_ref,
             lambda name: _find_signal(name, database),
             lambda table, key: angle_signal(table, key, signal_ref, signal_unit),
             lambda ref: angle_factor_to_rad(signal_unit(ref) or ""),
@@ -455,19 +472,10 @@ def _split_ref(table: TomlTable, key: str, text: str, database: Database) -> tup
 
 
 def _signal(table: TomlTable, key: str, database: Database) -> SignalRef:
-    """``key`` of ``table``: a ``MESSAGE.SIGNAL`` of the DBC."""
-    message, signal = _split_ref(table, key, table.string(key), database)
+    """The ``signal`` of a signal table (:meth:`TomlTable.signal_table`): a
+    ``MESSAGE.SIGNAL`` of the DBC; errors name ``key``."""
+    message, signal = _split_ref(table, key, table.string("signal"), database)
     return SignalRef(message.name, signal)
-
-
-def _chamber_table(table: TomlTable, key: str, allowed: tuple[str, ...]) -> tuple[TomlTable, str]:
-    """The chamber's keys as a table (``"M.S"`` is ``{ signal = "M.S" }``), and the key
-    that names its signal in messages (the chamber's own key for the short form)."""
-    if isinstance(table.data.get(key), dict):
-        chamber = table.table(key)
-        chamber.reject_unknown(allowed)
-        return chamber, "signal"
-    return TomlTable({"signal": table.string(key)}, table.source, table.key(key)), ""
 
 
 def _chamber(
@@ -477,13 +485,20 @@ def _chamber(
     status_ok: tuple[StatusValue, ...],
     cycle_times_ms: Mapping[str, float],
 ) -> ChamberSignal:
-    chamber, signal_key = _chamber_table(table, key, CHAMBER_KEYS)
+    chamber, signal_key = table.signal_table(key, CHAMBER_KEYS)
     message, signal_name = _split_ref(chamber, signal_key, chamber.string("signal"), database)
     source_address = _source_address(chamber, message, database)
     signal = message.get_signal_by_name(signal_name)
     unit = chamber.string("unit") if "unit" in chamber else (signal.unit or "")
     if pressure_factor_to_Pa(unit) is None:
         where = "unit" if "unit" in chamber else signal_key
+        if is_absolute(unit):  # asking for the gauge unit would read it ~1 bar high
+            raise chamber.error(
+                where,
+                f"signal {message.name}.{signal_name} has unit {unit!r}, an absolute "
+                "pressure: eq. (4) takes gauge pressures (about 1 bar less); set unit = "
+                "its gauge unit only if the transducer sends gauge pressure",
+            )
         raise chamber.error(
             where,
             f"signal {message.name}.{signal_name} has unit {unit!r}, not a pressure unit; "
@@ -696,7 +711,7 @@ def _status_check(
 
 def _leg_status(table: TomlTable, database: Database) -> tuple[Message, str, int | None]:
     """The leg-level ``status`` (``"M.S"`` or ``{ signal, source_address }``)."""
-    status, signal_key = _chamber_table(table, "status", ("signal", "source_address"))
+    status, signal_key = table.signal_table("status", ("signal", "source_address"))
     message, signal = _split_ref(status, signal_key, status.string("signal"), database)
     return message, signal, _source_address(status, message, database)
 

@@ -71,8 +71,10 @@ def parse_stability(
 ) -> StabilityConfig | None:
     """The ``[stability]`` table (None when it is absent or empty).
 
-    ``signal`` resolves a ``MESSAGE.SIGNAL`` key against the DBC, ``unit`` gives a
-    signal's unit; every configured leg must have exactly one foot.
+    ``signal`` resolves the ``signal`` of a signal table
+    (:meth:`~dbc.toml_table.TomlTable.signal_table`) against the DBC, its errors naming
+    the key it is given; ``unit`` gives a signal's unit; every configured leg must have
+    exactly one foot.
     """
     if not table.data:
         return None
@@ -119,25 +121,21 @@ def angle_signal(
 ) -> tuple["SignalRef", float]:
     """An angle's signal (``"M.S"`` or ``{ signal = "M.S", unit = "rad" }``) and radians per
     unit of its value: the config's unit, else the DBC's."""
-    if isinstance(table.data.get(key), dict):
-        angle = table.table(key)
-        angle.reject_unknown(ANGLE_KEYS)
-        ref = signal(angle, "signal")
-        if "unit" in angle:
-            given = angle.string("unit")
-            factor = angle_factor_to_rad(given)
-            if factor is None:
-                raise angle.error(
-                    "unit", f"{given!r} is not an angle unit; use one of {ACCEPTED_ANGLE_UNITS}"
-                )
-            return ref, factor
-    else:
-        ref = signal(table, key)
+    angle, signal_key = table.signal_table(key, ANGLE_KEYS)
+    ref = signal(angle, signal_key)
+    if "unit" in angle:
+        given = angle.string("unit")
+        factor = angle_factor_to_rad(given)
+        if factor is None:
+            raise angle.error(
+                "unit", f"{given!r} is not an angle unit; use one of {ACCEPTED_ANGLE_UNITS}"
+            )
+        return ref, factor
     dbc_unit = unit(ref) or ""
     factor = angle_factor_to_rad(dbc_unit)
     if factor is None:
-        raise table.error(
-            key,
+        raise angle.error(
+            "",
             f"{ref} has unit {dbc_unit!r} in the DBC, not an angle unit; give its unit: "
             f'{key} = {{ signal = "{ref}", unit = "deg" }} (one of {ACCEPTED_ANGLE_UNITS})',
         )

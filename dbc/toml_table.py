@@ -81,6 +81,17 @@ class TomlTable:
             raise self.error(name, f"must be a table, got {value!r}")
         return TomlTable(value, self.source, self.key(name))
 
+    def signal_table(self, name: str, allowed: Iterable[str]) -> tuple["TomlTable", str]:
+        """A signal written ``"MESSAGE.SIGNAL"`` or as a table of it and more (``allowed``)
+        keys, ``{ signal = "M.S", unit = "bar" }``: that table (the short form read as
+        ``{ signal = "M.S" }``), and the key that names the signal in errors: ``"signal"``,
+        or ``""`` for the short form (the table itself: ``legs.SB1_F1.piston``)."""
+        if isinstance(self.data.get(name), dict):
+            table = self.table(name)
+            table.reject_unknown(allowed)
+            return table, "signal"
+        return TomlTable({"signal": self.string(name)}, self.source, self.key(name)), ""
+
     def subtables(self) -> Iterable[tuple[str, "TomlTable"]]:
         for name in self.data:
             yield name, self.table(name)

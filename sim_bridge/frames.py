@@ -154,10 +154,11 @@ class FrameBuilder:
     to source addresses one per address (``HYD_PRESS@0x21``; a chamber of the message
     pinning none, reading every sender, is in each of their frames), or for a
     multiplexed message one per page (``MUXHUB#1``);
-    each sends at its message's cycle time. Within one instant the senders of a
-    message go out in address and page order, except that one carrying a leg's trigger
-    chamber without its other chamber goes after the others: each leg sample then pairs
-    the chamber values of one simulation row (skew 0), from the very first sample on.
+    each sends at its message's cycle time. Within one instant the senders go out in DBC,
+    address and page order, except that one carrying a leg's trigger chamber without its
+    other chamber (in another page, from another address, or in another message) goes
+    after the others: each leg sample then pairs the chamber values of one simulation row
+    (skew 0), from the very first sample on.
     Values are in SI; the encoder turns them into the DBC's units. Constructed once
     from the machine configuration and the DBC; raises :class:`~dbc.errors.ConfigError`
     when the config's legs cannot be mapped onto the simulated legs
@@ -193,7 +194,7 @@ class FrameBuilder:
         #: they have nested multiplexing (no leg's chamber may be in such a message).
         self.skipped: list[str] = []
         #: The senders built, with their cycle times (the DBC's, or the config's: the
-        #: message's or the transducer's ``cycle_time_ms``), in DBC order.
+        #: message's or the transducer's ``cycle_time_ms``), in the order of an instant.
         self.cycles: list[MessageCycle] = []
         for message in database.messages:
             pages = multiplexer_pages(message)
@@ -235,9 +236,7 @@ class FrameBuilder:
             if not any(plan.chambers or plan.named for plan in plans):
                 self.skipped.append(message.name)
                 continue
-            # A sender carrying a leg's trigger chamber without the other goes after the
-            # others of its message (sorted is stable: address, then page order otherwise).
-            for plan in sorted(plans, key=_pairs_late):
+            for plan in plans:
                 cycle_time_ms = cycle_times_ms[plan.source_address]
                 self.defaulted += [
                     name
@@ -247,6 +246,10 @@ class FrameBuilder:
                 sender = sender_name(message.name, plan.source_address, plan.page)
                 self._plans[sender] = plan
                 self.cycles.append(MessageCycle(sender, round(cycle_time_ms * NS_PER_MS)))
+        # A sender carrying a leg's trigger chamber without the other goes after the other
+        # senders of an instant, those of its message and of other messages (a leg's rod
+        # in a frame of its own); sorted is stable: DBC, address and page order otherwise.
+        self.cycles.sort(key=lambda cycle: _pairs_late(self._plans[cycle.message]))
         #: Leg name -> the sender of its trigger chamber (what faults on a leg act on).
         self.leg_messages = {
             leg.name: next(
@@ -270,8 +273,8 @@ class FrameBuilder:
 
     @property
     def messages(self) -> list[str]:
-        """The senders this builder can fill, in DBC order."""
-        return list(self._plans)
+        """The senders this builder can fill, in the order of an instant (:attr:`cycles`)."""
+        return [cycle.message for cycle in self.cycles]
 
     def target(self, sender: str) -> tuple[str, int | None]:
         """The DBC message of ``sender`` and the J1939 source address it sends from."""
@@ -433,7 +436,7 @@ def _sender_to_si(
 
 def _pairs_late(plan: _MessagePlan) -> bool:
     """``plan``'s frames carry a leg's trigger chamber but not its other chamber: sent
-    after the message's other senders of an instant, the leg's sample pairs the chamber
-    values of one simulation row (skew 0) from the very first sample on."""
+    after the other senders of an instant, the leg's sample pairs the chamber values of
+    one simulation row (skew 0) from the very first sample on."""
     legs = [chamber.leg for chamber in plan.chambers]
     return any(chamber.triggers and legs.count(chamber.leg) == 1 for chamber in plan.chambers)

@@ -68,6 +68,18 @@ def test_without_the_table_there_is_no_margin(tmp_path: Path) -> None:
             "stability.rotation.unit",
             "'furlong' is not an angle unit; use one of deg",
         ),
+        (  # the table form names its signal key, and itself for the DBC's unit
+            'fold = "BRIDGE_POSE.Bridge_FoldAngle"',
+            'fold = { signal = "BRIDGE_POSE.Fold" }',
+            "stability.fold.signal",
+            "no signal 'Fold' in message BRIDGE_POSE",
+        ),
+        (
+            'rotation = "BRIDGE_MOTION.Bridge_RotationAngle"',
+            'rotation = { signal = "BRIDGE_MOTION.Carriage_Position" }',
+            "stability.rotation",
+            "has unit 'm' in the DBC, not an angle unit",
+        ),
         (
             'fold = "BRIDGE_POSE.Bridge_FoldAngle"',
             'fold = { signal = "BRIDGE_POSE.Bridge_FoldAngle", units = "rad" }',
