@@ -10,12 +10,14 @@ Pure computation. Which signal carries what:
   are in Pa here; the encoder converts them into the DBC signal's unit.
 - **The bridge angles** are the ``[stability]`` ``rotation`` and ``fold`` signals where
   the config has that table, whatever their DBC names.
-- **Every other signal** is found by its name in the DBC: ``INCL_<BASE>_pPiston`` /
-  ``_pRod`` / ``_Status``, ``<LEG>_Stroke`` (a simulated or a config leg),
-  ``<BASE>_InclinationAngle``,
-  ``Bridge_FoldAngle``, ``Bridge_RotationAngle``, ``Carriage_Position``,
-  ``Machine_Phase`` (value-table name), ``Machine_CycleCount`` (completed cycles) and
-  ``Machine_CycleTime`` (time since the cycle started).
+- **The machine state, the carriage and the inclination cylinders** are the config's
+  ``[signals]`` (:mod:`dbc.machine_signals`; by default the project DBC's names wherever
+  the DBC has them): the phase by its value-table name, the completed cycles, the time
+  since the cycle started, the carriage position, each base's inclination angle (in its
+  unit), chamber pressures and status.
+- **Every other signal** is found by its name in the DBC: ``<LEG>_Stroke`` (a simulated
+  or a config leg), and ``Bridge_FoldAngle``, ``Bridge_RotationAngle`` without
+  ``[stability]``.
 - Counter and CRC signals (``[protection.<MESSAGE>]``) are left to the
   :class:`~dbc.encoding.FrameEncoder`. A signal nobody supplies is sent as 0 (clipped into
   its range) and listed in :attr:`FrameBuilder.defaulted`; a periodic message none of whose
@@ -45,13 +47,7 @@ from dbc.machine import TRIGGERS, ChamberSignal, LegConfig, MachineConfig
 from dbc.protection import Protection
 from dbc.signal_range import decoded_bounds
 from dbc.units import pressure_factor_to_Pa
-from sim_bridge.getters import (
-    Getter,
-    degrees_in,
-    in_angle_unit,
-    named_getters,
-    phase_getter,
-)
+from sim_bridge.getters import Getter, configured_getters, in_angle_unit, named_getters
 from sim_bridge.leg_map import LegMap, leg_map
 from sim_bridge.result import SimulationResult
 from sim_bridge.schedule import NS_PER_MS, NS_PER_S, MessageCycle
@@ -189,15 +185,8 @@ class FrameBuilder:
                 chambers_by_sender.setdefault((mapped.message, mapped.source_address), []).append(
                     _chamber_signals(message, leg, columns[leg.name], chamber, mapped)
                 )
-        getters = named_getters(config.status_ok[0], columns)
-        # The bridge angles where [stability] says they are, whatever the DBC calls them.
-        if config.stability is not None:
-            stability = config.stability
-            for ref, rad_per_unit, name in (
-                (stability.rotation, stability.rotation_rad_per_unit, "Bridge_RotationAngle"),
-                (stability.fold, stability.fold_rad_per_unit, "Bridge_FoldAngle"),
-            ):
-                getters[f"{ref.message}.{ref.signal}"] = degrees_in(getters[name], rad_per_unit)
+        # Where the config places a signal, whatever the DBC calls it; else by its name.
+        getters = named_getters(columns) | configured_getters(config, database)
         self._plans: dict[str, _MessagePlan] = {}
         #: Signals sent as a constant 0, as "MESSAGE.SIGNAL".
         self.defaulted: list[str] = []
@@ -413,8 +402,6 @@ def _plan(
             continue
         elif f"{message.name}.{signal.name}" in getters:
             named.append((signal, getters[f"{message.name}.{signal.name}"], factor))
-        elif signal.name == "Machine_Phase":
-            named.append((signal, phase_getter(signal), factor))
         elif signal.name in getters:
             named.append((signal, in_angle_unit(signal, getters[signal.name]), factor))
         else:
