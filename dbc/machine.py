@@ -25,11 +25,17 @@ from dbc import DEFAULT_DBC_PATH, _across_legs
 from dbc.database import load_database, unsound
 from dbc.decoding import is_j1939, j1939_pgn
 from dbc.errors import ConfigError
+from dbc.machine_signals import NO_SIGNALS, MachineSignals, parse_signals
 from dbc.protection import CRC_ALGORITHMS, DEFAULT_CRC_ALGORITHM, Protection, counter_modulo
 from dbc.signal_range import decoded_bounds, named_values, value_range
-from dbc.stability_config import StabilityConfig, parse_stability
+from dbc.stability_config import StabilityConfig, angle_signal, parse_stability
 from dbc.toml_table import TomlTable
-from dbc.units import ACCEPTED_PRESSURE_UNITS, pressure_factor_to_Pa
+from dbc.units import (
+    ACCEPTED_PRESSURE_UNITS,
+    angle_factor_to_rad,
+    is_absolute,
+    pressure_factor_to_Pa,
+)
 from estimator.geometry import LegGeometry
 from estimator.settings import EstimatorSettings
 
@@ -90,6 +96,7 @@ MACHINE_TABLES = (
     "protection",
     "messages",
     "stability",
+    "signals",
 )
 #: What ``status_ok`` is when the config does not say.
 DEFAULT_STATUS_OK: tuple[str | int, ...] = ("ok",)
@@ -235,6 +242,8 @@ class MachineConfig:
     status_ok: tuple[str | int, ...] = ("ok",)
     #: Feet, bridge and pose signals for the stability margin; None: not configured.
     stability: StabilityConfig | None = None
+    #: ``[signals]``: machine state, carriage, inclination (the defaults' where not given).
+    signals: MachineSignals = NO_SIGNALS
 
     @property
     def weight_N(self) -> float:
@@ -345,6 +354,23 @@ def parse_machine_config(
     unit_factors, sender_unit_factors, decoded_units = _across_legs.unit_factors(
         legs_table, legs, database
     )
+
+    def signal_unit(ref: SignalRef) -> str | None:
+        unit: str | None = (
+            database.get_message_by_name(ref.message).get_signal_by_name(ref.signal).unit
+        )
+        return unit
+
+    def signal_ref(table: TomlTable, key: str) -> SignalRef:
+        return _signal(table, key, database)
+
+    def named_ref(table: TomlTable, key: str) -> SignalRef:
+        """``key``: a ``MESSAGE.SIGNAL``."""
+        return signal_ref(*table.signal_table(key, ("signal",)))
+
+    stability = parse_stability(
+        root.table("stability", required=False), legs, signal_ref, signal_unit
+    )
     return MachineConfig(
         source=source,
         machine_id=machine.string("id", pattern=NAME_PATTERN),
@@ -359,15 +385,24 @@ def parse_machine_config(
         cycle_times_ms=cycle_times_ms,
         sender_cycle_times_ms=sender_cycle_times_ms,
         status_ok=status_ok,
-        stability=parse_stability(
-            root.table("stability", required=False),
-            legs,
-            lambda table, key: _signal(table, key, database),
-            lambda ref: (
-                database.get_message_by_name(ref.message).get_signal_by_name(ref.signal).unit
-            ),
+        stability=stability,
+        signals=parse_signals(
+            root.table("signals", required=False),
+            [base.name for base in stability.layout.bases] if stability is not None else None,
+            named_ref,
+            lambda name: _find_signal(name, database),
+            lambda table, key: angle_signal(table, key, signal_ref, signal_unit),
+            lambda ref: angle_factor_to_rad(signal_unit(ref) or ""),
         ),
     )
+
+
+def _find_signal(name: str, database: Database) -> SignalRef | None:
+    """The signal ``name`` in the first message of the DBC that has it; None: none has."""
+    for message in database.messages:
+        if any(signal.name == name for signal in message.signals):
+            return SignalRef(message.name, name)
+    return None
 
 
 def _leg(
@@ -461,6 +496,13 @@ def _chamber(
     unit = chamber.string("unit") if "unit" in chamber else (signal.unit or "")
     if pressure_factor_to_Pa(unit) is None:
         where = "unit" if "unit" in chamber else signal_key
+        if is_absolute(unit):  # asking for the gauge unit would read it ~1 bar high
+            raise chamber.error(
+                where,
+                f"signal {message.name}.{signal_name} has unit {unit!r}, an absolute "
+                "pressure: eq. (4) takes gauge pressures (about 1 bar less); set unit = "
+                "its gauge unit only if the transducer sends gauge pressure",
+            )
         raise chamber.error(
             where,
             f"signal {message.name}.{signal_name} has unit {unit!r}, not a pressure unit; "

@@ -82,7 +82,7 @@ def parse_stability(
     refs = {}
     rad_per_unit = {}
     for key in ("rotation", "fold"):
-        refs[key], rad_per_unit[key] = _angle(table, key, signal, unit)
+        refs[key], rad_per_unit[key] = angle_signal(table, key, signal, unit)
     warning_m = table.number("warning_margin_m", WARNING_MARGIN_M)
     if warning_m < 0:
         raise table.error("warning_margin_m", f"must be >= 0, got {warning_m}")
@@ -113,7 +113,7 @@ def parse_stability(
     )
 
 
-def _angle(
+def angle_signal(
     table: TomlTable,
     key: str,
     signal: Callable[[TomlTable, str], "SignalRef"],

@@ -15,13 +15,17 @@ J1939 transducer of a shared signal where the chamber pins its source address.
 >>> pressure_factor_to_Pa("m") is None
 True
 
-A unit marked gauge (``psig``, ``barg``, ``bar(g)``, ``kPa gauge``) is that unit: the
-chamber pressures are gauge pressures. An absolute one (``bara``, ``psia``) is none of
-these units (it is off by the atmosphere's ~1 bar).
+A unit marked gauge (``psig``, ``barg``, ``bar(g)``, ``kPa gauge``; German DBCs write
+relative pressure ``bar rel``, ``bar(ü)`` for *Überdruck*) is that unit: the chamber
+pressures are gauge pressures. An absolute one (``bara``, ``psia``, ``kPa abs``) is none
+of these units (it is off by the atmosphere's ~1 bar): :func:`is_absolute` tells it, so
+an error can say so rather than ask for the gauge unit, which would read it 1 bar high.
 
 >>> pressure_factor_to_Pa("psi(g)") == pressure_factor_to_Pa("PSIG") == 6894.757293168361
 True
->>> pressure_factor_to_Pa("bara") is None
+>>> pressure_factor_to_Pa("bar(ü)") == pressure_factor_to_Pa("[bar]") == 100000.0
+True
+>>> pressure_factor_to_Pa("bara") is None and is_absolute("bara")
 True
 """
 
@@ -41,23 +45,43 @@ PRESSURE_UNITS_TO_PA: dict[str, float] = {
     # 1 kgf / cm2 = 9.80665 N / 1e-4 m2 (standard gravity; "kg/cm2" on older gauges).
     "kgf/cm2": 98066.5,
     "kg/cm2": 98066.5,
+    # The same units spelled out in base units, as some DBC editors write them.
+    "n/m2": 1.0,
+    "kn/m2": 1.0e3,
+    "lbf/in2": 6894.757293168361,
+    "lb/in2": 6894.757293168361,
 }
 
 #: The accepted units as a person writes them, for error messages.
 ACCEPTED_PRESSURE_UNITS = "Pa, kPa, MPa, bar, mbar, psi, hPa, N/mm2, kgf/cm2"
 
 
-#: Marks of a gauge unit after the unit's name (longest first), e.g. "psig", "bar(g)".
-GAUGE_MARKS = ("(gauge)", "gauge", "(g)", "g")
+#: Marks of a gauge unit after the unit's name (longest first), e.g. "psig", "bar(g)",
+#: "bar rel", "bar(ü)" (German *Überdruck*, as Windows-1252 writes it).
+GAUGE_MARKS = ("(gauge)", "gauge", "(rel)", "rel", "(\u00fc)", "\u00fc", "(g)", "g")
+#: Marks of an absolute unit after the unit's name (longest first), e.g. "psia", "kPa abs".
+ABSOLUTE_MARKS = ("(absolute)", "absolute", "(abs)", "abs", "(a)", "a")
 
 
 def pressure_factor_to_Pa(unit: str) -> float | None:
-    """Pa per one ``unit`` (case-insensitive, surrounding blanks and a gauge mark
-    ignored, "²" read as "2"); None if unknown."""
-    name = unit.strip().lower().replace("²", "2")
+    """Pa per one ``unit`` (case-insensitive, surrounding blanks, brackets and a gauge
+    mark ignored, "²" and "^2" read as "2"); None if unknown."""
+    return _factor_marked(unit, GAUGE_MARKS)
+
+
+def is_absolute(unit: str) -> bool:
+    """``unit`` is a pressure unit marked absolute (``bara``, ``psia``, ``kPa abs``)."""
+    return pressure_factor_to_Pa(unit) is None and _factor_marked(unit, ABSOLUTE_MARKS) is not None
+
+
+def _factor_marked(unit: str, marks: tuple[str, ...]) -> float | None:
+    """Pa per one ``unit``, which may end with one of ``marks``; None if unknown."""
+    name = unit.strip().lower().replace("\u00b2", "2").replace("^2", "2")
+    if name[:1] == "[" and name[-1:] == "]":  # "[bar]": some editors bracket the unit
+        name = name[1:-1].strip()
     factor = PRESSURE_UNITS_TO_PA.get(name)
     if factor is None:
-        mark = next((mark for mark in GAUGE_MARKS if name.endswith(mark)), None)
+        mark = next((mark for mark in marks if name.endswith(mark)), None)
         if mark is not None:
             factor = PRESSURE_UNITS_TO_PA.get(name.removesuffix(mark).rstrip(" _-"))
     return factor

@@ -209,6 +209,12 @@ def main(options: BridgeOptions) -> int:
         )
     if builder.defaulted:
         logger.info("sent as constant 0 (no simulated value): %s", builder.defaulted)
+    if absent := config.signals.absent():
+        logger.info(
+            "no signal in the DBC for [signals] %s, not sent (where the DBC names them "
+            'otherwise: [signals] phase = "MESSAGE.SIGNAL", ...)',
+            ", ".join(absent),
+        )
     injector = FaultInjector(options.faults, fault_targets(builder))
     if options.faults.any:
         logger.info("faults: %s; seed %d", describe_faults(options.faults), injector.seed)

@@ -9,7 +9,12 @@ the monotonic ``clock``, so a late frame never delays the ones after it. With
 The **frame time** of an instant is the Unix time (``wall_clock`` at the start, plus the
 monotonic time elapsed since) just before its first frame is sent, to the microsecond
 (as SocketCAN stamps frames, and as a candump log keeps them); it stamps the
-``can.Message`` and the ground-truth sample of that simulation time.
+``can.Message`` and the ground-truth sample of that simulation time. With
+``as_fast_as_possible`` it is the Unix time the instant is due at (as if played at
+``speed``): the frames log and the truth of such a run keep the cycle's timing, so a
+replay judges staleness, skew and silences as the live service would, and a report or a
+calibration sees the cycle's seconds (stamped when sent, a 45 s cycle took a fraction of
+a second: no transducer was ever stale, ``--silent`` showed nothing).
 
 Every frame the bus took is also handed to ``frames_log`` (a python-can listener, e.g.
 ``can.Logger("cycle.log")``) when given: a log that ``portal-daq replay`` plays back.
@@ -143,9 +148,11 @@ class Emitter:
                 stats.stopped = True
                 break
             position, outgoing = self._playout.frames(instant)
-            if not self._afap:
+            if self._afap:
+                t_unix_s = round(instant.due_s + unix_offset_s, 6)
+            else:
                 self._wait_until(instant.due_s, stats)
-            t_unix_s = round(self._clock() + unix_offset_s, 6)
+                t_unix_s = round(self._clock() + unix_offset_s, 6)
             for item in outgoing:
                 self._send(item.message, item.frame, t_unix_s, stats)
             stats.sim_time_s = instant.sim_t_ns / NS_PER_S

@@ -154,6 +154,17 @@ class FaultTargets:
     leg_messages: Mapping[str, str]
     #: Leg -> the names of its status value table (empty when it has no status signal).
     leg_status_names: Mapping[str, frozenset[str]] = field(default_factory=dict)
+    #: Leg -> the simulated leg it plays, where that has another name.
+    simulated_legs: Mapping[str, str] = field(default_factory=dict)
+
+    def no_leg(self, target: str) -> str:
+        """Why ``target`` is no leg: the legs are the config's, a simulated leg's name
+        is not (a config leg may be called like another simulated leg than it plays)."""
+        reason = f"no leg {target!r}; the legs are {', '.join(self.leg_messages)}"
+        players = [leg for leg, simulated in self.simulated_legs.items() if simulated == target]
+        if players:
+            reason += f" (the config's names: simulated leg {target} is {players[0]}'s)"
+        return reason
 
 
 @dataclass(frozen=True, slots=True)
@@ -268,7 +279,7 @@ def _check_leg(flag: str, window: FaultWindow, targets: FaultTargets) -> None:
         raise ConfigError(
             SOURCE,
             f"{flag} {window}",
-            f"no leg {window.target!r}; the legs are {', '.join(targets.leg_messages)}",
+            targets.no_leg(window.target),
         )
 
 
@@ -288,5 +299,6 @@ def _message_windows(
     raise ConfigError(
         SOURCE,
         f"{flag} {window}",
-        f"no message or leg {window.target!r}; the messages are {', '.join(targets.messages)}",
+        f"no message or {targets.no_leg(window.target).removeprefix('no ')}; "
+        f"the messages are {', '.join(targets.messages)}",
     )

@@ -10,12 +10,14 @@ Pure computation. Which signal carries what:
   are in Pa here; the encoder converts them into the DBC signal's unit.
 - **The bridge angles** are the ``[stability]`` ``rotation`` and ``fold`` signals where
   the config has that table, whatever their DBC names.
-- **Every other signal** is found by its name in the DBC: ``INCL_<BASE>_pPiston`` /
-  ``_pRod`` / ``_Status``, ``<LEG>_Stroke`` (a simulated or a config leg),
-  ``<BASE>_InclinationAngle``,
-  ``Bridge_FoldAngle``, ``Bridge_RotationAngle``, ``Carriage_Position``,
-  ``Machine_Phase`` (value-table name), ``Machine_CycleCount`` (completed cycles) and
-  ``Machine_CycleTime`` (time since the cycle started).
+- **The machine state, the carriage and the inclination cylinders** are the config's
+  ``[signals]`` (:mod:`dbc.machine_signals`; by default the project DBC's names wherever
+  the DBC has them): the phase by its value-table name, the completed cycles, the time
+  since the cycle started, the carriage position, each base's inclination angle (in its
+  unit), chamber pressures and status.
+- **Every other signal** is found by its name in the DBC: ``<LEG>_Stroke`` (a simulated
+  or a config leg), and ``Bridge_FoldAngle``, ``Bridge_RotationAngle`` without
+  ``[stability]``.
 - Counter and CRC signals (``[protection.<MESSAGE>]``) are left to the
   :class:`~dbc.encoding.FrameEncoder`. A signal nobody supplies is sent as 0 (clipped into
   its range) and listed in :attr:`FrameBuilder.defaulted`; a periodic message none of whose
@@ -45,13 +47,7 @@ from dbc.machine import TRIGGERS, ChamberSignal, LegConfig, MachineConfig
 from dbc.protection import Protection
 from dbc.signal_range import decoded_bounds
 from dbc.units import pressure_factor_to_Pa
-from sim_bridge.getters import (
-    Getter,
-    degrees_in,
-    in_angle_unit,
-    named_getters,
-    phase_getter,
-)
+from sim_bridge.getters import Getter, configured_getters, in_angle_unit, named_getters
 from sim_bridge.leg_map import LegMap, leg_map
 from sim_bridge.result import SimulationResult
 from sim_bridge.schedule import NS_PER_MS, NS_PER_S, MessageCycle
@@ -158,10 +154,11 @@ class FrameBuilder:
     to source addresses one per address (``HYD_PRESS@0x21``; a chamber of the message
     pinning none, reading every sender, is in each of their frames), or for a
     multiplexed message one per page (``MUXHUB#1``);
-    each sends at its message's cycle time. Within one instant the senders of a
-    message go out in address and page order, except that one carrying a leg's trigger
-    chamber without its other chamber goes after the others: each leg sample then pairs
-    the chamber values of one simulation row (skew 0), from the very first sample on.
+    each sends at its message's cycle time. Within one instant the senders go out in DBC,
+    address and page order, except that one carrying a leg's trigger chamber without its
+    other chamber (in another page, from another address, or in another message) goes
+    after the others: each leg sample then pairs the chamber values of one simulation row
+    (skew 0), from the very first sample on.
     Values are in SI; the encoder turns them into the DBC's units. Constructed once
     from the machine configuration and the DBC; raises :class:`~dbc.errors.ConfigError`
     when the config's legs cannot be mapped onto the simulated legs
@@ -188,15 +185,8 @@ class FrameBuilder:
                 chambers_by_sender.setdefault((mapped.message, mapped.source_address), []).append(
                     _chamber_signals(message, leg, columns[leg.name], chamber, mapped)
                 )
-        getters = named_getters(config.status_ok[0], columns)
-        # The bridge angles where [stability] says they are, whatever the DBC calls them.
-        if config.stability is not None:
-            stability = config.stability
-            for ref, rad_per_unit, name in (
-                (stability.rotation, stability.rotation_rad_per_unit, "Bridge_RotationAngle"),
-                (stability.fold, stability.fold_rad_per_unit, "Bridge_FoldAngle"),
-            ):
-                getters[f"{ref.message}.{ref.signal}"] = degrees_in(getters[name], rad_per_unit)
+        # Where the config places a signal, whatever the DBC calls it; else by its name.
+        getters = named_getters(columns) | configured_getters(config, database)
         self._plans: dict[str, _MessagePlan] = {}
         #: Signals sent as a constant 0, as "MESSAGE.SIGNAL".
         self.defaulted: list[str] = []
@@ -204,7 +194,7 @@ class FrameBuilder:
         #: they have nested multiplexing (no leg's chamber may be in such a message).
         self.skipped: list[str] = []
         #: The senders built, with their cycle times (the DBC's, or the config's: the
-        #: message's or the transducer's ``cycle_time_ms``), in DBC order.
+        #: message's or the transducer's ``cycle_time_ms``), in the order of an instant.
         self.cycles: list[MessageCycle] = []
         for message in database.messages:
             pages = multiplexer_pages(message)
@@ -246,9 +236,7 @@ class FrameBuilder:
             if not any(plan.chambers or plan.named for plan in plans):
                 self.skipped.append(message.name)
                 continue
-            # A sender carrying a leg's trigger chamber without the other goes after the
-            # others of its message (sorted is stable: address, then page order otherwise).
-            for plan in sorted(plans, key=_pairs_late):
+            for plan in plans:
                 cycle_time_ms = cycle_times_ms[plan.source_address]
                 self.defaulted += [
                     name
@@ -258,6 +246,10 @@ class FrameBuilder:
                 sender = sender_name(message.name, plan.source_address, plan.page)
                 self._plans[sender] = plan
                 self.cycles.append(MessageCycle(sender, round(cycle_time_ms * NS_PER_MS)))
+        # A sender carrying a leg's trigger chamber without the other goes after the other
+        # senders of an instant, those of its message and of other messages (a leg's rod
+        # in a frame of its own); sorted is stable: DBC, address and page order otherwise.
+        self.cycles.sort(key=lambda cycle: _pairs_late(self._plans[cycle.message]))
         #: Leg name -> the sender of its trigger chamber (what faults on a leg act on).
         self.leg_messages = {
             leg.name: next(
@@ -281,8 +273,8 @@ class FrameBuilder:
 
     @property
     def messages(self) -> list[str]:
-        """The senders this builder can fill, in DBC order."""
-        return list(self._plans)
+        """The senders this builder can fill, in the order of an instant (:attr:`cycles`)."""
+        return [cycle.message for cycle in self.cycles]
 
     def target(self, sender: str) -> tuple[str, int | None]:
         """The DBC message of ``sender`` and the J1939 source address it sends from."""
@@ -410,8 +402,6 @@ def _plan(
             continue
         elif f"{message.name}.{signal.name}" in getters:
             named.append((signal, getters[f"{message.name}.{signal.name}"], factor))
-        elif signal.name == "Machine_Phase":
-            named.append((signal, phase_getter(signal), factor))
         elif signal.name in getters:
             named.append((signal, in_angle_unit(signal, getters[signal.name]), factor))
         else:
@@ -446,7 +436,7 @@ def _sender_to_si(
 
 def _pairs_late(plan: _MessagePlan) -> bool:
     """``plan``'s frames carry a leg's trigger chamber but not its other chamber: sent
-    after the message's other senders of an instant, the leg's sample pairs the chamber
-    values of one simulation row (skew 0) from the very first sample on."""
+    after the other senders of an instant, the leg's sample pairs the chamber values of
+    one simulation row (skew 0) from the very first sample on."""
     legs = [chamber.leg for chamber in plan.chambers]
     return any(chamber.triggers and legs.count(chamber.leg) == 1 for chamber in plan.chambers)

@@ -1,18 +1,20 @@
 """Getters: which series of a :class:`~sim_bridge.result.SimulationResult` a DBC signal
-found by name carries (see :mod:`sim_bridge.frames`). Pure computation.
+carries, where the config places it or found by its name (see :mod:`sim_bridge.frames`).
+Pure computation.
 
->>> sorted(named_getters("ok", {}))[:3]
-['Bridge_FoldAngle', 'Bridge_RotationAngle', 'Carriage_Position']
+>>> sorted(named_getters({}))[:3]
+['Bridge_FoldAngle', 'Bridge_RotationAngle', 'SB1_F1_Stroke']
 """
 
 import math
 from collections.abc import Callable, Mapping
 
-from cantools.database.can import Signal
+from cantools.database.can import Database, Signal
 
 from dbc.decoding import SignalValue
+from dbc.machine import MachineConfig, SignalRef
 from dbc.units import angle_factor_to_rad
-from sim_bridge.result import BASES, LEGS, PHASES, SimulationResult
+from sim_bridge.result import LEGS, PHASES, SimulationResult
 
 #: A signal's value at one row: (result, row, completed cycles) -> physical value or name.
 Getter = Callable[[SimulationResult, int, int], SignalValue]
@@ -39,8 +41,8 @@ def degrees_in(getter: Getter, rad_per_unit: float) -> Getter:
 
 
 def in_angle_unit(signal: Signal, getter: Getter) -> Getter:
-    """A getter of degrees (the ``...Angle`` getters) for ``signal``, in its DBC unit where
-    that is another angle unit (rad, mrad)."""
+    """A getter of degrees (the ``Bridge_...Angle`` getters) for ``signal``, in its DBC
+    unit where that is another angle unit (rad, mrad)."""
     rad_per_unit = angle_factor_to_rad(signal.unit or "")
     if not signal.name.endswith("Angle") or rad_per_unit is None:
         return getter
@@ -60,21 +62,50 @@ def phase_getter(signal: Signal) -> Getter:
     return phase
 
 
-def named_getters(status_ok: SignalValue, columns: Mapping[str, int]) -> dict[str, Getter]:
-    """Getters of the signals found by name in the DBC (Machine_Phase aside); ``columns``:
-    each config leg's column, whose ``<LEG>_Stroke`` is its simulated leg's."""
+def named_getters(columns: Mapping[str, int]) -> dict[str, Getter]:
+    """Getters of the signals found by their name in the DBC: the bridge angles (where
+    ``[stability]`` does not place them) and ``<LEG>_Stroke``; ``columns``: each config
+    leg's column, whose ``<LEG>_Stroke`` is its simulated leg's."""
     getters: dict[str, Getter] = {
         "Bridge_FoldAngle": series_getter("fold_deg"),
         "Bridge_RotationAngle": series_getter("rotation_deg"),
-        "Carriage_Position": series_getter("carriage_m"),
-        "Machine_CycleCount": lambda result, row, cycle: cycle,
-        "Machine_CycleTime": lambda result, row, cycle: float(result.t_s[row]),
     }
-    for b, base in enumerate(BASES):
-        getters[f"INCL_{base}_pPiston"] = column_getter("incl_p_piston_Pa", b)
-        getters[f"INCL_{base}_pRod"] = column_getter("incl_p_rod_Pa", b)
-        getters[f"INCL_{base}_Status"] = lambda result, row, cycle: status_ok
-        getters[f"{base}_InclinationAngle"] = column_getter("inclination_deg", b)
     for leg, column in ({leg: i for i, leg in enumerate(LEGS)} | dict(columns)).items():
         getters[f"{leg}_Stroke"] = column_getter("stroke_m", column)
+    return getters
+
+
+def configured_getters(config: MachineConfig, database: Database) -> dict[str, Getter]:
+    """Getters by ``MESSAGE.SIGNAL`` of the signals the config places: the ``[stability]``
+    angles and the ``[signals]`` (or their defaults found in the DBC), in their units."""
+    getters: dict[str, Getter] = {}
+    if config.stability is not None:
+        stability = config.stability
+        getters[str(stability.rotation)] = degrees_in(
+            series_getter("rotation_deg"), stability.rotation_rad_per_unit
+        )
+        getters[str(stability.fold)] = degrees_in(
+            series_getter("fold_deg"), stability.fold_rad_per_unit
+        )
+    signals = config.signals
+    status_ok = config.status_ok[0]
+    series: list[tuple[SignalRef | None, Getter]] = [
+        (signals.cycle_count, lambda result, row, cycle: cycle),
+        (signals.cycle_time, series_getter("t_s")),
+        (signals.carriage, series_getter("carriage_m")),
+    ]
+    if (phase := signals.phase) is not None:
+        message = database.get_message_by_name(phase.message)
+        series.append((phase, phase_getter(message.get_signal_by_name(phase.signal))))
+    for b, base in enumerate(signals.bases):
+        series += [
+            (base.piston, column_getter("incl_p_piston_Pa", b)),
+            (base.rod, column_getter("incl_p_rod_Pa", b)),
+            (base.status, lambda result, row, cycle: status_ok),
+            (
+                base.inclination,
+                degrees_in(column_getter("inclination_deg", b), base.inclination_rad_per_unit),
+            ),
+        ]
+    getters |= {str(ref): getter for ref, getter in series if ref is not None}
     return getters

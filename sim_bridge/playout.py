@@ -45,6 +45,11 @@ def fault_targets(builder: FrameBuilder) -> FaultTargets:
         messages=tuple(builder.messages),
         leg_messages=dict(builder.leg_messages),
         leg_status_names=builder.leg_status_names(),
+        simulated_legs={
+            leg: simulated
+            for leg, simulated in builder.leg_map.simulated.items()
+            if leg != simulated
+        },
     )
 
 

@@ -3,11 +3,12 @@
 Each recording (a service MCAP file) is replayed from ``/can/raw`` through the
 pipeline of the machine configuration (``--config``, else the one embedded in the
 file), exactly as live; the leg estimates are sampled every :data:`PERIOD_S` like the
-``<prefix>/ground`` snapshots. The movement phase comes from the ``MACHINE_STATE``
-frames of the same replay (so also from a recording made without ``[recording]
-signals``). A CAN log of another tool (candump ``.log``, ``.asc``, ``.blf``, ...) is
-replayed the same way and needs ``--config``. Several recordings are read one after
-the other, each with a fresh pipeline, and their instants pooled.
+``<prefix>/ground`` snapshots. The movement phase comes from the machine state's frames
+(``[signals]``, by default ``MACHINE_STATE``) of the same replay (so also from a
+recording made without ``[recording] signals``). A CAN log of another tool (candump
+``.log``, ``.asc``, ``.blf``, ...) is replayed the same way and needs ``--config``.
+Several recordings are read one after the other, each with a fresh pipeline, and their
+instants pooled.
 """
 
 from collections.abc import Sequence
@@ -21,7 +22,7 @@ from daq.errors import RecordingError
 from daq.mcap_reading import RecordedAttachment, RecordingStream
 from daq.payloads import signals as signals_payload
 from daq.replay import Machine, embedded_machine, is_can_log, recording_results
-from daq.report.tracks import SIGNALS_PREFIX, STATE_TOPIC, StateRow, StateTrack
+from daq.report.tracks import StateRow, StateSignals, StateTrack
 from dbc.errors import ConfigError
 from dbc.machine import load_machine_config
 from estimator.calibration import Snapshots, quasi_static, snapshots
@@ -107,22 +108,23 @@ def read_instants(paths: Sequence[Path], machine: Machine, channel: str | None =
 def _replayed(
     path: Path, machine: Machine, channel: str | None
 ) -> tuple[list[LegEstimate], list[StateRow]]:
-    """The leg estimates and machine states (of the ``MACHINE_STATE`` frames whose
+    """The leg estimates and machine states (of the machine state's frames whose
     CRC was fine) of one recording or CAN log, replayed."""
     rows: list[LegEstimate] = []
     states: list[StateRow] = []
+    names = StateSignals.of(machine[0])
     for result in recording_results([path], machine, channel=channel):
         rows.extend(result.estimates)
         decoded = result.decoded
-        if decoded is not None and SIGNALS_PREFIX + decoded.message == STATE_TOPIC:
-            state = StateTrack.row(signals_payload(decoded))
+        if decoded is not None and names is not None and decoded.message == names.message:
+            state = StateTrack.row(signals_payload(decoded), names)
             if state is not None:
                 states.append(state)
     return rows, states
 
 
 def _still(rows: Sequence[StateRow], t_s: npt.NDArray[np.float64]) -> npt.NDArray[np.bool_]:
-    """True at the times whose movement phase (the latest MACHINE_STATE before) is still."""
+    """True at the times whose movement phase (the latest machine state before) is still."""
     if not rows:
         return np.ones(t_s.shape, dtype=bool)
     state = StateTrack.of(rows)

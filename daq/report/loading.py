@@ -45,7 +45,7 @@ from daq.replay import (
     recording_results,
     run_results,
 )
-from daq.report.tracks import Recording, RecordingCollector
+from daq.report.tracks import Recording, RecordingCollector, StateSignals
 from dbc.errors import ConfigError, DbcError
 from dbc.machine import MachineConfig, load_machine_config
 
@@ -90,8 +90,9 @@ def load_recording(
     files = run_files(given)
     first = files[0]
     machine: Machine | None = load_machine_config(config_path) if config_path else None
-    collector = RecordingCollector()
+    collector = RecordingCollector(StateSignals.of(machine[0] if machine else None))
     attachments: dict[str, bytes] = {}
+    embedded = False
     complete = True
     batches = False
     for path in files:
@@ -100,9 +101,16 @@ def load_recording(
             for record in reader:
                 if isinstance(record, RecordedAttachment):
                     attachments.setdefault(record.name, record.data)  # the first file's
-                elif not isinstance(record, RecordedMessage):
                     continue
-                elif record.topic == RAW_TOPIC and record.encoding == BATCH_ENCODING:
+                if not isinstance(record, RecordedMessage):
+                    continue
+                if machine is None and attachments and not embedded:
+                    # The recorder writes its config before the messages: where the
+                    # machine state is, before the first of them.
+                    embedded = True
+                    machine = _embedded(attachments, first)
+                    collector.state_signals = StateSignals.of(machine[0] if machine else None)
+                if record.topic == RAW_TOPIC and record.encoding == BATCH_ENCODING:
                     batches = True
                     try:
                         collector.add_frames(recorded_frames(record.encoding, record.data))
@@ -120,11 +128,8 @@ def load_recording(
             "holds no CAN frames (/can/raw) and no leg estimates: nothing to report"
             + (truth if collector.truth_samples else ""),
         )
-    if machine is None and attachments:
-        try:
-            machine = embedded_machine(attachments, first)
-        except (ConfigError, DbcError) as exc:
-            logger.warning("the configuration embedded in %s is unusable: %s", first, exc)
+    if machine is None and attachments and not embedded:
+        machine = _embedded(attachments, first)
     recomputed = not collector.has_estimates and collector.frames > 0
     derive_signals = batches and not collector.has_signals
     if recomputed or batches:
@@ -144,6 +149,16 @@ def load_recording(
     )
 
 
+def _embedded(attachments: dict[str, bytes], path: Path) -> Machine | None:
+    """The configuration embedded in the recording ``path``; None (and a warning line)
+    where it is unusable."""
+    try:
+        return embedded_machine(attachments, path)
+    except (ConfigError, DbcError) as exc:
+        logger.warning("the configuration embedded in %s is unusable: %s", path, exc)
+        return None
+
+
 def _log_recording(
     files: Sequence[Path], config_path: Path | None, channel: str | None
 ) -> Recording:
@@ -153,7 +168,7 @@ def _log_recording(
         raise ConfigError(files[0], "", "reporting a CAN log needs --config (the machine config)")
     machine = load_machine_config(config_path)
     config = machine[0]
-    collector = RecordingCollector()
+    collector = RecordingCollector(StateSignals.of(config))
     pipeline = Pipeline.from_config(*machine)
     for result in recording_results(files, machine, pipeline, channel):
         collector.add_frames((result.frame,))

@@ -37,11 +37,6 @@ FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
 IntArray = npt.NDArray[np.int64]
 
-#: The message whose signals delimit movement cycles, and those signals.
-STATE_TOPIC = "/signals/MACHINE_STATE"
-CYCLE_COUNT = "Machine_CycleCount"
-CYCLE_TIME = "Machine_CycleTime"
-PHASE = "Machine_Phase"
 
 #: (t, force_N, pressure_Pa, valid, force_raw_N, contact), (t, count, cycle time, phase),
 #: (t, {leg: force}).
@@ -135,6 +130,39 @@ class LegColumns:
         )
 
 
+@dataclass(frozen=True, slots=True)
+class StateSignals:
+    """Where a recording's machine state is: the message whose signals delimit movement
+    cycles, and those signals (the machine config's ``[signals]``; without a config,
+    the project DBC's names)."""
+
+    message: str = "MACHINE_STATE"
+    cycle_count: str = "Machine_CycleCount"
+    cycle_time: str = "Machine_CycleTime"
+    phase: str = "Machine_Phase"
+
+    @classmethod
+    def of(cls, machine: MachineConfig | None) -> "StateSignals | None":
+        """``machine``'s machine state; the defaults without one; None: its DBC has none."""
+        if machine is None:
+            return cls()
+        signals = machine.signals
+        message = signals.state_message
+        if message is None:
+            return None
+        return cls(
+            message,
+            *(
+                ref.signal if ref is not None else ""
+                for ref in (signals.cycle_count, signals.cycle_time, signals.phase)
+            ),
+        )
+
+    @property
+    def topic(self) -> str:
+        return SIGNALS_PREFIX + self.message
+
+
 @dataclass(frozen=True)
 class StateTrack:
     """``MACHINE_STATE`` frames whose CRC was fine, in time order."""
@@ -148,18 +176,18 @@ class StateTrack:
     phase: tuple[str, ...]
 
     @staticmethod
-    def row(payload: Mapping[str, Any]) -> StateRow | None:
-        """What a track keeps of one ``/signals/MACHINE_STATE`` payload; None for a frame
-        whose CRC failed or that has no cycle count."""
+    def row(payload: Mapping[str, Any], names: StateSignals) -> StateRow | None:
+        """What a track keeps of one payload of the machine state's message (``names``);
+        None for a frame whose CRC failed or that has no cycle count."""
         signals = payload["signals"]
-        count = signals.get(CYCLE_COUNT)
+        count = signals.get(names.cycle_count)
         if not payload.get("crc_ok", True) or not isinstance(count, int | float):
             return None
         return (
             _number(payload["t"]),
             int(count),
-            _number(signals.get(CYCLE_TIME)),
-            str(signals.get(PHASE, "")),
+            _number(signals.get(names.cycle_time)),
+            str(signals.get(names.phase, "")),
         )
 
     @classmethod
@@ -272,9 +300,13 @@ class Recording:
 
 
 class RecordingCollector:
-    """Gathers a recording's messages; :meth:`recording` builds the :class:`Recording`."""
+    """Gathers a recording's messages; :meth:`recording` builds the :class:`Recording`.
 
-    def __init__(self) -> None:
+    ``state_signals``: where the machine state is (None: nowhere); may be set before the
+    first message (a recording's embedded config comes before its messages)."""
+
+    def __init__(self, state_signals: StateSignals | None = StateSignals()) -> None:
+        self.state_signals = state_signals
         self._legs: dict[str, LegColumns] = defaultdict(LegColumns)
         self._state: list[StateRow] = []
         self._truth: list[TruthRow] = []
@@ -377,9 +409,12 @@ class RecordingCollector:
             self._bad[CRC_FAULT] += 1
         elif not payload.get("counter_ok", True):
             self._bad[COUNTER_JUMP] += 1
-        state = StateTrack.row(payload) if SIGNALS_PREFIX + message == STATE_TOPIC else None
-        if state is not None:
-            self._state.append((self._time(state[0], STATE_TOPIC, derived=derived), *state[1:]))
+        names = self.state_signals
+        if names is not None and message == names.message:
+            state = StateTrack.row(payload, names)
+            if state is not None:
+                t_s = self._time(state[0], names.topic, derived=derived)
+                self._state.append((t_s, *state[1:]))
 
     def add_estimate(self, payload: dict[str, Any], *, derived: bool = False) -> None:
         """One leg estimate in the shape of :func:`daq.payloads.leg_ground`; ``derived``:

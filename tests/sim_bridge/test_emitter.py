@@ -119,6 +119,27 @@ def test_as_fast_as_possible_never_sleeps(buses) -> None:
     assert sum(stats.sent.values()) == len(received(rx)) == 8 * 50 + 4 * 25 + 5
 
 
+@pytest.mark.parametrize("speed", [1.0, 4.0])
+def test_as_fast_as_possible_stamps_frames_and_truth_at_their_due_times(buses, speed) -> None:
+    """A frames log or truth of such a run keeps the cycle's timing: stamped when sent,
+    the whole cycle took the instant the clock showed, so a replay of the log never saw
+    a transducer stale nor a --silent window."""
+    tx, rx = buses
+    sink = ListSink()
+    run = emitter(
+        tx, make_result(duration_s=0.3), FakeClock(), as_fast_as_possible=True, speed=speed,
+        truth_sinks=[sink], feet_m2=FEET_M2,
+    )  # fmt: skip
+    run.run()
+    grouped = by_message(received(rx))
+    legs, state = grouped["LEG_SB1_F1"], grouped["MACHINE_STATE"]
+    assert [m.timestamp for m in legs] == [
+        round(UNIX_AT_START_S + k * 0.01 / speed, 6) for k in range(30)
+    ]
+    assert [m.timestamp for m in state] == [UNIX_AT_START_S + k * 0.1 / speed for k in range(3)]
+    assert [sample.t_unix_s for sample in sink.samples] == [m.timestamp for m in legs]
+
+
 def test_frames_decode_with_good_crc_and_counters_across_cycles(buses) -> None:
     tx, rx = buses
     stats = emitter(tx, make_result(duration_s=0.3), FakeClock(), cycles=3).run()

@@ -15,8 +15,9 @@ from dbc.errors import ConfigError
 from dbc.machine import load_machine_config, parse_machine_config
 from sim_bridge.frames import FrameBuilder, LegOverride, Timeline
 from sim_bridge.result import BASES, LEGS, PHASES, SimulationResult
+from sim_bridge.schedule import instants, schedule
 from tests.helpers import EXAMPLE_CONFIG, LEG_DEFAULTS_TOML, ROOT, dbc_text
-from tests.sim_bridge.synthetic import CONFIG, DATABASE, frames_of, make_result, play
+from tests.sim_bridge.synthetic import CONFIG, DATABASE, frames_of, make_playout, make_result, play
 
 #: Half a step of each signal's scale: the most rounding may move a value.
 PRESSURE_TOLERANCE_PA = 500.0
@@ -295,3 +296,43 @@ def test_angles_found_by_name_go_out_in_the_unit_of_their_signal(
     )
     assert pose["SB2_InclinationAngle"] == pytest.approx(result.inclination_deg[row, 1], abs=0.01)
     assert abs(result.inclination_deg[row, 0]) > 1.0  # 1.25 deg: 21.8 mrad
+
+
+def test_a_leg_whose_rod_is_in_a_message_of_its_own_pairs_from_its_first_sample(
+    result: SimulationResult, tmp_path: Path
+) -> None:
+    """Pistons at 10 ms in CAP, rods at 50 ms in ROD (after CAP in the DBC): the bridge
+    sent CAP first in an instant, so the first sample had no rod (rod_stale), and every
+    fifth one paired the rod of 50 ms before, stale by any jitter of a live run."""
+    (tmp_path / "m.dbc").write_text(
+        dbc_text(
+            """
+BO_ 768 CAP: 2 Hub
+ SG_ pCap : 0|16@1+ (1000,0) [0|65535000] "Pa" DAQ
+
+BO_ 769 ROD: 2 Hub
+ SG_ pRod : 0|16@1+ (1000,0) [0|65535000] "Pa" DAQ
+""",
+            'BA_ "GenMsgCycleTime" BO_ 768 10;\nBA_ "GenMsgCycleTime" BO_ 769 50;\n',
+        )
+    )
+    (tmp_path / "m.toml").write_text(
+        '[machine]\nid = "m"\nmass_kg = 1000.0\ndbc = "m.dbc"\n'
+        + LEG_DEFAULTS_TOML
+        + '[legs.front]\npiston = "CAP.pCap"\nrod = "ROD.pRod"\n'
+    )
+    config, database = load_machine_config(tmp_path / "m.toml")
+    playout = make_playout(result, config=config, database=database)
+    assert [cycle.message for cycle in playout.cycles] == ["ROD", "CAP"]
+    pipeline = Pipeline.from_config(config, database)
+    estimates = []
+    for instant in instants(schedule(playout.cycles, end_sim_ns=200_000_000)):
+        position, outgoing = playout.frames(instant)
+        for item in outgoing:
+            frame = item.frame
+            raw = RawFrame(instant.sim_t_ns / 1e9, frame.arbitration_id, False, frame.data)
+            estimates += [(e, position.row) for e in pipeline.process(raw).estimates]
+    assert len(estimates) == 20 and all(e.valid for e, _ in estimates)
+    assert [e.p_rod_Pa for e, _ in estimates] == [
+        pytest.approx(result.p_rod_Pa[row - row % 5, 0], abs=500) for _, row in estimates
+    ]

@@ -33,6 +33,13 @@ def renamed_data() -> dict[str, Any]:
     return tomllib.loads(RENAMED.read_text())
 
 
+def renamed_without_stability() -> dict[str, Any]:
+    data = renamed_data()
+    del data["stability"]
+    del data["signals"]["bases"]  # named after [stability]'s bases
+    return data
+
+
 def parsed(data: dict[str, Any], name: str = "m.toml"):  # type: ignore[no-untyped-def]
     config, database = load_machine_config(RENAMED)
     return parse_machine_config(data, name, database, config.dbc_path)
@@ -74,9 +81,7 @@ def test_feet_off_the_simulations_angles_go_by_their_order() -> None:
 
 
 def test_without_stability_the_legs_order_decides() -> None:
-    data = renamed_data()
-    del data["stability"]
-    legs = leg_map(parsed(data))
+    legs = leg_map(parsed(renamed_without_stability()))
     assert list(legs.simulated.values()) == list(LEGS)
     assert list(legs.simulated) == [
         "far_left",
@@ -181,10 +186,9 @@ def test_a_leg_named_like_a_stated_one_is_left_over() -> None:
 def test_fewer_legs_than_six_go_by_their_order_and_more_are_refused() -> None:
     """A machine of fewer legs (a held-out hub of two) plays the first simulated legs; a
     seventh leg has no simulated leg to play."""
-    data = renamed_data()
+    data = renamed_without_stability()
     del data["legs"]["far_right"]
     del data["legs"]["far_tip"]
-    del data["stability"]
     legs = leg_map(parsed(data))
     assert legs.simulated == {
         "far_left": "SB1_F1",

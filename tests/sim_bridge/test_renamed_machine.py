@@ -18,6 +18,7 @@ from cantools.database.can import Database
 from daq.frames import RawFrame
 from daq.pipeline import Pipeline
 from dbc.decoding import FrameDecoder
+from dbc.errors import ConfigError
 from dbc.machine import MachineConfig, load_machine_config, parse_machine_config
 from sim_bridge.__main__ import cli
 from sim_bridge.faults import FaultConfig, FaultWindow
@@ -225,3 +226,26 @@ def test_an_export_mapping_may_not_map_a_leg_twice(
     assert cli([*args, "--out", str(tmp_path / "x.png")]) == 2
     (line,) = capsys.readouterr().err.strip().splitlines()
     assert line.endswith("mapping.toml: legs.far_tip: maps SB2_F1 again (legs.SB2_F1 does)")
+
+
+@pytest.mark.parametrize(
+    ("flag", "hint"),
+    [
+        ("stuck", "no leg 'SB1_F1'; the legs are {legs} (the config's names: "
+         "simulated leg SB1_F1 is near_tip's)"),
+        ("silent", "no message or leg 'SB2_F2'; the legs are {legs} (the config's names: "
+         "simulated leg SB2_F2 is far_left's); the messages are HYD_NEAR_TIP, "),
+        ("sensor_fault", "no leg 'SB1_F9'; the legs are {legs}"),
+    ],
+)  # fmt: skip
+def test_faults_refuse_a_simulated_legs_name_naming_its_config_leg(
+    result: SimulationResult, flag: str, hint: str
+) -> None:
+    """A simulated leg's name is no leg where the config calls its legs otherwise (one
+    may be called like another simulated leg than it plays): the error names the legs,
+    and the config leg that plays the named one."""
+    target = hint.split("'")[1]
+    faults = FaultConfig(**{flag: (FaultWindow.parse(f"{target}@0.1:0.1"),)}, seed=1)  # type: ignore[arg-type]
+    with pytest.raises(ConfigError) as info:
+        make_playout(result, faults, CONFIG, DATABASE)
+    assert info.value.reason.startswith(hint.format(legs=", ".join(CONFIG.legs)))

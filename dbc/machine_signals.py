@@ -1,0 +1,175 @@
+"""The ``[signals]`` table of the machine configuration: the controller's signals that are
+neither a leg's chamber nor a ``[stability]`` angle.
+
+Read by :func:`dbc.machine.parse_machine_config`; optional. Each key is a
+``MESSAGE.SIGNAL`` of the DBC; a key left out is the signal of its default name (the
+project's DBC, ``dbc/portal_sensors.dbc``) in whichever message of the DBC has it, or
+none where the DBC has no such signal. Example (``tests/files/renamed/machine.toml``)::
+
+    [signals]
+    phase = "VEHICLE_STATE.StepPhase"            # movement phase (value-table names)
+    cycle_count = "VEHICLE_STATE.StepCount"      # completed movement cycles
+    cycle_time = "VEHICLE_STATE.StepTime_s"      # time since the cycle started, s
+    carriage = "BRIDGE_DRIVE.Trolley_m"          # crane carriage, m (+ towards SB1)
+    [signals.bases.near]                         # a base of [stability.bases]
+    inclination = "BRIDGE_GEOMETRY.TiltNear_deg" # deg, rad or mrad, as [stability]'s angles
+    piston = "TILT_NEAR.TILT_NEAR_pPiston"       # inclination cylinder's chambers
+    rod = "TILT_NEAR.TILT_NEAR_pRod"
+    status = "TILT_NEAR.TILT_NEAR_Status"
+
+The machine state (``phase``, ``cycle_count``, ``cycle_time``) is one message's: the
+report and the leg calibration read cycles and phases from its frames; the simulator
+bridge sends all of them (the others only it uses; the service publishes them under
+``/signals/<MESSAGE>`` whatever they are called).
+"""
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+from dbc.toml_table import TomlTable
+
+if TYPE_CHECKING:
+    from dbc.machine import SignalRef
+
+#: Machine-state keys and the default signal names.
+STATE_DEFAULTS = {
+    "phase": "Machine_Phase",
+    "cycle_count": "Machine_CycleCount",
+    "cycle_time": "Machine_CycleTime",
+}
+SIGNALS_KEYS = (*STATE_DEFAULTS, "carriage", "bases")
+#: Default of ``carriage``.
+CARRIAGE_DEFAULT = "Carriage_Position"
+BASE_SIGNAL_KEYS = ("inclination", "piston", "rod", "status")
+#: The simulation's bases, in order: what ``[signals.bases.<BASE>]`` is called without
+#: ``[stability]``, and the prefix of the default names (``INCL_SB1_pPiston``, ...).
+SIMULATED_BASES: tuple[str, str] = ("SB1", "SB2")
+
+
+def base_defaults(base: str) -> dict[str, str]:
+    """The default signal names of the ``SB1`` or ``SB2`` base's keys."""
+    return {
+        "inclination": f"{base}_InclinationAngle",
+        "piston": f"INCL_{base}_pPiston",
+        "rod": f"INCL_{base}_pRod",
+        "status": f"INCL_{base}_Status",
+    }
+
+
+@dataclass(frozen=True)
+class BaseSignals:
+    """One base's inclination cylinder: its angle and chambers; None: not in the DBC."""
+
+    inclination: "SignalRef | None"
+    #: Radians per unit of the inclination signal's values.
+    inclination_rad_per_unit: float
+    piston: "SignalRef | None"
+    rod: "SignalRef | None"
+    status: "SignalRef | None"
+
+
+@dataclass(frozen=True)
+class MachineSignals:
+    """Where the controller's signals are; None: the DBC has none (nothing is sent)."""
+
+    phase: "SignalRef | None"
+    cycle_count: "SignalRef | None"
+    cycle_time: "SignalRef | None"
+    carriage: "SignalRef | None"
+    #: The base standing at start (the simulation's SB1), then the other one.
+    bases: tuple[BaseSignals, BaseSignals]
+    #: Their names: ``[stability.bases]``'s, else the simulation's.
+    base_names: tuple[str, str] = SIMULATED_BASES
+
+    @property
+    def state_message(self) -> str | None:
+        """The machine state's message (cycles and phases); None: the DBC has none."""
+        refs = (self.cycle_count, self.cycle_time, self.phase)
+        return next((ref.message for ref in refs if ref is not None), None)
+
+    def absent(self) -> list[str]:
+        """The keys of ``[signals]`` no signal of the DBC is for (``bases.far.piston``)."""
+        missing = [key for key in (*STATE_DEFAULTS, "carriage") if getattr(self, key) is None]
+        for base, signals in zip(self.base_names, self.bases, strict=True):
+            missing += [
+                f"bases.{base}.{key}" for key in BASE_SIGNAL_KEYS if getattr(signals, key) is None
+            ]
+        return missing
+
+
+_NO_BASE = BaseSignals(None, math.radians(1.0), None, None, None)
+#: A DBC without any of the signals.
+NO_SIGNALS = MachineSignals(None, None, None, None, (_NO_BASE, _NO_BASE))
+
+
+def parse_signals(
+    table: TomlTable,
+    base_names: Sequence[str] | None,
+    signal: Callable[[TomlTable, str], "SignalRef"],
+    find: Callable[[str], "SignalRef | None"],
+    angle: Callable[[TomlTable, str], tuple["SignalRef", float]],
+    angle_unit: Callable[["SignalRef"], float | None],
+) -> MachineSignals:
+    """The ``[signals]`` table (may be empty).
+
+    ``base_names``: the ``[stability.bases]`` names in order (None: no ``[stability]``,
+    the bases are ``SB1``, ``SB2``); ``signal`` resolves a ``MESSAGE.SIGNAL`` key against
+    the DBC, ``find`` a default signal name (the first message that has it), ``angle`` an
+    angle key (as ``[stability]``'s: its signal and radians per unit), ``angle_unit`` the
+    radians per unit of a signal's DBC unit (None: no angle unit; degrees are assumed).
+    """
+    table.reject_unknown(SIGNALS_KEYS)
+
+    def ref(at: TomlTable, key: str, default: str) -> "SignalRef | None":
+        return signal(at, key) if key in at else find(default)
+
+    state = {key: ref(table, key, default) for key, default in STATE_DEFAULTS.items()}
+    refs = [(key, ref) for key, ref in state.items() if ref is not None]
+    other = next((key for key, ref in refs if ref.message != refs[0][1].message), None)
+    if other is not None:
+        where = ", ".join(f"{key} = {ref}" for key, ref in refs)
+        raise table.error(
+            other,
+            f"the machine state is one message's (the report reads cycles and phases from "
+            f"its frames); got {where}",
+        )
+    names = tuple(base_names) if base_names is not None else SIMULATED_BASES
+    bases_table = table.table("bases", required=False)
+    by_base = dict(bases_table.subtables())
+    unknown = [name for name in by_base if name not in names]
+    if unknown:
+        raise bases_table.error(
+            unknown[0],
+            f"no base {unknown[0]!r}; the bases are {', '.join(names)}"
+            + (" ([stability.bases])" if base_names is not None else " (the simulation's)"),
+        )
+    bases = []
+    for name, simulated in zip(names, SIMULATED_BASES, strict=True):
+        at = by_base.get(name, TomlTable({}, table.source, bases_table.key(name)))
+        at.reject_unknown(BASE_SIGNAL_KEYS)
+        defaults = base_defaults(simulated)
+        inclination = None
+        rad_per_unit = math.radians(1.0)
+        if "inclination" in at:
+            inclination, rad_per_unit = angle(at, "inclination")
+        elif (inclination := find(defaults["inclination"])) is not None:
+            rad_per_unit = angle_unit(inclination) or rad_per_unit
+        bases.append(
+            BaseSignals(
+                inclination=inclination,
+                inclination_rad_per_unit=rad_per_unit,
+                piston=ref(at, "piston", defaults["piston"]),
+                rod=ref(at, "rod", defaults["rod"]),
+                status=ref(at, "status", defaults["status"]),
+            )
+        )
+    return MachineSignals(
+        phase=state["phase"],
+        cycle_count=state["cycle_count"],
+        cycle_time=state["cycle_time"],
+        carriage=ref(table, "carriage", CARRIAGE_DEFAULT),
+        bases=(bases[0], bases[1]),
+        base_names=(names[0], names[1]),
+    )

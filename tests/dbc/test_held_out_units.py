@@ -1,0 +1,67 @@
+"""Pressure units as held-out DBCs spell them (dbc/units.py): German relative pressure
+("bar(ü)", "bar rel"), bracketed units, base units spelled out, and absolute units, which
+are refused with a reason that does not send the integrator to the gauge unit."""
+
+from pathlib import Path
+
+import pytest
+
+from daq.frames import RawFrame
+from daq.pipeline import Pipeline
+from dbc.errors import ConfigError
+from dbc.machine import load_machine_config
+from dbc.units import is_absolute, pressure_factor_to_Pa
+from tests.dbc.test_held_out_machines import PSI_PA, STRANGER, _hub_frame, eq4_N
+
+
+@pytest.mark.parametrize(
+    ("unit", "pa"),
+    [("bar(\u00fc)", 1e5), ("BAR\u00fc", 1e5), ("bar rel", 1e5), ("bar (rel)", 1e5)]
+    + [("[bar]", 1e5), (" [kPa] ", 1e3), ("N/m\u00b2", 1.0), ("kN/m2", 1e3)]
+    + [("N/mm^2", 1e6), ("lbf/in\u00b2", PSI_PA), ("lb/in2", PSI_PA)]
+    + [("kPa abs", None), ("bar(a)", None), ("[bara]", None), ("rel", None), ("\u00fc", None)],
+)
+def test_units_as_held_out_dbcs_spell_them(unit: str, pa: float | None) -> None:
+    factor = pressure_factor_to_Pa(unit)
+    assert factor == (None if pa is None else pytest.approx(pa, rel=1e-12))
+
+
+@pytest.mark.parametrize(
+    ("unit", "absolute"),
+    [("kPa abs", True), ("bar(a)", True), ("PSIA", True), ("bara", True), ("MPa absolute", True)]
+    + [("bar", False), ("psig", False), ("a", False), ("kg", False), ("", False), ("Pa", False)],
+)
+def test_absolute_units_are_told_apart(unit: str, absolute: bool) -> None:
+    assert is_absolute(unit) is absolute
+
+
+def _rear_in(tmp_path: Path, unit: str) -> Path:
+    """The held-out Motorola hub with HUB_REAR's pressures in ``unit`` (Windows-1252)."""
+    text = (STRANGER / "motorola_psi.dbc").read_text(encoding="cp1252")
+    assert text.count('"Bar"') == 2
+    (tmp_path / "motorola_psi.dbc").write_text(text.replace('"Bar"', f'"{unit}"'), "cp1252")
+    (tmp_path / "machine.toml").write_text((STRANGER / "motorola_psi.toml").read_text())
+    return tmp_path / "machine.toml"
+
+
+def test_a_german_relative_pressure_unit_is_bar(tmp_path: Path) -> None:
+    """ "bar(ü)" (Überdruck, gauge) stopped the config as no pressure unit."""
+    config, database = load_machine_config(_rear_in(tmp_path, "bar(\u00fc)"))
+    pipeline = Pipeline.from_config(config, database)
+    frame = RawFrame(1.0, 0x00FF0002, True, _hub_frame(0, 1500, 200))
+    (estimate,) = pipeline.process(frame).estimates
+    assert estimate.valid and estimate.p_piston_Pa == pytest.approx(150e5, rel=1e-12)
+    assert estimate.force_raw_N == pytest.approx(eq4_N(150e5, 20e5), rel=1e-12)
+
+
+def test_an_absolute_unit_is_refused_as_absolute(tmp_path: Path) -> None:
+    """It was "not a pressure unit; set unit = one of ... bar ...": set so, every
+    pressure would be read ~1 bar high."""
+    with pytest.raises(ConfigError) as refused:
+        load_machine_config(_rear_in(tmp_path, "bar abs"))
+    assert refused.value.key == "legs.RL.piston"
+    assert refused.value.reason == (
+        "signal HUB_REAR.RL_pCap has unit 'bar abs', an absolute pressure: eq. (4) takes "
+        "gauge pressures (about 1 bar less); set unit = its gauge unit only if the "
+        "transducer sends gauge pressure"
+    )
