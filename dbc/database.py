@@ -2,6 +2,7 @@
 
 import codecs
 import logging
+import re
 from pathlib import Path
 
 import cantools
@@ -76,7 +77,8 @@ def _without_layout_checks(text: str, source: str, refused: Exception) -> Databa
     try:
         database = cantools.database.load_string(text, database_format="dbc", strict=False)
     except (UnsupportedDatabaseFormatError, ValueError, KeyError):
-        raise DbcError(source, f"not a valid DBC: {_first_line(refused)}") from refused
+        reason = _first_line(refused)
+        raise DbcError(source, f"not a valid DBC: {reason}{_hint(reason)}") from refused
     if not isinstance(database, Database):
         raise DbcError(source, "holds no CAN messages")
     problems = [problem for problem in map(unsound, database.messages) if problem]
@@ -113,6 +115,22 @@ def load_database_bytes(data: bytes, source: str) -> Database:
         except UnicodeDecodeError:
             text = data.decode(DBC_ENCODING, errors="replace")
     return load_database_string(text, source)
+
+
+#: cantools' words for a 29-bit ID written without the DBC's extended-ID flag (bit 31).
+_NO_EXTENDED_FLAG = re.compile(r"Standard frame id (0x[0-9a-fA-F]+) is more than 11 bits")
+
+
+def _hint(reason: str) -> str:
+    """What to change where cantools' ``reason`` alone does not say it."""
+    match = _NO_EXTENDED_FLAG.search(reason)
+    if match is None:
+        return ""
+    frame_id = int(match[1], 16)
+    return (
+        f" (a 29-bit ID is written with bit 31 set in a DBC: BO_ {frame_id | 0x80000000}, "
+        f"not BO_ {frame_id})"
+    )
 
 
 def _first_line(exc: BaseException) -> str:
