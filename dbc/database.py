@@ -66,7 +66,23 @@ def load_database_string(text: str, source: str) -> Database:
         database = _without_layout_checks(text, source, exc)
     if not isinstance(database, Database) or not database.messages:
         raise DbcError(source, "holds no CAN messages")
+    _mark_j1939_network(database)
     return database
+
+
+def _mark_j1939_network(database: Database) -> None:
+    """Marks the 29-bit messages of a J1939 network (the DBC's ``ProtocolType`` is
+    ``"J1939"``, as in Vector's J1939 template) J1939 where they say no ``VFrameFormat``
+    of their own: cantools reads only that attribute, so such a DBC's messages were
+    matched by their whole ID, and a transducer sending at another priority or from
+    another address than the DBC's ID was ``unknown_id``, its leg stale."""
+    network = database.dbc.attributes.get("ProtocolType") if database.dbc else None
+    if network is None or str(network.value).strip().upper() != "J1939":
+        return
+    for message in database.messages:
+        own = message.dbc.attributes if message.dbc is not None else {}
+        if message.is_extended_frame and message.protocol is None and "VFrameFormat" not in own:
+            message.protocol = "j1939"
 
 
 def _without_layout_checks(text: str, source: str, refused: Exception) -> Database:
