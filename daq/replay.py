@@ -38,6 +38,7 @@ from can.io.player import MESSAGE_READERS
 from cantools.database.can import Database
 
 from daq.can_batch import recorded_frames
+from daq.candump_text import CandumpReader
 from daq.errors import RecordingError
 from daq.frames import BusEvent, RawFrame, from_can_message
 from daq.mcap_file import BUS_TOPIC, CONFIG_ATTACHMENT, DBC_ATTACHMENT, RAW_TOPIC
@@ -75,7 +76,8 @@ _EDL = 1 << 12
 #: What a line of a text log must look like, for an error whose reason python-can words
 #: as its code sees it (``not enough values to unpack``).
 _LINE_FORMATS = {
-    ".log": " (a candump -L line is '(TIME) INTERFACE ID#DATA')",
+    ".log": " (a candump -L line is '(TIME) INTERFACE ID#DATA', candump -ta's "
+    "'(TIME)  INTERFACE  ID   [LENGTH]  DATA')",
     ".csv": " (python-can's CSV: timestamp,arbitration_id,extended,remote,error,dlc,data)",
     ".blf": " (no BLF object begins where one should: a damaged file)",
 }
@@ -376,7 +378,11 @@ class TrcReader(can.TRCReader):
 
 
 #: Our readers where python-can's read a suffix wrongly.
-_OWN_READERS: dict[str, type[TextIOMessageReader]] = {".asc": AscReader, ".trc": TrcReader}
+_OWN_READERS: dict[str, type[TextIOMessageReader]] = {
+    ".asc": AscReader,
+    ".trc": TrcReader,
+    ".log": CandumpReader,
+}
 
 
 def _open(path: Path) -> IO[bytes]:

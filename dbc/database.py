@@ -2,6 +2,7 @@
 
 import codecs
 import logging
+import re
 from pathlib import Path
 
 import cantools
@@ -13,8 +14,9 @@ from dbc.errors import DbcError
 
 logger = logging.getLogger(__name__)
 
-#: How a DBC file's bytes are read (cantools' ``load_file`` default for DBC: Vector's tools
-#: write Windows-1252, e.g. a unit "°C"), the file and a recording's copy of it alike.
+#: How a DBC file's bytes are read where they are not UTF-8 (cantools' ``load_file`` default
+#: for DBC: Vector's tools write Windows-1252, e.g. a unit "°C"), the file and a
+#: recording's copy of it alike.
 DBC_ENCODING = "cp1252"
 #: Byte-order marks a DBC may start with (an editor's "UTF-8 with BOM", Windows'
 #: "Unicode" = UTF-16), each with the encoding it declares: it wins over DBC_ENCODING.
@@ -75,7 +77,8 @@ def _without_layout_checks(text: str, source: str, refused: Exception) -> Databa
     try:
         database = cantools.database.load_string(text, database_format="dbc", strict=False)
     except (UnsupportedDatabaseFormatError, ValueError, KeyError):
-        raise DbcError(source, f"not a valid DBC: {_first_line(refused)}") from refused
+        reason = _first_line(refused)
+        raise DbcError(source, f"not a valid DBC: {reason}{_hint(reason)}") from refused
     if not isinstance(database, Database):
         raise DbcError(source, "holds no CAN messages")
     problems = [problem for problem in map(unsound, database.messages) if problem]
@@ -99,9 +102,35 @@ def unsound(message: Message) -> str | None:
 
 def load_database_bytes(data: bytes, source: str) -> Database:
     """Load a DBC from the bytes of its file (the file itself, or the copy embedded in a
-    recording): in the encoding its byte-order mark declares, else :data:`DBC_ENCODING`."""
-    encoding = next((enc for bom, enc in _BOM_ENCODINGS if data.startswith(bom)), DBC_ENCODING)
-    return load_database_string(data.decode(encoding, errors="replace"), source)
+    recording): in the encoding its byte-order mark declares, else as UTF-8 where it is
+    UTF-8 (an editor's default: read as :data:`DBC_ENCODING`, a unit ``bar(ü)`` was
+    ``bar(Ã¼)``, ``°`` was ``Â°``), else :data:`DBC_ENCODING`. Text in Windows-1252 with
+    any letter beyond ASCII is practically never valid UTF-8 (``°C`` is ``B0 43``)."""
+    encoding = next((enc for bom, enc in _BOM_ENCODINGS if data.startswith(bom)), None)
+    if encoding is not None:
+        text = data.decode(encoding, errors="replace")
+    else:
+        try:
+            text = data.decode("utf-8")
+        except UnicodeDecodeError:
+            text = data.decode(DBC_ENCODING, errors="replace")
+    return load_database_string(text, source)
+
+
+#: cantools' words for a 29-bit ID written without the DBC's extended-ID flag (bit 31).
+_NO_EXTENDED_FLAG = re.compile(r"Standard frame id (0x[0-9a-fA-F]+) is more than 11 bits")
+
+
+def _hint(reason: str) -> str:
+    """What to change where cantools' ``reason`` alone does not say it."""
+    match = _NO_EXTENDED_FLAG.search(reason)
+    if match is None:
+        return ""
+    frame_id = int(match[1], 16)
+    return (
+        f" (a 29-bit ID is written with bit 31 set in a DBC: BO_ {frame_id | 0x80000000}, "
+        f"not BO_ {frame_id})"
+    )
 
 
 def _first_line(exc: BaseException) -> str:

@@ -68,7 +68,9 @@ class FrameEncoder:
         source_address: int | None = None,
     ) -> EncodedFrame:
         """Encode one frame; ``counter`` overrides the rolling counter (fault injection),
-        ``corrupt_crc`` sends a wrong CRC, ``source_address`` sets a J1939 sender.
+        ``corrupt_crc`` sends a wrong CRC, ``source_address`` sets a J1939 sender. A value
+        outside its signal's DBC range is encoded as it is (the receiver judges the range);
+        one its bits cannot hold raises cantools' OverflowError.
 
         A multiplexed message's frame is the page its multiplexer value in ``signals``
         selects, with that page's signals only; a counter or CRC under other multiplexer
@@ -95,7 +97,9 @@ class FrameEncoder:
         if with_crc:
             assert protection is not None and protection.crc is not None
             values[protection.crc] = 0
-        data = bytearray(message.encode(values, scaling=True, padding=False, strict=True))
+        # Not strict: a value beyond the DBC's range is encoded (the bridge's --out-of-range
+        # sends one, as a faulty transducer does); one beyond what the bits hold raises.
+        data = bytearray(message.encode(values, scaling=True, padding=False, strict=False))
         if message_name not in self._crc_checks:
             self._crc_checks[message_name] = (
                 protection.crc_check(message) if protection is not None else None

@@ -27,7 +27,7 @@ from dbc.decoding import is_j1939, j1939_pgn
 from dbc.errors import ConfigError
 from dbc.machine_signals import NO_SIGNALS, MachineSignals, parse_signals
 from dbc.protection import CRC_ALGORITHMS, DEFAULT_CRC_ALGORITHM, Protection, counter_modulo
-from dbc.signal_range import decoded_bounds, value_range
+from dbc.signal_range import decoded_bounds, named_values, value_range
 from dbc.stability_config import StabilityConfig, angle_signal, parse_stability
 from dbc.toml_table import TomlTable
 from dbc.units import (
@@ -162,6 +162,10 @@ class ChamberSignal:
     #: allows (J1939's error and "not available" codes lie above it). Unbounded where
     #: neither bounds it (:func:`dbc.signal_range.value_range`).
     range_Pa: tuple[float, float] = (-math.inf, math.inf)
+    #: The signal's value-table entries that name a pressure inside that range
+    #: (``0 "Zero"``), by name, Pa; any other name in its place is a code: NaN
+    #: (:func:`dbc.signal_range.named_values`).
+    named_Pa: Mapping[str, float] = field(default_factory=dict)
 
     def __str__(self) -> str:
         where = f"{self.message}.{self.signal}"
@@ -526,6 +530,7 @@ def _chamber(
         status = _status_check(chamber, "status_ok", message, status_signal, chamber_ok)
     elif "status_ok" in chamber:
         raise chamber.error("status_ok", "given without a status signal")
+    range_Pa, named_Pa = _in_Pa(signal, unit, is_j1939(message))
     return ChamberSignal(
         message=message.name,
         signal=signal_name,
@@ -534,16 +539,19 @@ def _chamber(
         status=status,
         cycle_time_s=_cycle_time_s(chamber, signal_key, message, source_address, cycle_times_ms),
         mux_ids=_mux_ids(message, signal_name),
-        range_Pa=_range_Pa(signal, unit, is_j1939(message)),
+        range_Pa=range_Pa,
+        named_Pa=named_Pa,
     )
 
 
-def _range_Pa(signal: Signal, unit: str, j1939: bool) -> tuple[float, float]:
-    """The values the signal may take (:func:`dbc.signal_range.value_range`) in Pa."""
+def _in_Pa(signal: Signal, unit: str, j1939: bool) -> tuple[tuple[float, float], dict[str, float]]:
+    """The values the signal may take (:func:`dbc.signal_range.value_range`) and its
+    value-table entries naming a pressure (:func:`dbc.signal_range.named_values`), in Pa."""
     factor = pressure_factor_to_Pa(unit)
     assert factor is not None  # checked by the caller
     low, high = value_range(signal, j1939)
-    return (low * factor, high * factor)
+    named = named_values(signal, j1939)
+    return (low * factor, high * factor), {name: v * factor for name, v in named.items()}
 
 
 def _mux_ids(message: Message, signal_name: str) -> tuple[int, ...] | None:

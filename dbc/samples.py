@@ -38,6 +38,9 @@ class _Paired:
     #: The DBC's ranges of the two signals, Pa (:attr:`ChamberSignal.range_Pa`).
     piston_range_Pa: tuple[float, float]
     rod_range_Pa: tuple[float, float]
+    #: Their value-table names of pressures, Pa (:attr:`ChamberSignal.named_Pa`).
+    piston_named_Pa: Mapping[str, float]
+    rod_named_Pa: Mapping[str, float]
 
 
 @dataclass(frozen=True, slots=True)
@@ -86,6 +89,8 @@ class LegSampler:
                         statuses,
                         piston.range_Pa,
                         rod.range_Pa,
+                        piston.named_Pa,
+                        rod.named_Pa,
                     )
                 )
                 continue
@@ -119,8 +124,8 @@ class LegSampler:
                 leg.leg,
                 LegSample(
                     t_s,
-                    _pressure_Pa(signals[leg.piston], leg.piston_range_Pa),
-                    _pressure_Pa(signals[leg.rod], leg.rod_range_Pa),
+                    _pressure_Pa(signals[leg.piston], leg.piston_range_Pa, leg.piston_named_Pa),
+                    _pressure_Pa(signals[leg.rod], leg.rod_range_Pa, leg.rod_named_Pa),
                     _with_status(faults, leg.statuses, signals) if leg.statuses else faults,
                 ),
             )
@@ -142,7 +147,9 @@ class LegSampler:
             chamber_faults = _with_status(faults, (status,) if status else (), signals)
             self._latest[(route.leg.name, route.chamber)] = _Reading(
                 t_s,
-                _pressure_Pa(signals[route.signal.signal], route.signal.range_Pa),
+                _pressure_Pa(
+                    signals[route.signal.signal], route.signal.range_Pa, route.signal.named_Pa
+                ),
                 chamber_faults,
             )
         return samples + [self._sample(route.leg) for route in matched if route.triggers]
@@ -168,12 +175,15 @@ class LegSampler:
         self._latest.clear()
 
 
-def _pressure_Pa(value: SignalValue, range_Pa: tuple[float, float]) -> float:
+def _pressure_Pa(
+    value: SignalValue, range_Pa: tuple[float, float], named_Pa: Mapping[str, float]
+) -> float:
     """A decoded chamber pressure; NaN, which the estimator judges out of range, for a
     code the DBC says is no pressure: a value-table name in its place (a transducer's "not
-    available" or "error"), or a value outside the signal's range (such a code unnamed)."""
+    available" or "error") other than one naming a pressure in the signal's range
+    (``named_Pa``: ``0 "Zero"`` is 0 Pa), or a value outside that range (a code unnamed)."""
     if isinstance(value, str):
-        return math.nan
+        return named_Pa.get(value, math.nan)
     p_Pa = float(value)
     return p_Pa if range_Pa[0] <= p_Pa <= range_Pa[1] else math.nan
 

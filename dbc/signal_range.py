@@ -1,5 +1,6 @@
 """Which decoded values of a DBC signal are values, not codes: its ``[min|max]``, and in
-a J1939 message the valid range of a parameter of 1, 2 or 4 bytes.
+a J1939 message the valid range of a parameter of 1, 2 or 4 bytes; and which entries of
+its value table name a value (``0 "Zero"``) rather than a code (:func:`named_values`).
 
 J1939-71 reserves the top of such a parameter's raw range for indicators: above 0xFA,
 0xFAFF, 0xFAFFFFFF come "parameter specific" (0xFB..), "error" (0xFE..) and "not
@@ -11,6 +12,7 @@ DBC's ``[0|0]`` as none) only this rule tells the code from a measurement.
 import math
 
 from cantools.database.can import Signal
+from cantools.database.namedsignalvalue import NamedSignalValue
 
 #: Largest valid raw value of an unsigned J1939 parameter, by its length in bits.
 J1939_VALID_RAW_MAX = {8: 0xFA, 16: 0xFAFF, 32: 0xFAFFFFFF}
@@ -42,3 +44,38 @@ def decoded_bounds(signal: Signal) -> tuple[float, float]:
     low_raw, high_raw = (-(1 << bits) if signal.is_signed else 0), (1 << bits) - 1
     ends = (low_raw * signal.scale + signal.offset, high_raw * signal.scale + signal.offset)
     return (min(ends), max(ends))
+
+
+def named_values(signal: Signal, j1939: bool) -> dict[str, float]:
+    """The entries of ``signal``'s value table that name a measurement, by name: their
+        physical value, in its DBC unit.
+
+        An entry is a measurement where its value lies inside the range the DBC declares
+        (``[min|max]``, and J1939's valid range in a J1939 message: :func:`value_range`),
+        e.g. ``0 "Zero"`` of a pressure in ``[0|642.55]``; else it is a code ("not
+        available", "error", usually at the top of the raw range). Without a declared range
+        (``[0|0]``) every entry is a code: nothing tells a code from a value. A name given
+        to two raw values names no one value.
+
+        >>> from cantools.database.can import Signal
+    from cantools.database.namedsignalvalue import NamedSignalValue
+        >>> from cantools.database.conversion import BaseConversion
+        >>> conversion = BaseConversion.factory(0.01, 0, {0: "Zero", 65535: "SNA"})
+        >>> p = Signal("p", 0, 16, conversion=conversion, minimum=0, maximum=642.55)
+        >>> named_values(p, j1939=False)
+        {'Zero': 0.0}
+    """
+    if not signal.choices or signal.minimum is None or signal.maximum is None:
+        return {}
+    if not signal.minimum < signal.maximum:
+        return {}
+    low, high = value_range(signal, j1939)
+    values: dict[str, float] = {}
+    names: list[str] = []
+    for raw, choice in signal.choices.items():
+        name = choice.name if isinstance(choice, NamedSignalValue) else str(choice)
+        names.append(name)
+        value = float(raw * signal.scale + signal.offset)  # as the decoders compute it
+        if low <= value <= high:
+            values[name] = value
+    return {name: value for name, value in values.items() if names.count(name) == 1}

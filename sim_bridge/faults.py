@@ -24,7 +24,9 @@ fault hits the same frames at any ``--speed``. The faults and their command-line
     Both chamber pressures of the leg stay at the values of the window's first frame.
 ``--out-of-range LEG@START:DURATION``
     The leg's piston pressure is sent as ``out_of_range_Pa`` (default 45 MPa, above the
-    transducers' 40 MPa but inside the DBC's 64.5 MPa), status still ok (``range``).
+    transducers' 40 MPa but inside the DBC's 64.5 MPa), status still ok (``range``). A
+    DBC range ending below it does not clip it (the service judges that range too), only
+    what the signal's bits hold does.
 ``--sensor-fault LEG@START:DURATION``
     The leg's status signal says ``sensor_fault`` (``status_sensor_fault``).
 ``--pause START:DURATION``
@@ -247,6 +249,8 @@ class FaultInjector:
         each leg's column in ``result`` (see :func:`~sim_bridge.result.leg_column`)."""
         faults = self.faults
         changed: dict[str, tuple[float, float, str | None]] = {}
+        # Legs whose piston an out-of-range fault sets (a later fault keeps it so).
+        beyond: set[str] = set()
 
         def current(leg: str) -> tuple[float, float, str | None]:
             if leg in changed:
@@ -267,11 +271,15 @@ class FaultInjector:
             if window.active(sim_t_ns):
                 _, p_rod, status = current(window.target)
                 changed[window.target] = (faults.out_of_range_Pa, p_rod, status)
+                beyond.add(window.target)
         for window in faults.sensor_fault:
             if window.active(sim_t_ns):
                 p_piston, p_rod, _ = current(window.target)
                 changed[window.target] = (p_piston, p_rod, SENSOR_FAULT_STATUS)
-        return {leg: LegOverride(*values) for leg, values in changed.items()}
+        return {
+            leg: LegOverride(*values, piston_beyond_range=leg in beyond)
+            for leg, values in changed.items()
+        }
 
 
 def _check_leg(flag: str, window: FaultWindow, targets: FaultTargets) -> None:

@@ -62,6 +62,10 @@ class LegOverride:
     p_rod_Pa: float
     #: Status value-table name; None keeps the config's ``status_ok``.
     status: str | None = None
+    #: The piston pressure is meant to be out of range (``--out-of-range``): it is clipped
+    #: into what its signal's bits hold only, not into the DBC's range, which the service
+    #: judges too (a DBC range ending below it made it a valid top-of-range value).
+    piston_beyond_range: bool = False
 
 
 @dataclass(frozen=True, slots=True)
@@ -308,14 +312,17 @@ class FrameBuilder:
         for chamber in plan.chambers:
             override = (overrides or {}).get(chamber.leg)
             status: SignalValue
+            in_range = True
             if override is None:
                 field = result.p_piston_Pa if chamber.chamber == "piston" else result.p_rod_Pa
                 p_Pa = float(field[row, chamber.column])
                 status = chamber.status_nominal
             else:
-                p_Pa = override.p_piston_Pa if chamber.chamber == "piston" else override.p_rod_Pa
+                piston = chamber.chamber == "piston"
+                p_Pa = override.p_piston_Pa if piston else override.p_rod_Pa
                 status = override.status or chamber.status_nominal
-            values[chamber.pressure.name] = clip(chamber.pressure, p_Pa, chamber.to_Pa)
+                in_range = not (piston and override.piston_beyond_range)
+            values[chamber.pressure.name] = clip(chamber.pressure, p_Pa, chamber.to_Pa, in_range)
             if chamber.status is not None:
                 values[chamber.status.name] = status
         for signal, getter, to_si in plan.named:
@@ -338,17 +345,20 @@ class FrameBuilder:
         ]
 
 
-def clip(signal: Signal, value: SignalValue, to_si: float = 1.0) -> SignalValue:
-    """``value`` (SI) clipped into the signal's DBC range (in its unit, ``to_si`` per unit)
-    and what its bits hold (a DBC without a range); names pass unchanged, NaN becomes 0."""
+def clip(
+    signal: Signal, value: SignalValue, to_si: float = 1.0, dbc_range: bool = True
+) -> SignalValue:
+    """``value`` (SI) clipped into the signal's DBC range (in its unit, ``to_si`` per unit;
+    unless ``dbc_range`` is off) and what its bits hold (a DBC without a range); names pass
+    unchanged, NaN becomes 0."""
     if isinstance(value, str):
         return value
     number = float(value)
     if math.isnan(number):
         number = 0.0
-    if signal.minimum is not None:
+    if dbc_range and signal.minimum is not None:
         number = max(number, float(signal.minimum) * to_si)
-    if signal.maximum is not None:
+    if dbc_range and signal.maximum is not None:
         number = min(number, float(signal.maximum) * to_si)
     low, high = decoded_bounds(signal)  # a DBC without a range: what the bits hold
     number = min(max(number, low * to_si), high * to_si)

@@ -109,7 +109,8 @@ def test_candump_error_frames_keep_to_the_channel_asked_and_are_counted(
             "no_interface.log",
             b"(1750000000.000000) 100#0000000000000000\n",
             "unreadable after frame 0: not enough values to unpack (expected 3, got 2) "
-            "(a candump -L line is '(TIME) INTERFACE ID#DATA')",
+            "(a candump -L line is '(TIME) INTERFACE ID#DATA', candump -ta's "
+            "'(TIME)  INTERFACE  ID   [LENGTH]  DATA')",
         ),
     ],
 )

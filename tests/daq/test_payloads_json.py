@@ -4,6 +4,7 @@ or a non-ASCII character is spelled, never in what a reader gets."""
 
 import json
 import math
+import tracemalloc
 from collections import Counter
 from types import MappingProxyType
 
@@ -65,3 +66,16 @@ def test_non_finite_values_and_other_mappings_take_the_slow_path() -> None:
     assert json_bytes(payload) == b'{"a":null,"b":[null,[1.5,null]],"c":{"x":2}}'
     proxy = MappingProxyType({"t": 1.0, "nested": MappingProxyType({"k": math.nan})})
     assert json_bytes(proxy) == reference(proxy) == b'{"t":1.0,"nested":{"k":null}}'
+
+
+def test_a_payload_holds_no_more_memory_than_its_bytes() -> None:
+    # orjson leaves its output in a 4 KiB buffer; kept in a queue, each payload held that.
+    payload = {"leg": "F1", "t": 1764612345.123456, "force_N": 64477.25, "reasons": []}
+    tracemalloc.start()
+    try:
+        kept = [json_bytes(payload) for _ in range(100)]
+        held_bytes, _ = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert len(kept[0]) < 100
+    assert held_bytes < 100 * 300  # ~75 bytes of JSON each, with the object's header

@@ -8,6 +8,7 @@ import pytest
 
 from daq.frames import RawFrame
 from daq.pipeline import Pipeline
+from dbc.database import load_database_bytes
 from dbc.errors import ConfigError
 from dbc.machine import load_machine_config
 from dbc.units import is_absolute, pressure_factor_to_Pa
@@ -65,3 +66,16 @@ def test_an_absolute_unit_is_refused_as_absolute(tmp_path: Path) -> None:
         "gauge pressures (about 1 bar less); set unit = its gauge unit only if the "
         "transducer sends gauge pressure"
     )
+
+
+def test_a_dbc_in_utf_8_without_a_byte_order_mark_is_read_as_utf_8(tmp_path: Path) -> None:
+    """An editor's default: read as Windows-1252, "bar(ü)" was "bar(Ã¼)" (no pressure
+    unit) and "°C" was "Â°C"; a Windows-1252 file reads as before."""
+    config = _rear_in(tmp_path, "bar(\u00fc)")
+    dbc = tmp_path / "motorola_psi.dbc"
+    dbc.write_bytes(dbc.read_text(encoding="cp1252").encode("utf-8"))
+    loaded, database = load_machine_config(config)
+    assert loaded.legs["RL"].piston.unit == "bar(\u00fc)"
+    assert database.get_message_by_name("STATE").get_signal_by_name("OilTemp").unit == "\u00b0C"
+    cp1252 = load_database_bytes((STRANGER / "motorola_psi.dbc").read_bytes(), "held-out")
+    assert cp1252.get_message_by_name("STATE").get_signal_by_name("OilTemp").unit == "\u00b0C"

@@ -13,6 +13,7 @@ from dbc.decoding import FrameDecoder
 from dbc.encoding import FrameEncoder
 from dbc.errors import ConfigError
 from dbc.machine import load_machine_config, parse_machine_config
+from sim_bridge.faults import FaultConfig, FaultWindow
 from sim_bridge.frames import FrameBuilder, LegOverride, Timeline
 from sim_bridge.result import BASES, LEGS, PHASES, SimulationResult
 from sim_bridge.schedule import instants, schedule
@@ -336,3 +337,43 @@ BO_ 769 ROD: 2 Hub
     assert [e.p_rod_Pa for e, _ in estimates] == [
         pytest.approx(result.p_rod_Pa[row - row % 5, 0], abs=500) for _, row in estimates
     ]
+
+
+def test_out_of_range_goes_beyond_a_dbc_range_that_ends_below_it(
+    result: SimulationResult, tmp_path: Path
+) -> None:
+    """A 250 bar transducer's DBC ([0|250] in 16 bits at 0.01 bar): --out-of-range's
+    45 MPa was clipped to 250 bar, a valid sample; now it goes out as 450 bar (what the
+    bits hold), beyond the DBC's range, and the service flags it."""
+    (tmp_path / "m.dbc").write_text(
+        dbc_text(
+            """
+BO_ 768 HYD: 4 Hub
+ SG_ pCap : 0|16@1+ (0.01,0) [0|250] "bar" DAQ
+ SG_ pRod : 16|16@1+ (0.01,0) [0|250] "bar" DAQ
+""",
+            'BA_ "GenMsgCycleTime" BO_ 768 10;\n',
+        )
+    )
+    (tmp_path / "m.toml").write_text(
+        '[machine]\nid = "m"\nmass_kg = 1000.0\ndbc = "m.dbc"\n'
+        + LEG_DEFAULTS_TOML
+        + '[legs.front]\npiston = "HYD.pCap"\nrod = "HYD.pRod"\n'
+    )
+    config, database = load_machine_config(tmp_path / "m.toml")
+    faults = FaultConfig(seed=1, out_of_range=(FaultWindow("front", 0.05, 0.05),))
+    playout = make_playout(result, faults, config=config, database=database)
+    pipeline = Pipeline.from_config(config, database)
+    estimates, sent_Pa = [], []
+    for instant in instants(schedule(playout.cycles, end_sim_ns=200_000_000)):
+        _, outgoing = playout.frames(instant)
+        for item in outgoing:
+            frame = item.frame
+            processed = pipeline.process(
+                RawFrame(instant.sim_t_ns / 1e9, frame.arbitration_id, False, frame.data)
+            )
+            estimates += processed.estimates
+            assert processed.decoded is not None
+            sent_Pa.append(processed.decoded.signals["pCap"])
+    assert [e.reasons for e in estimates] == [()] * 5 + [("range",)] * 5 + [()] * 10
+    assert sent_Pa[5:10] == [pytest.approx(45e6)] * 5  # on /signals; the estimate's is NaN

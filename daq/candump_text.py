@@ -1,0 +1,94 @@
+"""candump's readable output as a CAN log: what ``candump -ta can0 > trace.log`` writes.
+
+python-can reads the ``candump -L`` (``-l``) line, ``(TIME) INTERFACE ID#DATA``; candump
+prints frames for people otherwise, and that is what an integrator redirects to a file::
+
+     (1733100000.123456)  can0  100   [8]  46 12 08 07 00 00 00 1C
+     (1733100000.123456)  can0  18FF2021   [8]  08 07 00 00 00 00 00 00   '........'
+     (2024-12-02 05:44:01.908000)  can0  RX - -  100   [8]  46 12 08 07 00 00 00 1C
+
+:func:`dash_l_line` turns such a line (times ``-ta``, ``-tz``, ``-tA``; ``-a``'s ASCII
+column and ``-x``'s direction columns ignored) into the ``-L`` line python-can parses;
+an ``-L`` line passes as it is. A line without a time (plain ``candump can0``) cannot
+be replayed (every rule of the estimator judges frame times): ValueError saying which
+option writes one; so do ``-td``'s steps between frames, which :class:`CandumpReader`
+tells by times going backwards.
+
+>>> dash_l_line(" (1733100000.123456)  can0  100   [8]  46 12 08 07 00 00 00 1C  '........'")
+'(1733100000.123456) can0 100#461208070000001C\\n'
+>>> dash_l_line("(000.000000)  can1  18FF2021   [0]  remote request")
+'(000.000000) can1 18FF2021#R0\\n'
+"""
+
+import re
+from collections.abc import Generator, Iterator
+from datetime import datetime
+from typing import Any, TextIO, cast
+
+import can
+
+#: A readable candump line: time, interface, ``-x``'s direction columns, ID, [length], rest.
+_READABLE = re.compile(
+    r"\s*\((?P<time>[^)]*)\)\s+(?P<interface>\S+)\s+(?:[RT]X\s+\S+\s+\S+\s+)?"
+    r"(?P<id>[0-9A-Fa-f]{3}|[0-9A-Fa-f]{8})\s+\[(?P<length>\d{1,2})\]\s*(?P<rest>.*)"
+)
+#: The same without a time (plain ``candump can0``).
+_WITHOUT_TIME = re.compile(r"\s*\S+\s+(?:[RT]X\s+\S+\s+\S+\s+)?[0-9A-Fa-f]{3,8}\s+\[\d{1,2}\]")
+#: ``-tA``'s local date and time.
+_DATE_FORMAT = "%Y-%m-%d %H:%M:%S.%f"
+#: The most data a classic CAN frame carries; a longer one is a CAN FD frame.
+_CLASSIC_MAX_BYTES = 8
+
+_NEEDS_TIME = "candump -L (or -ta) writes the frame times a replay needs"
+
+
+def dash_l_line(line: str) -> str:
+    """``line`` as a ``candump -L`` line (unchanged if it is one, or blank)."""
+    match = _READABLE.match(line)
+    if match is None:
+        if "#" not in line and _WITHOUT_TIME.match(line):
+            raise ValueError(f"a candump line without a time: {_NEEDS_TIME}")
+        return line  # a -L line, or python-can's word on it
+    time = match["time"]
+    if "-" in time:  # -tA: local date and time
+        time = f"{datetime.strptime(time.strip(), _DATE_FORMAT).timestamp():.6f}"
+    length = int(match["length"])
+    rest = match["rest"]
+    if rest.startswith("remote request"):
+        data = f"R{length}"
+    else:
+        octets = rest.split()[:length]
+        if len(octets) != length or not all(re.fullmatch("[0-9A-Fa-f]{2}", o) for o in octets):
+            raise ValueError(f"[{length}] and its data bytes differ: {line.strip()!r}")
+        data = "".join(octets)
+        if length > _CLASSIC_MAX_BYTES:
+            data = "#0" + data
+    return f"({time}) {match['interface']} {match['id']}#{data}\n"
+
+
+class CandumpReader(can.CanutilsLogReader):
+    """python-can's candump reader that also reads candump's readable lines
+    (:func:`dash_l_line`); frame times going backwards in those are ``-td``'s steps."""
+
+    def __iter__(self) -> Generator[can.Message, None, None]:
+        original = self.file
+        self.file = cast(TextIO, self._dash_l_lines(original))
+        try:
+            yield from super().__iter__()
+        finally:
+            self.file = original
+
+    @staticmethod
+    def _dash_l_lines(lines: Any) -> Iterator[str]:
+        latest_s = None
+        for line in lines:
+            converted = dash_l_line(line)
+            if converted is not line:  # a readable line: its times must not go back
+                t_s = float(converted[1 : converted.index(")")])
+                if latest_s is not None and t_s < latest_s:
+                    raise ValueError(
+                        f"frame times go backwards ({latest_s:.6f} then {t_s:.6f}): "
+                        f"candump -td's steps between frames? {_NEEDS_TIME}"
+                    )
+                latest_s = t_s
+            yield converted

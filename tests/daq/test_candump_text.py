@@ -1,0 +1,100 @@
+"""candump's readable output (``candump -ta can0 > trace.log``) replayed as its ``-L``
+log is: python-can read only ``-L`` lines, so such a trace stopped at its first line."""
+
+import io
+import re
+from datetime import datetime
+from pathlib import Path
+
+import pytest
+
+from daq.candump_text import dash_l_line
+from daq.replay import replay
+from daq.replay_command import replay_main
+from tests.daq.test_foreign_logs import sim_log
+from tests.helpers import EXAMPLE_CONFIG
+
+_DASH_L = re.compile(r"\((?P<t>[^)]+)\) (?P<iface>\S+) (?P<id>\w+)#(?P<data>\w*)")
+
+
+def readable(log: Path, time_format: str = "a", extra: bool = False) -> str:
+    """The frames of the ``-L`` ``log`` as candump prints them with ``-t{time_format}``,
+    ``-a`` (and ``-x`` where ``extra``)."""
+    lines = []
+    for line in log.read_text().splitlines():
+        match = _DASH_L.match(line)
+        assert match is not None, line
+        data = bytes.fromhex(match["data"])
+        t_s = float(match["t"])
+        time = (
+            datetime.fromtimestamp(t_s).strftime("%Y-%m-%d %H:%M:%S.%f")
+            if time_format == "A"
+            else match["t"]
+        )
+        ascii_column = "".join(chr(b) if 0x20 <= b < 0x7F else "." for b in data)
+        octets = " ".join(f"{b:02X}" for b in data)
+        direction = "RX - -  " if extra else ""
+        lines.append(
+            f" ({time})  {match['iface']}  {direction}{match['id']:>3}   [{len(data)}]  "
+            f"{octets}   '{ascii_column}'"
+        )
+    return "\n".join(lines) + "\n"
+
+
+@pytest.mark.parametrize(("time_format", "extra"), [("a", False), ("a", True), ("A", False)])
+def test_a_readable_candump_trace_replays_as_its_dash_l_log(
+    tmp_path: Path, time_format: str, extra: bool
+) -> None:
+    log = sim_log(tmp_path, seconds=0.3)
+    trace = tmp_path / "trace.log"
+    trace.write_text(readable(log, time_format, extra))
+    expected, got = io.StringIO(), io.StringIO()
+    assert replay(log, expected, EXAMPLE_CONFIG) == replay(trace, got, EXAMPLE_CONFIG) == 6 * 30
+    assert got.getvalue() == expected.getvalue()
+
+
+def test_the_ascii_column_a_data_byte_0x23_prints_as_hash_is_no_dash_l_line() -> None:
+    line = " (1750000000.000000)  can0  100   [2]  23 41   '#A'"
+    assert dash_l_line(line) == "(1750000000.000000) can0 100#2341\n"
+
+
+@pytest.mark.parametrize(
+    ("line", "expected"),
+    [
+        ("(1.5)  can0  7FF   [0]  remote request", "(1.5) can0 7FF#R0\n"),
+        ("(1.5)  can0  123  [12]  " + "00 " * 12, "(1.5) can0 123##0" + "00" * 12 + "\n"),
+        ("(1.5) can0 100#0102", "(1.5) can0 100#0102"),  # -L passes
+    ],
+)
+def test_remote_fd_and_dash_l_lines(line: str, expected: str) -> None:
+    assert dash_l_line(line) == expected
+
+
+@pytest.mark.parametrize(
+    ("text", "reason"),
+    [
+        (
+            "  can0  100   [8]  00 00 00 00 00 00 00 00\n",
+            "unreadable after frame 0: a candump line without a time: candump -L (or -ta) "
+            "writes the frame times a replay needs",
+        ),
+        (
+            " (000.000000)  can0  100   [1]  00\n (000.010000)  can0  100   [1]  00\n"
+            " (000.000250)  can0  101   [1]  00\n",
+            "unreadable after frame 2: frame times go backwards (0.010000 then 0.000250): "
+            "candump -td's steps between frames? candump -L (or -ta) writes the frame times",
+        ),
+        (
+            " (1.000000)  can0  100   [8]  00 00 00\n",
+            "unreadable after frame 0: [8] and its data bytes differ: '(1.000000)  can0  100",
+        ),
+    ],
+)
+def test_a_trace_that_cannot_be_replayed_is_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], text: str, reason: str
+) -> None:
+    trace = tmp_path / "trace.log"
+    trace.write_text(text)
+    assert replay_main([str(trace), "--config", str(EXAMPLE_CONFIG)]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"portal-daq: {trace}: ") and reason in err[0], err
