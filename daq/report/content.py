@@ -4,9 +4,10 @@ Pure: :func:`analyse` turns a :class:`~daq.report.tracks.Recording` into a
 :class:`ReportContent`, which the figures (:mod:`daq.report.figures`) and the page
 (:mod:`daq.report.page`) only draw.
 
-Times shown: with ``MACHINE_STATE`` in the recording, the machine's time in cycle (as
-the paper's figures; a cycle played at half speed still spans its 45 s); without it,
-seconds since the first frame. The header keeps the wall-clock times.
+Times shown: with the machine state (``MACHINE_STATE``, or where ``[signals]`` puts it) in
+the recording, the machine's time in cycle (as the paper's figures; a cycle played at
+half speed still spans its 45 s); without it, seconds since the first frame. The header
+keeps the wall-clock times.
 """
 
 import math
@@ -56,8 +57,10 @@ class TimeAxis:
 
     #: The recording's first frame time.
     start_t_s: float
-    #: Time in cycle from ``MACHINE_STATE``; None: seconds since ``start_t_s``.
+    #: Time in cycle from the machine state; None: seconds since ``start_t_s``.
     clock: CycleClock | None
+    #: The machine state's message (``[signals]``), for the label.
+    state_message: str = "MACHINE_STATE"
 
     def __call__(self, t_s: FloatArray) -> FloatArray:
         if self.clock is not None:
@@ -80,7 +83,7 @@ class TimeAxis:
     @property
     def label(self) -> str:
         if self.clock is not None:
-            return "time in cycle / s (MACHINE_STATE)"
+            return f"time in cycle / s ({self.state_message})"
         start = datetime.fromtimestamp(self.start_t_s, UTC)
         return f"time since {log_time(self.start_t_s) or f'{start:%Y-%m-%d %H:%M:%S} UTC'} / s"
 
@@ -154,7 +157,7 @@ def analyse(recording: Recording) -> ReportContent:
         deviations=deviations,
         swing_deviations={leg: deviation_stats(c, stance=False) for leg, c in comparisons.items()},
         most_loaded=most_loaded(deviations),
-        time=TimeAxis(recording.start_t_s, clock),
+        time=TimeAxis(recording.start_t_s, clock, recording.state_signals.message),
     )
 
 

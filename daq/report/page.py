@@ -176,11 +176,12 @@ def render_page(content: ReportContent, pictures: Mapping[str, Picture]) -> str:
     truth, ``comparison`` and ``deviation``."""
     recording = content.recording
     settings = content.settings
+    state = recording.state_signals
     times = (
-        "Times in s of the machine's time in cycle (MACHINE_STATE), as in the paper's "
+        f"Times in s of the machine's time in cycle ({state.message}), as in the paper's "
         "figures; the wall clock is in the header."
         if content.time.in_cycle
-        else "Times in s since the first frame (no MACHINE_STATE recorded)."
+        else f"Times in s since the first frame (no {state.message} recorded)."
     )
     parts = [
         "<!DOCTYPE html>",
@@ -205,7 +206,7 @@ def render_page(content: ReportContent, pictures: Mapping[str, Picture]) -> str:
     parts += [_picture(pictures[role]) for role in ("pressure", "force") if role in pictures]
     parts += [
         "<h2>Soil pressure per cycle</h2>",
-        "<p class=note>Cycles from MACHINE_STATE (Machine_CycleCount); without it the whole "
+        f"<p class=note>Cycles from {state.message} ({state.cycle_count}); without it the whole "
         f"recording is one. Near-constant: the highest mean over a sliding "
         f"{settings.near_constant_window_s:g} s window (needs a cycle of at least that "
         f"long); time above the limit of {settings.pressure_limit_Pa / 1e3:g} kPa. "

@@ -298,6 +298,11 @@ class Recording:
     def duration_s(self) -> float:
         return max(0.0, self.end_t_s - self.start_t_s)
 
+    @property
+    def state_signals(self) -> StateSignals:
+        """Where the machine state was read from (its names where the DBC has none)."""
+        return StateSignals.of(self.machine) or StateSignals()
+
 
 class RecordingCollector:
     """Gathers a recording's messages; :meth:`recording` builds the :class:`Recording`.

@@ -15,7 +15,9 @@ import pytest
 from daq.frames import RawFrame
 from daq.mcap_file import CONFIG_ATTACHMENT, DBC_ATTACHMENT, McapFile
 from daq.pipeline import Pipeline
+from daq.report.content import analyse
 from daq.report.loading import load_recording
+from daq.report.page import render_page
 from dbc.machine import load_machine_config
 from sim_bridge.__main__ import cli
 from sim_bridge.faults import FaultConfig
@@ -141,6 +143,11 @@ def test_a_recording_of_it_finds_them_by_its_embedded_config(tmp_path: Path) -> 
                     1000.0 + instant.sim_t_ns / 1e9, frame.arbitration_id, False, frame.data
                 )
                 mcap.write_result(pipeline.process(raw))
-    state = load_recording(path).state
+    recording = load_recording(path)
+    state = recording.state
     assert list(state.phase) == [PHASES[i] for i in result.phase[::10]]
     assert list(state.cycle_count) == [0] * 10
+    # the page names where the cycles came from
+    content = analyse(recording)
+    assert content.time.in_cycle and content.time.label == "time in cycle / s (VEHICLE_STATE)"
+    assert "Cycles from VEHICLE_STATE (StepCount)" in render_page(content, {})
