@@ -28,7 +28,9 @@ fault hits the same frames at any ``--speed``. The faults and their command-line
     DBC range ending below it does not clip it (the service judges that range too), only
     what the signal's bits hold does.
 ``--sensor-fault LEG@START:DURATION``
-    The leg's status signal says ``sensor_fault`` (``status_sensor_fault``).
+    The leg's status signal says ``sensor_fault`` (``status_sensor_fault``), or where its
+    value table has none, the value naming a fault (:func:`fault_status`: ``Fault``,
+    ``Error``, ...; ``status_Error``).
 ``--pause START:DURATION``
     Nothing at all is sent in the window (a bus-off, a pulled connector); ground truth is
     still written. Counters resume where they stopped.
@@ -63,6 +65,27 @@ from sim_bridge.senders import message_of
 SOURCE = "fault flags"
 #: Status value-table name that ``--sensor-fault`` sends.
 SENSOR_FAULT_STATUS = "sensor_fault"
+#: Words of a status value naming a fault, for a DBC without ``sensor_fault`` (in order).
+FAULT_WORDS = ("fault", "error", "fail")
+
+
+def fault_status(names: frozenset[str]) -> str | None:
+    """The status value a sensor fault sends, of a leg's value-table ``names``:
+    ``sensor_fault``, else the first (in name order) with a word of :data:`FAULT_WORDS`
+    in it (a held-out DBC's ``Fault``, ``SensorError``); None if none names a fault.
+
+    >>> fault_status(frozenset({"Ok", "Warning", "Error", "NotAvailable"}))
+    'Error'
+    >>> fault_status(frozenset({"ok", "busy"})) is None
+    True
+    """
+    if SENSOR_FAULT_STATUS in names:
+        return SENSOR_FAULT_STATUS
+    for word in FAULT_WORDS:
+        found = sorted(name for name in names if word in name.lower())
+        if found:
+            return found[0]
+    return None
 
 
 @dataclass(frozen=True, slots=True)
@@ -206,14 +229,20 @@ class FaultInjector:
         ):
             for window in windows:
                 _check_leg(flag, window, targets)
+        #: Leg -> the status value a sensor fault sends (:func:`fault_status`).
+        self._fault_status: dict[str, str] = {}
         for window in faults.sensor_fault:
-            if SENSOR_FAULT_STATUS not in targets.leg_status_names.get(window.target, ()):
+            names = targets.leg_status_names.get(window.target, frozenset())
+            status = fault_status(names)
+            if status is None:
                 raise ConfigError(
                     SOURCE,
                     f"--sensor-fault {window}",
-                    f"leg {window.target} has no status signal with a {SENSOR_FAULT_STATUS!r} "
-                    "value in the DBC",
+                    f"leg {window.target} has no status value naming a fault in the DBC "
+                    f"({SENSOR_FAULT_STATUS!r}, or one with {' or '.join(FAULT_WORDS)} in its "
+                    f"name); its status values: {', '.join(sorted(names)) or 'none'}",
                 )
+            self._fault_status[window.target] = status
         self._random = bool(faults.drop_probability or faults.bad_crc_probability)
         #: Stuck window index -> the (piston, rod) pressures it holds.
         self._held: dict[int, tuple[float, float]] = {}
@@ -275,7 +304,7 @@ class FaultInjector:
         for window in faults.sensor_fault:
             if window.active(sim_t_ns):
                 p_piston, p_rod, _ = current(window.target)
-                changed[window.target] = (p_piston, p_rod, SENSOR_FAULT_STATUS)
+                changed[window.target] = (p_piston, p_rod, self._fault_status[window.target])
         return {
             leg: LegOverride(*values, piston_beyond_range=leg in beyond)
             for leg, values in changed.items()

@@ -265,15 +265,17 @@ class FrameBuilder:
         }
 
     def leg_status_names(self) -> dict[str, frozenset[str]]:
-        """Leg -> the names in its status signals' value tables (empty without one)."""
-        names: dict[str, set[str]] = {}
+        """Leg -> the names every status signal of the leg has in its value table (what
+        a fault may set them all to; empty without a status signal, or one without a
+        value table)."""
+        names: dict[str, frozenset[str]] = {}
         for plan in self._plans.values():
             for chamber in plan.chambers:
-                choices = chamber.status.choices if chamber.status is not None else None
-                names.setdefault(chamber.leg, set()).update(
-                    str(choice) for choice in (choices or {}).values()
-                )
-        return {leg: frozenset(values) for leg, values in names.items()}
+                if chamber.status is None:
+                    continue
+                choices = frozenset(str(c) for c in (chamber.status.choices or {}).values())
+                names[chamber.leg] = names.get(chamber.leg, choices) & choices
+        return names
 
     @property
     def messages(self) -> list[str]:

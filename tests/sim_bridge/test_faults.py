@@ -1,13 +1,19 @@
 """Each injected fault has the effect it claims, as the project's decoder and estimator see it."""
 
+from pathlib import Path
+
 import pytest
 
+from daq.frames import RawFrame
+from daq.pipeline import Pipeline
 from dbc.errors import ConfigError
+from dbc.machine import load_machine_config
 from dbc.samples import LegSampler
 from estimator import LegEstimator
 from sim_bridge.faults import FaultConfig, FaultInjector, FaultTargets, FaultWindow
 from sim_bridge.result import LEGS, SimulationResult
 from sim_bridge.schedule import instants, schedule
+from tests.helpers import LEG_DEFAULTS_TOML, dbc_text
 from tests.sim_bridge.synthetic import CONFIG, frames_of, make_playout, make_result, play
 
 W = FaultWindow.parse
@@ -176,10 +182,50 @@ def test_unknown_targets_are_refused_by_name(faults: FaultConfig, message: str) 
         FaultInjector(faults, targets)
 
 
-def test_a_sensor_fault_needs_a_status_value() -> None:
-    targets = FaultTargets(("LEG_SB1_F1",), {"SB1_F1": "LEG_SB1_F1"}, {"SB1_F1": frozenset()})
-    with pytest.raises(ConfigError, match="no status signal with a 'sensor_fault' value"):
+def test_a_sensor_fault_needs_a_status_value_naming_a_fault() -> None:
+    names = frozenset({"ok", "busy"})
+    targets = FaultTargets(("LEG_SB1_F1",), {"SB1_F1": "LEG_SB1_F1"}, {"SB1_F1": names})
+    with pytest.raises(ConfigError) as refused:
         FaultInjector(FaultConfig(sensor_fault=(W("SB1_F1@1:1"),)), targets)
+    assert refused.value.reason == (
+        "leg SB1_F1 has no status value naming a fault in the DBC ('sensor_fault', or one "
+        "with fault or error or fail in its name); its status values: busy, ok"
+    )
+
+
+def test_a_sensor_fault_sends_the_value_a_held_out_dbc_names_a_fault_with(
+    result: SimulationResult, tmp_path: Path
+) -> None:
+    """A status table of Ok, Warning, Error, NotAvailable (J1939 transducers'): the flag
+    was refused for want of 'sensor_fault'; now it sends Error, which the service flags."""
+    (tmp_path / "m.dbc").write_text(
+        dbc_text(
+            """
+BO_ 768 HYD: 5 Hub
+ SG_ pCap : 0|16@1+ (0.01,0) [0|600] "bar" DAQ
+ SG_ pRod : 16|16@1+ (0.01,0) [0|600] "bar" DAQ
+ SG_ Stat : 32|2@1+ (1,0) [0|3] "" DAQ
+""",
+            'BA_ "GenMsgCycleTime" BO_ 768 10;\n'
+            'VAL_ 768 Stat 0 "Ok" 1 "Warning" 2 "Error" 3 "NotAvailable" ;\n',
+        )
+    )
+    (tmp_path / "m.toml").write_text(
+        '[machine]\nid = "m"\nmass_kg = 1000.0\ndbc = "m.dbc"\n[sensors]\nstatus_ok = "Ok"\n'
+        + LEG_DEFAULTS_TOML
+        + '[legs.front]\npiston = "HYD.pCap"\nrod = "HYD.pRod"\nstatus = "HYD.Stat"\n'
+    )
+    config, database = load_machine_config(tmp_path / "m.toml")
+    faults = FaultConfig(seed=1, sensor_fault=(W("front@0.05:0.05"),))
+    playout = make_playout(result, faults, config=config, database=database)
+    pipeline = Pipeline.from_config(config, database)
+    reasons = []
+    for instant in instants(schedule(playout.cycles, end_sim_ns=200_000_000)):
+        for item in playout.frames(instant)[1]:
+            frame = item.frame
+            raw = RawFrame(instant.sim_t_ns / 1e9, frame.arbitration_id, False, frame.data)
+            reasons += [e.reasons for e in pipeline.process(raw).estimates]
+    assert reasons == [()] * 5 + [("status_Error",)] * 5 + [()] * 10
 
 
 @pytest.mark.parametrize("probability", [-0.1, 1.5])
