@@ -497,11 +497,12 @@ def _chamber(
     if pressure_factor_to_Pa(unit) is None:
         where = "unit" if "unit" in chamber else signal_key
         if is_absolute(unit):  # asking for the gauge unit would read it ~1 bar high
+            whose = "" if "unit" in chamber else f"signal {message.name}.{signal_name}'s "
             raise chamber.error(
                 where,
-                f"signal {message.name}.{signal_name} has unit {unit!r}, an absolute "
-                "pressure: eq. (4) takes gauge pressures (about 1 bar less); set unit = "
-                "its gauge unit only if the transducer sends gauge pressure",
+                f"{whose}unit {unit!r} is an absolute pressure: eq. (4) takes gauge "
+                "pressures (about 1 bar less); set unit = its gauge unit only if the "
+                "transducer sends gauge pressure",
             )
         raise chamber.error(
             where,

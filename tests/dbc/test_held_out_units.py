@@ -62,9 +62,20 @@ def test_an_absolute_unit_is_refused_as_absolute(tmp_path: Path) -> None:
         load_machine_config(_rear_in(tmp_path, "bar abs"))
     assert refused.value.key == "legs.RL.piston"
     assert refused.value.reason == (
-        "signal HUB_REAR.RL_pCap has unit 'bar abs', an absolute pressure: eq. (4) takes "
+        "signal HUB_REAR.RL_pCap's unit 'bar abs' is an absolute pressure: eq. (4) takes "
         "gauge pressures (about 1 bar less); set unit = its gauge unit only if the "
         "transducer sends gauge pressure"
+    )
+    override = _rear_in(tmp_path, "bar")
+    text = override.read_text().replace(
+        'rod = "HUB_REAR.RL_pRod"', 'rod = { signal = "HUB_REAR.RL_pRod", unit = "psia" }'
+    )
+    override.write_text(text)
+    with pytest.raises(ConfigError) as refused:
+        load_machine_config(override)
+    assert (refused.value.key, refused.value.reason.split(":")[0]) == (
+        "legs.RL.rod.unit",
+        "unit 'psia' is an absolute pressure",
     )
 
 
