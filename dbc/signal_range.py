@@ -58,7 +58,6 @@ def named_values(signal: Signal, j1939: bool) -> dict[str, float]:
         to two raw values names no one value.
 
         >>> from cantools.database.can import Signal
-    from cantools.database.namedsignalvalue import NamedSignalValue
         >>> from cantools.database.conversion import BaseConversion
         >>> conversion = BaseConversion.factory(0.01, 0, {0: "Zero", 65535: "SNA"})
         >>> p = Signal("p", 0, 16, conversion=conversion, minimum=0, maximum=642.55)

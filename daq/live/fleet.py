@@ -13,13 +13,13 @@ the single-machine views). A machine that comes back is live again.
 
 >>> from daq.live.feed import Item
 >>> fleet = FleetState(FleetSettings("portal"))
->>> fleet.apply(Item("portal/m1/alive", b"", 1.0, False, True))
+>>> fleet.apply(Item("portal/m1/alive", b"", 1.0, True))
 True
->>> fleet.apply(Item("portal/m1/status", b'{"healthy": true}', 1.0, False))
+>>> fleet.apply(Item("portal/m1/status", b'{"healthy": true}', 1.0))
 True
 >>> [(m.machine_id, m.state) for m in fleet.summaries(now_s=1.5)]
 [('m1', 'waiting')]
->>> fleet.apply(Item("portal/m1/alive", b"", 2.0, False, False))
+>>> fleet.apply(Item("portal/m1/alive", b"", 2.0, False))
 True
 >>> [(m.machine_id, m.state, m.gone_for_s) for m in fleet.summaries(now_s=2.5)]
 [('m1', 'gone', 0.5)]
