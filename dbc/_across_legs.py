@@ -13,7 +13,7 @@ from cantools.database.can import Database
 
 from dbc.decoding import is_j1939
 from dbc.toml_table import TomlTable
-from dbc.units import pressure_factor_to_Pa
+from dbc.units import chamber_unit, pressure_factor_to_Pa
 
 if TYPE_CHECKING:
     from dbc.machine import ChamberSignal, LegConfig
@@ -137,15 +137,21 @@ def unit_factors(
                 factors.setdefault(message.name, {})[signal.name] = factor
     # (message, signal) -> [(source address, factor, unit, leg, chamber key)]
     readers: dict[tuple[str, str], list[tuple[int | None, float, str, str, str]]] = {}
+    # (message, signal) -> whether each chamber reading it is absolute, by source address
+    absolute: dict[tuple[str, str], dict[int | None, bool]] = {}
     for leg in legs.values():
         for key, chamber in _chambers(leg):
-            factor = pressure_factor_to_Pa(chamber.unit)
-            assert factor is not None  # checked when the chamber was read
+            unit_in_Pa = chamber_unit(chamber.unit)
+            assert unit_in_Pa is not None  # checked when the chamber was read
+            factor = unit_in_Pa[0]
             address = chamber.source_address
+            readings = absolute.setdefault((chamber.message, chamber.signal), {})
+            readings[address] = bool(chamber.atmosphere_Pa)
             others = readers.setdefault((chamber.message, chamber.signal), [])
             for other_address, other_factor, other_unit, other_leg, other_key in others:
                 pinned = None not in (address, other_address)
-                if other_factor == factor or (pinned and address != other_address):
+                same = other_factor == factor and chamber_unit(other_unit) == unit_in_Pa
+                if same or (pinned and address != other_address):
                     continue
                 sender = (
                     f"both from 0x{address:02X}"
@@ -186,7 +192,17 @@ def unit_factors(
                 f"Pa from {addresses}; other senders as sent ({unit or 'no unit'} in the DBC)"
             )
     for message_name, signal_name in in_Pa:
-        if _dbc_unit(database, message_name, signal_name) != "Pa":
+        readings = absolute.get((message_name, signal_name), {})
+        if readings and all(readings.values()):
+            units.setdefault(message_name, {})[signal_name] = "Pa absolute"
+        elif any(readings.values()):
+            addresses = ", ".join(
+                "other senders" if address is None else f"0x{address:02X}"
+                for address, is_absolute in readings.items()
+                if is_absolute
+            )
+            units.setdefault(message_name, {})[signal_name] = f"Pa; absolute from {addresses}"
+        elif _dbc_unit(database, message_name, signal_name) != "Pa":
             units.setdefault(message_name, {})[signal_name] = "Pa"
     return {name: table for name, table in factors.items() if table}, by_sender, units
 

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from cantools.database.can import Database, Message, Signal
+from cantools.database.can import Database, Message
 
 from dbc import DEFAULT_DBC_PATH, _across_legs
 from dbc.database import load_database, unsound
@@ -30,12 +30,7 @@ from dbc.protection import CRC_ALGORITHMS, DEFAULT_CRC_ALGORITHM, Protection, co
 from dbc.signal_range import decoded_bounds, named_values, value_range
 from dbc.stability_config import StabilityConfig, angle_signal, parse_stability
 from dbc.toml_table import TomlTable
-from dbc.units import (
-    ACCEPTED_PRESSURE_UNITS,
-    angle_factor_to_rad,
-    is_absolute,
-    pressure_factor_to_Pa,
-)
+from dbc.units import ACCEPTED_PRESSURE_UNITS, angle_factor_to_rad, chamber_unit
 from estimator.geometry import LegGeometry
 from estimator.settings import EstimatorSettings
 
@@ -166,6 +161,10 @@ class ChamberSignal:
     #: (``0 "Zero"``), by name, Pa; any other name in its place is a code: NaN
     #: (:func:`dbc.signal_range.named_values`).
     named_Pa: Mapping[str, float] = field(default_factory=dict)
+    #: What the decoded pressure (Pa) is above the gauge pressure eq. (4) takes: the
+    #: standard atmosphere for a transducer sending absolute pressure (``bara``, ``kPa
+    #: abs``), else 0. ``range_Pa`` and ``named_Pa`` are gauge pressures, as the samples.
+    atmosphere_Pa: float = 0.0
 
     def __str__(self) -> str:
         where = f"{self.message}.{self.signal}"
@@ -494,16 +493,9 @@ def _chamber(
     source_address = _source_address(chamber, message, database)
     signal = message.get_signal_by_name(signal_name)
     unit = chamber.string("unit") if "unit" in chamber else (signal.unit or "")
-    if pressure_factor_to_Pa(unit) is None:
+    in_Pa = chamber_unit(unit)
+    if in_Pa is None:
         where = "unit" if "unit" in chamber else signal_key
-        if is_absolute(unit):  # asking for the gauge unit would read it ~1 bar high
-            whose = "" if "unit" in chamber else f"signal {message.name}.{signal_name}'s "
-            raise chamber.error(
-                where,
-                f"{whose}unit {unit!r} is an absolute pressure: eq. (4) takes gauge "
-                "pressures (about 1 bar less); set unit = its gauge unit only if the "
-                "transducer sends gauge pressure",
-            )
         raise chamber.error(
             where,
             f"signal {message.name}.{signal_name} has unit {unit!r}, not a pressure unit; "
@@ -531,7 +523,9 @@ def _chamber(
         status = _status_check(chamber, "status_ok", message, status_signal, chamber_ok)
     elif "status_ok" in chamber:
         raise chamber.error("status_ok", "given without a status signal")
-    range_Pa, named_Pa = _in_Pa(signal, unit, is_j1939(message))
+    factor, atmosphere_Pa = in_Pa
+    low, high = value_range(signal, is_j1939(message))
+    named = named_values(signal, is_j1939(message))
     return ChamberSignal(
         message=message.name,
         signal=signal_name,
@@ -540,19 +534,10 @@ def _chamber(
         status=status,
         cycle_time_s=_cycle_time_s(chamber, signal_key, message, source_address, cycle_times_ms),
         mux_ids=_mux_ids(message, signal_name),
-        range_Pa=range_Pa,
-        named_Pa=named_Pa,
+        range_Pa=(low * factor - atmosphere_Pa, high * factor - atmosphere_Pa),
+        named_Pa={name: value * factor - atmosphere_Pa for name, value in named.items()},
+        atmosphere_Pa=atmosphere_Pa,
     )
-
-
-def _in_Pa(signal: Signal, unit: str, j1939: bool) -> tuple[tuple[float, float], dict[str, float]]:
-    """The values the signal may take (:func:`dbc.signal_range.value_range`) and its
-    value-table entries naming a pressure (:func:`dbc.signal_range.named_values`), in Pa."""
-    factor = pressure_factor_to_Pa(unit)
-    assert factor is not None  # checked by the caller
-    low, high = value_range(signal, j1939)
-    named = named_values(signal, j1939)
-    return (low * factor, high * factor), {name: v * factor for name, v in named.items()}
 
 
 def _mux_ids(message: Message, signal_name: str) -> tuple[int, ...] | None:

@@ -41,6 +41,9 @@ class _Paired:
     #: Their value-table names of pressures, Pa (:attr:`ChamberSignal.named_Pa`).
     piston_named_Pa: Mapping[str, float]
     rod_named_Pa: Mapping[str, float]
+    #: Subtracted for gauge pressure, Pa (:attr:`ChamberSignal.atmosphere_Pa`).
+    piston_atmosphere_Pa: float
+    rod_atmosphere_Pa: float
 
 
 @dataclass(frozen=True, slots=True)
@@ -91,6 +94,8 @@ class LegSampler:
                         rod.range_Pa,
                         piston.named_Pa,
                         rod.named_Pa,
+                        piston.atmosphere_Pa,
+                        rod.atmosphere_Pa,
                     )
                 )
                 continue
@@ -124,8 +129,15 @@ class LegSampler:
                 leg.leg,
                 LegSample(
                     t_s,
-                    _pressure_Pa(signals[leg.piston], leg.piston_range_Pa, leg.piston_named_Pa),
-                    _pressure_Pa(signals[leg.rod], leg.rod_range_Pa, leg.rod_named_Pa),
+                    _pressure_Pa(
+                        signals[leg.piston],
+                        leg.piston_range_Pa,
+                        leg.piston_named_Pa,
+                        leg.piston_atmosphere_Pa,
+                    ),
+                    _pressure_Pa(
+                        signals[leg.rod], leg.rod_range_Pa, leg.rod_named_Pa, leg.rod_atmosphere_Pa
+                    ),
                     _with_status(faults, leg.statuses, signals) if leg.statuses else faults,
                 ),
             )
@@ -148,7 +160,10 @@ class LegSampler:
             self._latest[(route.leg.name, route.chamber)] = _Reading(
                 t_s,
                 _pressure_Pa(
-                    signals[route.signal.signal], route.signal.range_Pa, route.signal.named_Pa
+                    signals[route.signal.signal],
+                    route.signal.range_Pa,
+                    route.signal.named_Pa,
+                    route.signal.atmosphere_Pa,
                 ),
                 chamber_faults,
             )
@@ -176,15 +191,19 @@ class LegSampler:
 
 
 def _pressure_Pa(
-    value: SignalValue, range_Pa: tuple[float, float], named_Pa: Mapping[str, float]
+    value: SignalValue,
+    range_Pa: tuple[float, float],
+    named_Pa: Mapping[str, float],
+    atmosphere_Pa: float,
 ) -> float:
-    """A decoded chamber pressure; NaN, which the estimator judges out of range, for a
-    code the DBC says is no pressure: a value-table name in its place (a transducer's "not
-    available" or "error") other than one naming a pressure in the signal's range
-    (``named_Pa``: ``0 "Zero"`` is 0 Pa), or a value outside that range (a code unnamed)."""
+    """A decoded chamber pressure as gauge pressure (less ``atmosphere_Pa``, for an
+    absolute transducer); NaN, which the estimator judges out of range, for a code the DBC
+    says is no pressure: a value-table name in its place (a transducer's "not available"
+    or "error") other than one naming a pressure in the signal's range (``named_Pa``: ``0
+    "Zero"`` is 0 Pa), or a value outside that range (a code unnamed)."""
     if isinstance(value, str):
         return named_Pa.get(value, math.nan)
-    p_Pa = float(value)
+    p_Pa = float(value) - atmosphere_Pa
     return p_Pa if range_Pa[0] <= p_Pa <= range_Pa[1] else math.nan
 
 

@@ -48,21 +48,21 @@ def decoded_bounds(signal: Signal) -> tuple[float, float]:
 
 def named_values(signal: Signal, j1939: bool) -> dict[str, float]:
     """The entries of ``signal``'s value table that name a measurement, by name: their
-        physical value, in its DBC unit.
+    physical value, in its DBC unit.
 
-        An entry is a measurement where its value lies inside the range the DBC declares
-        (``[min|max]``, and J1939's valid range in a J1939 message: :func:`value_range`),
-        e.g. ``0 "Zero"`` of a pressure in ``[0|642.55]``; else it is a code ("not
-        available", "error", usually at the top of the raw range). Without a declared range
-        (``[0|0]``) every entry is a code: nothing tells a code from a value. A name given
-        to two raw values names no one value.
+    An entry is a measurement where its value lies inside the range the DBC declares
+    (``[min|max]``, and J1939's valid range in a J1939 message: :func:`value_range`),
+    e.g. ``0 "Zero"`` of a pressure in ``[0|642.55]``; else it is a code ("not
+    available", "error", usually at the top of the raw range). Without a declared range
+    (``[0|0]``) every entry is a code: nothing tells a code from a value. A name given
+    to two raw values names no one value.
 
-        >>> from cantools.database.can import Signal
-        >>> from cantools.database.conversion import BaseConversion
-        >>> conversion = BaseConversion.factory(0.01, 0, {0: "Zero", 65535: "SNA"})
-        >>> p = Signal("p", 0, 16, conversion=conversion, minimum=0, maximum=642.55)
-        >>> named_values(p, j1939=False)
-        {'Zero': 0.0}
+    >>> from cantools.database.can import Signal
+    >>> from cantools.database.conversion import BaseConversion
+    >>> conversion = BaseConversion.factory(0.01, 0, {0: "Zero", 65535: "SNA"})
+    >>> p = Signal("p", 0, 16, conversion=conversion, minimum=0, maximum=642.55)
+    >>> named_values(p, j1939=False)
+    {'Zero': 0.0}
     """
     if not signal.choices or signal.minimum is None or signal.maximum is None:
         return {}

@@ -18,8 +18,9 @@ True
 A unit marked gauge (``psig``, ``barg``, ``bar(g)``, ``kPa gauge``; German DBCs write
 relative pressure ``bar rel``, ``bar(ü)`` for *Überdruck*) is that unit: the chamber
 pressures are gauge pressures. An absolute one (``bara``, ``psia``, ``kPa abs``) is none
-of these units (it is off by the atmosphere's ~1 bar): :func:`is_absolute` tells it, so
-an error can say so rather than ask for the gauge unit, which would read it 1 bar high.
+of these units (it is off by the atmosphere's ~1 bar): :func:`is_absolute` tells it. A
+chamber's transducer may send absolute pressure: :func:`chamber_unit` gives the factor
+and the standard atmosphere to subtract, since eq. (4) takes gauge pressures.
 
 >>> pressure_factor_to_Pa("psi(g)") == pressure_factor_to_Pa("PSIG") == 6894.757293168361
 True
@@ -27,9 +28,16 @@ True
 True
 >>> pressure_factor_to_Pa("bara") is None and is_absolute("bara")
 True
+>>> chamber_unit("bara"), chamber_unit("bar"), chamber_unit("m")
+((100000.0, 101325.0), (100000.0, 0.0), None)
 """
 
 import math
+
+#: The standard atmosphere, Pa: what a chamber's absolute pressure is above its gauge
+#: pressure. The real one varies by a few per cent with weather and height (~11 kPa at
+#: 1,000 m): on a foot force that is the rod's cross-section times it, a few newtons.
+STANDARD_ATMOSPHERE_PA = 101_325.0
 
 #: Accepted pressure units (lower case) and what one of them is in Pa.
 PRESSURE_UNITS_TO_PA: dict[str, float] = {
@@ -72,6 +80,17 @@ def pressure_factor_to_Pa(unit: str) -> float | None:
 def is_absolute(unit: str) -> bool:
     """``unit`` is a pressure unit marked absolute (``bara``, ``psia``, ``kPa abs``)."""
     return pressure_factor_to_Pa(unit) is None and _factor_marked(unit, ABSOLUTE_MARKS) is not None
+
+
+def chamber_unit(unit: str) -> tuple[float, float] | None:
+    """A chamber transducer's ``unit``: (Pa per one ``unit``, Pa to subtract for gauge
+    pressure: :data:`STANDARD_ATMOSPHERE_PA` for an absolute unit, else 0); None if it is
+    no pressure unit."""
+    factor = pressure_factor_to_Pa(unit)
+    if factor is not None:
+        return factor, 0.0
+    factor = _factor_marked(unit, ABSOLUTE_MARKS)
+    return None if factor is None else (factor, STANDARD_ATMOSPHERE_PA)
 
 
 def _factor_marked(unit: str, marks: tuple[str, ...]) -> float | None:

@@ -46,7 +46,7 @@ from dbc.errors import ConfigError
 from dbc.machine import TRIGGERS, ChamberSignal, LegConfig, MachineConfig
 from dbc.protection import Protection
 from dbc.signal_range import decoded_bounds
-from dbc.units import pressure_factor_to_Pa
+from dbc.units import chamber_unit
 from sim_bridge.getters import Getter, configured_getters, in_angle_unit, named_getters
 from sim_bridge.leg_map import LegMap, leg_map
 from sim_bridge.result import SimulationResult
@@ -123,6 +123,9 @@ class _ChamberSignals:
     pressure: Signal
     #: Factor from the pressure signal's DBC unit to Pa.
     to_Pa: float
+    #: Added to the simulation's gauge pressure: the atmosphere, for an absolute
+    #: transducer (:attr:`dbc.machine.ChamberSignal.atmosphere_Pa`).
+    atmosphere_Pa: float
     status: Signal | None
     #: What the status signal says when the sensor is fine.
     status_nominal: SignalValue
@@ -324,6 +327,7 @@ class FrameBuilder:
                 p_Pa = override.p_piston_Pa if piston else override.p_rod_Pa
                 status = override.status or chamber.status_nominal
                 in_range = not (piston and override.piston_beyond_range)
+            p_Pa += chamber.atmosphere_Pa
             values[chamber.pressure.name] = clip(chamber.pressure, p_Pa, chamber.to_Pa, in_range)
             if chamber.status is not None:
                 values[chamber.status.name] = status
@@ -372,8 +376,8 @@ def clip(
 def _chamber_signals(
     message: Message, leg: LegConfig, column: int, chamber: str, mapped: ChamberSignal
 ) -> _ChamberSignals:
-    factor = pressure_factor_to_Pa(mapped.unit)
-    assert factor is not None  # the config loader checked the unit
+    in_Pa = chamber_unit(mapped.unit)
+    assert in_Pa is not None  # the config loader checked the unit
     status = mapped.status
     return _ChamberSignals(
         leg=leg.name,
@@ -381,7 +385,8 @@ def _chamber_signals(
         chamber=chamber,
         triggers=chamber == leg.trigger,
         pressure=message.get_signal_by_name(mapped.signal),
-        to_Pa=factor,
+        to_Pa=in_Pa[0],
+        atmosphere_Pa=mapped.atmosphere_Pa,
         status=message.get_signal_by_name(status.signal) if status is not None else None,
         status_nominal=status.nominal if status is not None else 0,
     )

@@ -1,6 +1,6 @@
 """Pressure units as held-out DBCs spell them (dbc/units.py): German relative pressure
 ("bar(ü)", "bar rel"), bracketed units, base units spelled out, and absolute units, which
-are refused with a reason that does not send the integrator to the gauge unit."""
+are read as gauge pressures (less the standard atmosphere)."""
 
 from pathlib import Path
 
@@ -9,9 +9,8 @@ import pytest
 from daq.frames import RawFrame
 from daq.pipeline import Pipeline
 from dbc.database import load_database_bytes
-from dbc.errors import ConfigError
 from dbc.machine import load_machine_config
-from dbc.units import is_absolute, pressure_factor_to_Pa
+from dbc.units import STANDARD_ATMOSPHERE_PA, is_absolute, pressure_factor_to_Pa
 from tests.dbc.test_held_out_machines import PSI_PA, STRANGER, _hub_frame, eq4_N
 
 
@@ -55,28 +54,36 @@ def test_a_german_relative_pressure_unit_is_bar(tmp_path: Path) -> None:
     assert estimate.force_raw_N == pytest.approx(eq4_N(150e5, 20e5), rel=1e-12)
 
 
-def test_an_absolute_unit_is_refused_as_absolute(tmp_path: Path) -> None:
-    """It was "not a pressure unit; set unit = one of ... bar ...": set so, every
-    pressure would be read ~1 bar high."""
-    with pytest.raises(ConfigError) as refused:
-        load_machine_config(_rear_in(tmp_path, "bar abs"))
-    assert refused.value.key == "legs.RL.piston"
-    assert refused.value.reason == (
-        "signal HUB_REAR.RL_pCap's unit 'bar abs' is an absolute pressure: eq. (4) takes "
-        "gauge pressures (about 1 bar less); set unit = its gauge unit only if the "
-        "transducer sends gauge pressure"
+def test_an_absolute_unit_is_read_as_gauge_pressure(tmp_path: Path) -> None:
+    """An absolute transducer's pressure less the standard atmosphere: eq. (4) takes gauge
+    pressures. It was refused (and "set unit = bar" would have read it ~1 bar high)."""
+    config, database = load_machine_config(_rear_in(tmp_path, "bar abs"))
+    assert (config.legs["RL"].piston.atmosphere_Pa, config.legs["FL"].piston.atmosphere_Pa) == (
+        STANDARD_ATMOSPHERE_PA,
+        0.0,
     )
+    assert config.decoded_units["HUB_REAR"]["RL_pCap"] == "Pa absolute"
+    pipeline = Pipeline.from_config(config, database)
+    frame = RawFrame(1.0, 0x00FF0002, True, _hub_frame(0, 1500, 200))
+    (estimate,) = pipeline.process(frame).estimates
+    p_piston_Pa, p_rod_Pa = 150e5 - STANDARD_ATMOSPHERE_PA, 20e5 - STANDARD_ATMOSPHERE_PA
+    assert estimate.valid
+    assert (estimate.p_piston_Pa, estimate.p_rod_Pa) == pytest.approx((p_piston_Pa, p_rod_Pa))
+    assert estimate.force_raw_N == pytest.approx(eq4_N(p_piston_Pa, p_rod_Pa), rel=1e-12)
+
+
+def test_a_chamber_unit_override_may_be_absolute(tmp_path: Path) -> None:
     override = _rear_in(tmp_path, "bar")
     text = override.read_text().replace(
         'rod = "HUB_REAR.RL_pRod"', 'rod = { signal = "HUB_REAR.RL_pRod", unit = "psia" }'
     )
     override.write_text(text)
-    with pytest.raises(ConfigError) as refused:
-        load_machine_config(override)
-    assert (refused.value.key, refused.value.reason.split(":")[0]) == (
-        "legs.RL.rod.unit",
-        "unit 'psia' is an absolute pressure",
-    )
+    config, database = load_machine_config(override)
+    pipeline = Pipeline.from_config(config, database)
+    frame = RawFrame(1.0, 0x00FF0002, True, _hub_frame(0, 1500, 200))
+    (estimate,) = pipeline.process(frame).estimates
+    assert estimate.p_piston_Pa == pytest.approx(150e5)
+    assert estimate.p_rod_Pa == pytest.approx(20 * PSI_PA - STANDARD_ATMOSPHERE_PA)
 
 
 def test_a_dbc_in_utf_8_without_a_byte_order_mark_is_read_as_utf_8(tmp_path: Path) -> None:
