@@ -6,9 +6,11 @@ the pressures, so the truth and the frames agree.
 """
 
 import math
+import uuid
 from dataclasses import dataclass
 from pathlib import Path
 
+import can
 import numpy as np
 from cantools.database.can import Database
 
@@ -16,6 +18,7 @@ from dbc.decoding import DecodedFrame, FrameDecoder
 from dbc.encoding import FrameEncoder
 from dbc.machine import MachineConfig
 from estimator import foot_force_N
+from sim_bridge.__main__ import cli
 from sim_bridge.faults import FaultConfig, FaultInjector
 from sim_bridge.frames import FrameBuilder
 from sim_bridge.playout import Playout, fault_targets
@@ -115,3 +118,20 @@ def write_export(directory: Path, result: SimulationResult) -> tuple[Path, Path]
     mapping_path = directory / "mapping.toml"
     mapping_path.write_text("\n".join(mapping))
     return data, mapping_path
+
+
+def sent_by_the_command(
+    config: Path, directory: Path, result: SimulationResult, *options: str, fd: bool = False
+) -> list[can.Message]:
+    """The frames ``portal-sim --config CONFIG`` sends, as fast as possible on a virtual
+    bus of its own, playing ``result`` (written as an export into ``directory``)."""
+    data, mapping = write_export(directory, result)
+    channel = f"bridge-{uuid.uuid4()}"
+    args = ["--config", str(config), "--interface", "virtual", "--channel", channel]
+    args += ["--input", str(data), "--mapping", str(mapping), "--as-fast-as-possible"]
+    with can.Bus(interface="virtual", channel=channel, fd=fd) as rx:
+        assert cli([*args, *options]) == 0
+        sent = []
+        while (message := rx.recv(timeout=0)) is not None:
+            sent.append(message)
+    return sent

@@ -3,10 +3,8 @@ simulation's gauge pressures plus the standard atmosphere, and the service, read
 less it, gets the simulated pressures back (eq. (4) takes gauge pressures)."""
 
 import re
-import uuid
 from pathlib import Path
 
-import can
 import pytest
 
 from daq.frames import RawFrame
@@ -14,8 +12,7 @@ from daq.pipeline import Pipeline
 from dbc import DEFAULT_DBC_PATH
 from dbc.machine import load_machine_config
 from dbc.units import STANDARD_ATMOSPHERE_PA
-from sim_bridge.__main__ import cli
-from tests.sim_bridge.synthetic import LEGS, make_result, write_export
+from tests.sim_bridge.synthetic import LEGS, make_result, sent_by_the_command
 
 EXAMPLE_CONFIG = Path(DEFAULT_DBC_PATH).parent / "machine.example.toml"
 #: The default DBC's pressure step: 1 kPa per bit.
@@ -32,17 +29,10 @@ def test_absolute_chambers_round_trip_to_the_simulated_gauge_pressures(tmp_path:
     )
     (tmp_path / "machine.toml").write_text(config_text)
     result = make_result(duration_s=0.3)
-    data, mapping = write_export(tmp_path, result)
-    channel = f"absolute-{uuid.uuid4()}"
-    args = ["--config", str(tmp_path / "machine.toml"), "--interface", "virtual"]
-    args += ["--channel", channel, "--input", str(data), "--mapping", str(mapping)]
-    with can.Bus(interface="virtual", channel=channel) as rx:
-        assert cli([*args, "--as-fast-as-possible"]) == 0
-        frames = []
-        while (message := rx.recv(timeout=0)) is not None:
-            frames.append(
-                RawFrame(message.timestamp, message.arbitration_id, False, bytes(message.data))
-            )
+    frames = [
+        RawFrame(message.timestamp, message.arbitration_id, False, bytes(message.data))
+        for message in sent_by_the_command(tmp_path / "machine.toml", tmp_path, result)
+    ]
     config, database = load_machine_config(tmp_path / "machine.toml")
     assert config.legs["SB1_F1"].piston.atmosphere_Pa == STANDARD_ATMOSPHERE_PA
     pipeline = Pipeline.from_config(config, database)

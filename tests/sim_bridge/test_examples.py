@@ -6,11 +6,9 @@ cycle); the expected samples from :class:`tests.examples_support.SentFrames`, wh
 the same frames with cantools alone and its own unit table.
 """
 
-import uuid
 from collections import defaultdict
 from pathlib import Path
 
-import can
 import pytest
 from cantools.autosar.end_to_end import check_profile2_crc, check_profile5_crc
 from crccheck.crc import Crc8SaeJ1850
@@ -21,13 +19,12 @@ from daq.service_config import load_service_config
 from dbc.errors import ConfigError
 from dbc.machine import load_machine_config
 from estimator.leg import LegEstimate
-from sim_bridge.__main__ import cli
 from sim_bridge.faults import FaultConfig, FaultWindow
 from sim_bridge.frames import FrameBuilder
 from sim_bridge.result import LEGS
 from sim_bridge.schedule import instants, schedule
 from tests.examples_support import EXAMPLE_CONFIGS, ROOT, SentFrames, example_id
-from tests.sim_bridge.synthetic import make_playout, make_result, write_export
+from tests.sim_bridge.synthetic import make_playout, make_result, sent_by_the_command
 
 PLAYED_S = 1.0
 J1939 = ROOT / "daq" / "examples" / "j1939" / "portal-daq.toml"
@@ -49,15 +46,7 @@ def test_each_example_loads_as_a_service_config_with_its_dbc_beside_it(config_pa
 
 @pytest.mark.parametrize("config_path", [J1939, E2E], ids=example_id)
 def test_the_bridge_command_plays_each_example(config_path: Path, tmp_path: Path) -> None:
-    data, mapping = write_export(tmp_path, make_result(duration_s=0.5))
-    channel = f"examples-{uuid.uuid4()}"
-    args = ["--config", str(config_path), "--interface", "virtual", "--channel", channel]
-    args += ["--input", str(data), "--mapping", str(mapping), "--as-fast-as-possible"]
-    with can.Bus(interface="virtual", channel=channel) as rx:
-        assert cli(args) == 0
-        messages = []
-        while (message := rx.recv(timeout=0)) is not None:
-            messages.append(message)
+    messages = sent_by_the_command(config_path, tmp_path, make_result(duration_s=0.5))
     pipeline = Pipeline.from_config(*load_machine_config(config_path))
     estimates = [
         estimate

@@ -11,7 +11,6 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import can
 import numpy as np
 import pytest
 from crccheck.crc import Crc8SaeJ1850
@@ -33,7 +32,7 @@ from tests.dbc.test_held_out_machines import STRANGER, eq4_N
 from tests.dbc.test_multiplexed_legs import CONFIG as HUB_CONFIG
 from tests.dbc.test_multiplexed_legs import DBC as HUB_DBC
 from tests.helpers import dbc_text
-from tests.sim_bridge.synthetic import make_playout, make_result, write_export
+from tests.sim_bridge.synthetic import make_playout, make_result, sent_by_the_command
 
 MUX_PAGES = STRANGER / "mux_pages.toml"
 FD_FLOAT = STRANGER / "fd_float.toml"
@@ -190,15 +189,7 @@ def test_a_leg_split_over_two_pages_pairs_one_row_from_the_first_sample(
 
 def test_the_bridge_command_plays_a_can_fd_hub(tmp_path: Path) -> None:
     result = make_result(duration_s=0.5)
-    data, mapping = write_export(tmp_path, result)
-    channel = f"fd-hub-{uuid.uuid4()}"
-    args = ["--config", str(FD_FLOAT), "--interface", "virtual", "--channel", channel]
-    args += ["--input", str(data), "--mapping", str(mapping), "--as-fast-as-possible"]
-    with can.Bus(interface="virtual", channel=channel, fd=True) as rx:
-        assert cli(args) == 0
-        messages = []
-        while (message := rx.recv(timeout=0)) is not None:
-            messages.append(message)
+    messages = sent_by_the_command(FD_FLOAT, tmp_path, result, fd=True)
     assert len(messages) == 100 and all(m.is_fd and len(m.data) == 12 for m in messages)
     assert [m.data[0] for m in messages] == [0, 1] * 50  # the page, in value order
     config, database = load_machine_config(FD_FLOAT)
