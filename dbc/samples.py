@@ -31,19 +31,14 @@ class _Paired:
     """A leg whose two chambers come in one frame: every such frame is one sample."""
 
     leg: str
+    #: The two chambers' signal names (looked up in every frame).
     piston: str
     rod: str
     source_address: int | None
     statuses: tuple[StatusCheck, ...]
-    #: The DBC's ranges of the two signals, Pa (:attr:`ChamberSignal.range_Pa`).
-    piston_range_Pa: tuple[float, float]
-    rod_range_Pa: tuple[float, float]
-    #: Their value-table names of pressures, Pa (:attr:`ChamberSignal.named_Pa`).
-    piston_named_Pa: Mapping[str, float]
-    rod_named_Pa: Mapping[str, float]
-    #: Subtracted for gauge pressure, Pa (:attr:`ChamberSignal.atmosphere_Pa`).
-    piston_atmosphere_Pa: float
-    rod_atmosphere_Pa: float
+    #: The two chambers, for how their values are read (:func:`_pressure_Pa`).
+    piston_chamber: ChamberSignal
+    rod_chamber: ChamberSignal
 
 
 @dataclass(frozen=True, slots=True)
@@ -90,12 +85,8 @@ class LegSampler:
                         rod.signal,
                         piston.source_address,
                         statuses,
-                        piston.range_Pa,
-                        rod.range_Pa,
-                        piston.named_Pa,
-                        rod.named_Pa,
-                        piston.atmosphere_Pa,
-                        rod.atmosphere_Pa,
+                        piston,
+                        rod,
                     )
                 )
                 continue
@@ -129,15 +120,8 @@ class LegSampler:
                 leg.leg,
                 LegSample(
                     t_s,
-                    _pressure_Pa(
-                        signals[leg.piston],
-                        leg.piston_range_Pa,
-                        leg.piston_named_Pa,
-                        leg.piston_atmosphere_Pa,
-                    ),
-                    _pressure_Pa(
-                        signals[leg.rod], leg.rod_range_Pa, leg.rod_named_Pa, leg.rod_atmosphere_Pa
-                    ),
+                    _pressure_Pa(signals[leg.piston], leg.piston_chamber),
+                    _pressure_Pa(signals[leg.rod], leg.rod_chamber),
                     _with_status(faults, leg.statuses, signals) if leg.statuses else faults,
                 ),
             )
@@ -159,12 +143,7 @@ class LegSampler:
             chamber_faults = _with_status(faults, (status,) if status else (), signals)
             self._latest[(route.leg.name, route.chamber)] = _Reading(
                 t_s,
-                _pressure_Pa(
-                    signals[route.signal.signal],
-                    route.signal.range_Pa,
-                    route.signal.named_Pa,
-                    route.signal.atmosphere_Pa,
-                ),
+                _pressure_Pa(signals[route.signal.signal], route.signal),
                 chamber_faults,
             )
         return samples + [self._sample(route.leg) for route in matched if route.triggers]
@@ -190,21 +169,17 @@ class LegSampler:
         self._latest.clear()
 
 
-def _pressure_Pa(
-    value: SignalValue,
-    range_Pa: tuple[float, float],
-    named_Pa: Mapping[str, float],
-    atmosphere_Pa: float,
-) -> float:
-    """A decoded chamber pressure as gauge pressure (less ``atmosphere_Pa``, for an
+def _pressure_Pa(value: SignalValue, chamber: ChamberSignal) -> float:
+    """A decoded value of ``chamber`` as gauge pressure (less its ``atmosphere_Pa``, for an
     absolute transducer); NaN, which the estimator judges out of range, for a code the DBC
     says is no pressure: a value-table name in its place (a transducer's "not available"
     or "error") other than one naming a pressure in the signal's range (``named_Pa``: ``0
-    "Zero"`` is 0 Pa), or a value outside that range (a code unnamed)."""
+    "Zero"`` is 0 Pa), or a value outside ``range_Pa`` (a code unnamed)."""
     if isinstance(value, str):
-        return named_Pa.get(value, math.nan)
-    p_Pa = float(value) - atmosphere_Pa
-    return p_Pa if range_Pa[0] <= p_Pa <= range_Pa[1] else math.nan
+        return chamber.named_Pa.get(value, math.nan)
+    p_Pa = float(value) - chamber.atmosphere_Pa
+    low_Pa, high_Pa = chamber.range_Pa
+    return p_Pa if low_Pa <= p_Pa <= high_Pa else math.nan
 
 
 def _with_status(
