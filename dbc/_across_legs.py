@@ -137,21 +137,16 @@ def unit_factors(
                 factors.setdefault(message.name, {})[signal.name] = factor
     # (message, signal) -> [(source address, factor, unit, leg, chamber key)]
     readers: dict[tuple[str, str], list[tuple[int | None, float, str, str, str]]] = {}
-    # (message, signal) -> whether each chamber reading it is absolute, by source address
-    absolute: dict[tuple[str, str], dict[int | None, bool]] = {}
     for leg in legs.values():
         for key, chamber in _chambers(leg):
             unit_in_Pa = chamber_unit(chamber.unit)
             assert unit_in_Pa is not None  # checked when the chamber was read
             factor = unit_in_Pa[0]
             address = chamber.source_address
-            readings = absolute.setdefault((chamber.message, chamber.signal), {})
-            readings[address] = bool(chamber.atmosphere_Pa)
             others = readers.setdefault((chamber.message, chamber.signal), [])
-            for other_address, other_factor, other_unit, other_leg, other_key in others:
+            for other_address, _, other_unit, other_leg, other_key in others:
                 pinned = None not in (address, other_address)
-                same = other_factor == factor and chamber_unit(other_unit) == unit_in_Pa
-                if same or (pinned and address != other_address):
+                if chamber_unit(other_unit) == unit_in_Pa or (pinned and address != other_address):
                     continue
                 sender = (
                     f"both from 0x{address:02X}"
@@ -192,7 +187,11 @@ def unit_factors(
                 f"Pa from {addresses}; other senders as sent ({unit or 'no unit'} in the DBC)"
             )
     for message_name, signal_name in in_Pa:
-        readings = absolute.get((message_name, signal_name), {})
+        # Whether each chamber reading the signal is in an absolute unit, by sender.
+        readings = {
+            address: _atmosphere_Pa(unit) > 0
+            for address, _, unit, *_ in readers.get((message_name, signal_name), ())
+        }
         if readings and all(readings.values()):
             units.setdefault(message_name, {})[signal_name] = "Pa absolute"
         elif any(readings.values()):
@@ -205,6 +204,13 @@ def unit_factors(
         elif _dbc_unit(database, message_name, signal_name) != "Pa":
             units.setdefault(message_name, {})[signal_name] = "Pa"
     return {name: table for name, table in factors.items() if table}, by_sender, units
+
+
+def _atmosphere_Pa(unit: str) -> float:
+    """What a chamber's ``unit`` (checked when the chamber was read) is above gauge, Pa."""
+    unit_in_Pa = chamber_unit(unit)
+    assert unit_in_Pa is not None
+    return unit_in_Pa[1]
 
 
 def _dbc_unit(database: Database, message: str, signal: str) -> str:

@@ -18,15 +18,15 @@ True
 A unit marked gauge (``psig``, ``barg``, ``bar(g)``, ``kPa gauge``; German DBCs write
 relative pressure ``bar rel``, ``bar(ü)`` for *Überdruck*) is that unit: the chamber
 pressures are gauge pressures. An absolute one (``bara``, ``psia``, ``kPa abs``) is none
-of these units (it is off by the atmosphere's ~1 bar): :func:`is_absolute` tells it. A
-chamber's transducer may send absolute pressure: :func:`chamber_unit` gives the factor
-and the standard atmosphere to subtract, since eq. (4) takes gauge pressures.
+of these units (it is off by the atmosphere's ~1 bar). A chamber's transducer may send
+absolute pressure: :func:`chamber_unit` gives the factor and the standard atmosphere to
+subtract, since eq. (4) takes gauge pressures.
 
 >>> pressure_factor_to_Pa("psi(g)") == pressure_factor_to_Pa("PSIG") == 6894.757293168361
 True
 >>> pressure_factor_to_Pa("bar(ü)") == pressure_factor_to_Pa("[bar]") == 100000.0
 True
->>> pressure_factor_to_Pa("bara") is None and is_absolute("bara")
+>>> pressure_factor_to_Pa("bara") is None
 True
 >>> chamber_unit("bara"), chamber_unit("bar"), chamber_unit("m")
 ((100000.0, 101325.0), (100000.0, 0.0), None)
@@ -75,11 +75,6 @@ def pressure_factor_to_Pa(unit: str) -> float | None:
     """Pa per one ``unit`` (case-insensitive, surrounding blanks, brackets and a gauge
     mark ignored, "²" and "^2" read as "2"); None if unknown."""
     return _factor_marked(unit, GAUGE_MARKS)
-
-
-def is_absolute(unit: str) -> bool:
-    """``unit`` is a pressure unit marked absolute (``bara``, ``psia``, ``kPa abs``)."""
-    return pressure_factor_to_Pa(unit) is None and _factor_marked(unit, ABSOLUTE_MARKS) is not None
 
 
 def chamber_unit(unit: str) -> tuple[float, float] | None:

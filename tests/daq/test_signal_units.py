@@ -13,6 +13,7 @@ from daq.mcap_file import RecordBatch
 from daq.pipeline import Pipeline
 from daq.runner import build_recorder
 from daq.service_config import load_service_config
+from dbc.machine import load_machine_config
 from tests.daq.test_recording import wait_drained
 from tests.helpers import LEG_DEFAULTS_TOML, dbc_text
 
@@ -85,3 +86,18 @@ def test_recorded_signals_schema_says_pa_for_a_chamber_unit(tmp_path: Path, proc
     assert units == {"pP": "Pa", "pR": "Pa", "Temp": "degC"}
     signals = json.loads(message.data)["signals"]
     assert (signals["pP"], signals["pR"], signals["Temp"]) == pytest.approx((2.5e5, 8e5, 20.0))
+
+
+def test_decoded_units_say_which_transducers_send_absolute_pressure(tmp_path: Path) -> None:
+    """Their values on /signals are what they sent, in Pa: absolute, where the estimator
+    reads them less the atmosphere."""
+    (tmp_path / "legs.dbc").write_text(
+        DBC.replace('(0.01,0) [0|655.35] "" DAQ\n', '(0.01,0) [0|655.35] "bar" DAQ\n')
+    )
+    machine = MACHINE.replace('unit = "psi"', 'unit = "psia"').replace(
+        'source_address = 0x22, unit = "bar"', "source_address = 0x22"
+    )
+    (tmp_path / "machine.toml").write_text(machine)
+    config, _ = load_machine_config(tmp_path / "machine.toml")
+    assert config.decoded_units["HYD"] == {"Pressure": "Pa; absolute from 0x21"}
+    assert config.decoded_units["LEG"] == {"pP": "Pa", "pR": "Pa"}
