@@ -16,7 +16,7 @@ from cantools.database.can import Database
 
 from dbc.decoding import DecodedFrame, FrameDecoder
 from dbc.encoding import FrameEncoder
-from dbc.machine import MachineConfig
+from dbc.machine import MachineConfig, load_machine_config
 from estimator import foot_force_N
 from sim_bridge.__main__ import cli
 from sim_bridge.faults import FaultConfig, FaultInjector
@@ -24,7 +24,7 @@ from sim_bridge.frames import FrameBuilder
 from sim_bridge.playout import Playout, fault_targets
 from sim_bridge.result import LEGS, PHASES, SimulationResult
 from sim_bridge.schedule import Instant, instants, schedule
-from tests.helpers import example_machine
+from tests.helpers import LEG_DEFAULTS_TOML, dbc_text, example_machine
 
 CONFIG, DATABASE = example_machine()
 
@@ -135,3 +135,16 @@ def sent_by_the_command(
         while (message := rx.recv(timeout=0)) is not None:
             sent.append(message)
     return sent
+
+
+def small_machine(
+    directory: Path, messages: str, attributes: str, legs: str, tables: str = ""
+) -> tuple[MachineConfig, Database]:
+    """A machine of ``legs`` (TOML of ``[legs.*]`` tables, after the defaults, and other
+    ``tables`` before them) on a DBC of ``messages`` and ``attributes``
+    (:func:`~tests.helpers.dbc_text`), written into ``directory`` and loaded."""
+    (directory / "m.dbc").write_text(dbc_text(messages, attributes))
+    (directory / "m.toml").write_text(
+        '[machine]\nid = "m"\nmass_kg = 1000.0\ndbc = "m.dbc"\n' + tables + LEG_DEFAULTS_TOML + legs
+    )
+    return load_machine_config(directory / "m.toml")

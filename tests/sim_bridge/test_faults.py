@@ -7,14 +7,19 @@ import pytest
 from daq.frames import RawFrame
 from daq.pipeline import Pipeline
 from dbc.errors import ConfigError
-from dbc.machine import load_machine_config
 from dbc.samples import LegSampler
 from estimator import LegEstimator
 from sim_bridge.faults import FaultConfig, FaultInjector, FaultTargets, FaultWindow
 from sim_bridge.result import LEGS, SimulationResult
 from sim_bridge.schedule import instants, schedule
-from tests.helpers import LEG_DEFAULTS_TOML, dbc_text
-from tests.sim_bridge.synthetic import CONFIG, frames_of, make_playout, make_result, play
+from tests.sim_bridge.synthetic import (
+    CONFIG,
+    frames_of,
+    make_playout,
+    make_result,
+    play,
+    small_machine,
+)
 
 W = FaultWindow.parse
 
@@ -198,24 +203,19 @@ def test_a_sensor_fault_sends_the_value_a_held_out_dbc_names_a_fault_with(
 ) -> None:
     """A status table of Ok, Warning, Error, NotAvailable (J1939 transducers'): the flag
     was refused for want of 'sensor_fault'; now it sends Error, which the service flags."""
-    (tmp_path / "m.dbc").write_text(
-        dbc_text(
-            """
+    config, database = small_machine(
+        tmp_path,
+        """
 BO_ 768 HYD: 5 Hub
  SG_ pCap : 0|16@1+ (0.01,0) [0|600] "bar" DAQ
  SG_ pRod : 16|16@1+ (0.01,0) [0|600] "bar" DAQ
  SG_ Stat : 32|2@1+ (1,0) [0|3] "" DAQ
 """,
-            'BA_ "GenMsgCycleTime" BO_ 768 10;\n'
-            'VAL_ 768 Stat 0 "Ok" 1 "Warning" 2 "Error" 3 "NotAvailable" ;\n',
-        )
+        'BA_ "GenMsgCycleTime" BO_ 768 10;\n'
+        'VAL_ 768 Stat 0 "Ok" 1 "Warning" 2 "Error" 3 "NotAvailable" ;\n',
+        '[legs.front]\npiston = "HYD.pCap"\nrod = "HYD.pRod"\nstatus = "HYD.Stat"\n',
+        '[sensors]\nstatus_ok = "Ok"\n',
     )
-    (tmp_path / "m.toml").write_text(
-        '[machine]\nid = "m"\nmass_kg = 1000.0\ndbc = "m.dbc"\n[sensors]\nstatus_ok = "Ok"\n'
-        + LEG_DEFAULTS_TOML
-        + '[legs.front]\npiston = "HYD.pCap"\nrod = "HYD.pRod"\nstatus = "HYD.Stat"\n'
-    )
-    config, database = load_machine_config(tmp_path / "m.toml")
     faults = FaultConfig(seed=1, sensor_fault=(W("front@0.05:0.05"),))
     playout = make_playout(result, faults, config=config, database=database)
     pipeline = Pipeline.from_config(config, database)

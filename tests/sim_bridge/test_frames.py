@@ -17,8 +17,16 @@ from sim_bridge.faults import FaultConfig, FaultWindow
 from sim_bridge.frames import FrameBuilder, LegOverride, Timeline
 from sim_bridge.result import BASES, LEGS, PHASES, SimulationResult
 from sim_bridge.schedule import instants, schedule
-from tests.helpers import EXAMPLE_CONFIG, LEG_DEFAULTS_TOML, ROOT, dbc_text
-from tests.sim_bridge.synthetic import CONFIG, DATABASE, frames_of, make_playout, make_result, play
+from tests.helpers import EXAMPLE_CONFIG, ROOT
+from tests.sim_bridge.synthetic import (
+    CONFIG,
+    DATABASE,
+    frames_of,
+    make_playout,
+    make_result,
+    play,
+    small_machine,
+)
 
 #: Half a step of each signal's scale: the most rounding may move a value.
 PRESSURE_TOLERANCE_PA = 500.0
@@ -232,23 +240,16 @@ def test_a_chamber_of_any_sender_is_in_the_frames_of_the_pinned_one(
     any sender: the bridge sent the rod from the DBC's ID (source address 0x21 too) with
     the piston 0, and from 0x21 with the rod 0, so both chambers read 0 every other
     frame. One sender now carries both."""
-    (tmp_path / "m.dbc").write_text(
-        dbc_text(
-            """
+    config, database = small_machine(
+        tmp_path,
+        """
 BO_ 2566856737 HYD: 8 Hub
  SG_ P1 : 0|16@1+ (1000,0) [0|65535000] "Pa" DAQ
  SG_ P2 : 16|16@1+ (1000,0) [0|65535000] "Pa" DAQ
 """,
-            'BA_ "GenMsgCycleTime" BO_ 2566856737 10;\nBA_ "VFrameFormat" BO_ 2566856737 3;\n',
-        )
+        'BA_ "GenMsgCycleTime" BO_ 2566856737 10;\nBA_ "VFrameFormat" BO_ 2566856737 3;\n',
+        '[legs.SB1_F1]\npiston = { signal = "HYD.P1", source_address = 0x21 }\nrod = "HYD.P2"\n',
     )
-    (tmp_path / "m.toml").write_text(
-        '[machine]\nid = "m"\nmass_kg = 1000.0\ndbc = "m.dbc"\n'
-        + LEG_DEFAULTS_TOML
-        + '[legs.SB1_F1]\npiston = { signal = "HYD.P1", source_address = 0x21 }\n'
-        + 'rod = "HYD.P2"\n'
-    )
-    config, database = load_machine_config(tmp_path / "m.toml")
     builder = FrameBuilder(config, database)
     pipeline = Pipeline.from_config(config, database)
     encoder = FrameEncoder.from_config(config, database)
@@ -305,24 +306,18 @@ def test_a_leg_whose_rod_is_in_a_message_of_its_own_pairs_from_its_first_sample(
     """Pistons at 10 ms in CAP, rods at 50 ms in ROD (after CAP in the DBC): the bridge
     sent CAP first in an instant, so the first sample had no rod (rod_stale), and every
     fifth one paired the rod of 50 ms before, stale by any jitter of a live run."""
-    (tmp_path / "m.dbc").write_text(
-        dbc_text(
-            """
+    config, database = small_machine(
+        tmp_path,
+        """
 BO_ 768 CAP: 2 Hub
  SG_ pCap : 0|16@1+ (1000,0) [0|65535000] "Pa" DAQ
 
 BO_ 769 ROD: 2 Hub
  SG_ pRod : 0|16@1+ (1000,0) [0|65535000] "Pa" DAQ
 """,
-            'BA_ "GenMsgCycleTime" BO_ 768 10;\nBA_ "GenMsgCycleTime" BO_ 769 50;\n',
-        )
+        'BA_ "GenMsgCycleTime" BO_ 768 10;\nBA_ "GenMsgCycleTime" BO_ 769 50;\n',
+        '[legs.front]\npiston = "CAP.pCap"\nrod = "ROD.pRod"\n',
     )
-    (tmp_path / "m.toml").write_text(
-        '[machine]\nid = "m"\nmass_kg = 1000.0\ndbc = "m.dbc"\n'
-        + LEG_DEFAULTS_TOML
-        + '[legs.front]\npiston = "CAP.pCap"\nrod = "ROD.pRod"\n'
-    )
-    config, database = load_machine_config(tmp_path / "m.toml")
     playout = make_playout(result, config=config, database=database)
     assert [cycle.message for cycle in playout.cycles] == ["ROD", "CAP"]
     pipeline = Pipeline.from_config(config, database)
@@ -345,22 +340,16 @@ def test_out_of_range_goes_beyond_a_dbc_range_that_ends_below_it(
     """A 250 bar transducer's DBC ([0|250] in 16 bits at 0.01 bar): --out-of-range's
     45 MPa was clipped to 250 bar, a valid sample; now it goes out as 450 bar (what the
     bits hold), beyond the DBC's range, and the service flags it."""
-    (tmp_path / "m.dbc").write_text(
-        dbc_text(
-            """
+    config, database = small_machine(
+        tmp_path,
+        """
 BO_ 768 HYD: 4 Hub
  SG_ pCap : 0|16@1+ (0.01,0) [0|250] "bar" DAQ
  SG_ pRod : 16|16@1+ (0.01,0) [0|250] "bar" DAQ
 """,
-            'BA_ "GenMsgCycleTime" BO_ 768 10;\n',
-        )
+        'BA_ "GenMsgCycleTime" BO_ 768 10;\n',
+        '[legs.front]\npiston = "HYD.pCap"\nrod = "HYD.pRod"\n',
     )
-    (tmp_path / "m.toml").write_text(
-        '[machine]\nid = "m"\nmass_kg = 1000.0\ndbc = "m.dbc"\n'
-        + LEG_DEFAULTS_TOML
-        + '[legs.front]\npiston = "HYD.pCap"\nrod = "HYD.pRod"\n'
-    )
-    config, database = load_machine_config(tmp_path / "m.toml")
     faults = FaultConfig(seed=1, out_of_range=(FaultWindow("front", 0.05, 0.05),))
     playout = make_playout(result, faults, config=config, database=database)
     pipeline = Pipeline.from_config(config, database)
