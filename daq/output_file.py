@@ -22,7 +22,9 @@ def replacing(path: Path, mode: str = "w") -> Iterator[IO[Any]]:
 
     What is there and no regular file (``/dev/null``, ``/dev/stdout``, a named pipe) is
     written to as it is: replacing it would put a regular file in its place. A symbolic
-    link stays one: the file it names is replaced. Raises :class:`IsADirectoryError` for a
+    link stays one: the file it names is replaced, and a replaced file's permission bits
+    are kept (a group-readable results file stays so; hard links to it keep the old
+    content, as with any replace-by-rename). Raises :class:`IsADirectoryError` for a
     directory, and the file system's :class:`OSError` as they come.
     """
     if path.is_dir():
@@ -38,6 +40,8 @@ def replacing(path: Path, mode: str = "w") -> Iterator[IO[Any]]:
             yield out
             out.flush()
             if stat.S_ISREG(os.fstat(out.fileno()).st_mode):
+                if real.exists():
+                    os.fchmod(out.fileno(), stat.S_IMODE(real.stat().st_mode))
                 os.fsync(out.fileno())
         os.replace(part, real)
     except BaseException:
