@@ -45,6 +45,10 @@ _CLASSIC_MAX_BYTES = 8
 
 _NEEDS_TIME = "candump -L (or -ta) writes the frame times a replay needs"
 
+#: What ``candump -d`` writes, into its log and its readable output, when the kernel
+#: dropped frames before candump read them (the socket's receive buffer was full).
+_DROPCOUNT = re.compile(r"\s*DROPCOUNT: dropped (?P<frames>\d+) CAN frames? on ")
+
 
 def dash_l_line(line: str) -> str:
     """``line`` as a ``candump -L`` line (unchanged if it is one, or blank)."""
@@ -73,7 +77,14 @@ def dash_l_line(line: str) -> str:
 class CandumpReader(can.CanutilsLogReader):
     """python-can's candump reader that also reads candump's readable lines
     (:func:`dash_l_line`); frame times going backwards in those from a time that is no
-    date are ``-td``'s steps."""
+    date are ``-td``'s steps. ``candump -d``'s ``DROPCOUNT`` lines (python-can stopped
+    at them) are summed in :attr:`dropped_frames`."""
+
+    def __init__(self, file: Any, **kwargs: Any) -> None:
+        super().__init__(file, **kwargs)
+        #: Frames the kernel dropped before candump read them, as its ``DROPCOUNT``
+        #: lines read so far say.
+        self.dropped_frames = 0
 
     def __iter__(self) -> Generator[can.Message, None, None]:
         original = self.file
@@ -83,10 +94,13 @@ class CandumpReader(can.CanutilsLogReader):
         finally:
             self.file = original
 
-    @staticmethod
-    def _dash_l_lines(lines: Any) -> Iterator[str]:
+    def _dash_l_lines(self, lines: Any) -> Iterator[str]:
         latest_s = None
         for line in lines:
+            dropped = _DROPCOUNT.match(line)
+            if dropped is not None:
+                self.dropped_frames += int(dropped["frames"])
+                continue
             converted = dash_l_line(line)
             if converted is not line:  # a readable line: undated times must not go back
                 t_s = float(converted[1 : converted.index(")")])
