@@ -10,6 +10,7 @@ emptied it before reading it).
 """
 
 import os
+import stat
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -25,7 +26,9 @@ def replacing_path(path: Path) -> Iterator[Path]:
 
     What is there and no regular file (``/dev/null``, ``/dev/stdout``, a named pipe) is
     given as it is: replacing it would put a regular file in its place. A symbolic link
-    stays one: the file it names is replaced. Raises :class:`IsADirectoryError` for a
+    stays one: the file it names is replaced, and a replaced file's permission bits are
+    kept (a group-readable results file stays so; hard links to it keep the old content,
+    as with any replace-by-rename). Raises :class:`IsADirectoryError` for a
     directory, and the file system's :class:`OSError` as they come.
     """
     if path.is_dir():
@@ -37,6 +40,8 @@ def replacing_path(path: Path) -> Iterator[Path]:
     part = real.with_name(f".{real.name}.part")
     try:
         yield part
+        if real.exists():
+            os.chmod(part, stat.S_IMODE(real.stat().st_mode))
         descriptor = os.open(part, os.O_RDONLY)
         try:
             os.fsync(descriptor)

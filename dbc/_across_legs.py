@@ -184,26 +184,27 @@ def unit_factors(
             addresses = ", ".join(f"0x{address:02X}" for address in sorted(senders))
             unit = _dbc_unit(database, message_name, signal_name)
             units.setdefault(message_name, {})[signal_name] = (
-                f"Pa from {addresses}; other senders as sent ({unit or 'no unit'} in the DBC)"
+                f"Pa from {addresses}{_absolute_from(chambers)}; "
+                f"other senders as sent ({unit or 'no unit'} in the DBC)"
             )
     for message_name, signal_name in in_Pa:
-        # Whether each chamber reading the signal is in an absolute unit, by sender.
-        readings = {
-            address: _atmosphere_Pa(unit) > 0
-            for address, _, unit, *_ in readers.get((message_name, signal_name), ())
-        }
-        if readings and all(readings.values()):
+        chambers = readers.get((message_name, signal_name), [])
+        if chambers and all(_atmosphere_Pa(unit) > 0 for _, _, unit, *_ in chambers):
             units.setdefault(message_name, {})[signal_name] = "Pa absolute"
-        elif any(readings.values()):
-            addresses = ", ".join(
-                "other senders" if address is None else f"0x{address:02X}"
-                for address, is_absolute in readings.items()
-                if is_absolute
-            )
-            units.setdefault(message_name, {})[signal_name] = f"Pa; absolute from {addresses}"
+        elif absolute_from := _absolute_from(chambers):
+            units.setdefault(message_name, {})[signal_name] = f"Pa{absolute_from}"
         elif _dbc_unit(database, message_name, signal_name) != "Pa":
             units.setdefault(message_name, {})[signal_name] = "Pa"
     return {name: table for name, table in factors.items() if table}, by_sender, units
+
+
+def _absolute_from(chambers: list[tuple[int | None, float, str, str, str]]) -> str:
+    """``"; absolute from 0x21, ..."`` naming the senders read in an absolute unit
+    (``other senders`` for a chamber without ``source_address``), or ``""``."""
+    absolute = {address for address, _, unit, *_ in chambers if _atmosphere_Pa(unit) > 0}
+    names = sorted(f"0x{address:02X}" for address in absolute if address is not None)
+    names += ["other senders"] * (None in absolute)
+    return "; absolute from " + ", ".join(names) if names else ""
 
 
 def _atmosphere_Pa(unit: str) -> float:

@@ -53,7 +53,10 @@ def named_values(signal: Signal, j1939: bool) -> dict[str, float]:
     An entry is a measurement where its value lies inside the range the DBC declares
     (``[min|max]``, and J1939's valid range in a J1939 message: :func:`value_range`),
     e.g. ``0 "Zero"`` of a pressure in ``[0|642.55]``; else it is a code ("not
-    available", "error", usually at the top of the raw range). Without a declared range
+    available", "error", usually at the top of the raw range). So is an entry at the end
+    of what the bits hold (:func:`_codes_at_the_ends`) whatever the declared range: a
+    range that reaches the top of the bits (CANdb++'s default) does not make ``4095
+    "SNA"`` of a 12-bit 250 bar transducer a valid 204.75 bar. Without a declared range
     (``[0|0]``) every entry is a code: nothing tells a code from a value. A name given
     to two raw values names no one value.
 
@@ -63,18 +66,45 @@ def named_values(signal: Signal, j1939: bool) -> dict[str, float]:
     >>> p = Signal("p", 0, 16, conversion=conversion, minimum=0, maximum=642.55)
     >>> named_values(p, j1939=False)
     {'Zero': 0.0}
+    >>> top = BaseConversion.factory(0.05, 0, {0: "Zero", 4094: "Error", 4095: "SNA"})
+    >>> named_values(Signal("p", 0, 12, conversion=top, minimum=0, maximum=204.75), False)
+    {'Zero': 0.0}
     """
     if not signal.choices or signal.minimum is None or signal.maximum is None:
         return {}
     if not signal.minimum < signal.maximum:
         return {}
     low, high = value_range(signal, j1939)
+    codes = _codes_at_the_ends(signal)
     values: dict[str, float] = {}
     names: list[str] = []
     for raw, choice in signal.choices.items():
         name = choice.name if isinstance(choice, NamedSignalValue) else str(choice)
         names.append(name)
         value = float(raw * signal.scale + signal.offset)  # as the decoders compute it
-        if low <= value <= high:
+        if low <= value <= high and raw not in codes:
             values[name] = value
     return {name: value for name, value in values.items() if names.count(name) == 1}
+
+
+def _codes_at_the_ends(signal: Signal) -> set[int]:
+    """The raw values of ``signal``'s value table that are codes by their place: the
+    named value at the top of what the bits hold (all ones; a signed signal's greatest,
+    and its least too) and the named values next to it, one after another (``4095
+    "SNA"``, ``4094 "Error"``, ``4093 "Init"``), but never an unsigned 0 (``0 "Zero"``).
+    A vendor names these ends for "not available" and "error"; a measurement named at
+    the very end of the bits would be a saturated one, no pressure either."""
+    if signal.is_float or not signal.choices:
+        return set()
+    named = {int(raw) for raw in signal.choices}
+    if signal.is_signed:
+        half = 1 << (signal.length - 1)
+        ends = [(half - 1, -1), (-half, 1)]
+    else:
+        ends = [((1 << signal.length) - 1, -1)]
+    codes: set[int] = set()
+    for raw, step in ends:
+        while raw in named and raw != 0:
+            codes.add(raw)
+            raw += step
+    return codes

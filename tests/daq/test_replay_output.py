@@ -121,6 +121,16 @@ def test_a_symbolic_link_keeps_pointing_at_the_csv_it_names(tmp_path: Path) -> N
     assert sorted(p.name for p in (tmp_path / "runs").iterdir()) == ["42.csv"]
 
 
+def test_a_replaced_output_keeps_its_permissions(tmp_path: Path, earlier: Path) -> None:
+    """A results file made group-readable and read-only for others stays so."""
+    (tmp_path / "cycle.log").write_text(LOG)
+    earlier.chmod(0o640)
+    result = replay_into(tmp_path / "cycle.log", earlier)
+    assert result.returncode == 0, result.stderr
+    assert earlier.read_text().count("\nSB1_F1,") == 2
+    assert stat.S_IMODE(earlier.stat().st_mode) == 0o640
+
+
 @pytest.mark.parametrize("name", ["cycle.log", "again.log"])
 def test_an_output_that_names_the_log_replayed_is_refused(tmp_path: Path, name: str) -> None:
     """``replay cycle.log --out cycle.log`` replaced the log with its own CSV (exit 0): the

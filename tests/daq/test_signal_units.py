@@ -101,3 +101,15 @@ def test_decoded_units_say_which_transducers_send_absolute_pressure(tmp_path: Pa
     config, _ = load_machine_config(tmp_path / "machine.toml")
     assert config.decoded_units["HYD"] == {"Pressure": "Pa; absolute from 0x21"}
     assert config.decoded_units["LEG"] == {"pP": "Pa", "pR": "Pa"}
+
+
+def test_decoded_units_name_absolute_senders_where_others_stay_as_sent(tmp_path: Path) -> None:
+    """No unit in the DBC, each transducer its own: the label still says which of the
+    converted senders are absolute."""
+    (tmp_path / "legs.dbc").write_text(DBC)
+    (tmp_path / "machine.toml").write_text(MACHINE.replace('unit = "psi"', 'unit = "psia"'))
+    config, _ = load_machine_config(tmp_path / "machine.toml")
+    assert config.decoded_units["HYD"] == {
+        "Pressure": "Pa from 0x21, 0x22; absolute from 0x21; other senders as sent "
+        "(no unit in the DBC)"
+    }

@@ -12,6 +12,7 @@ from cantools.database.can import Database
 from daq.frames import RawFrame
 from daq.pipeline import Pipeline
 from dbc.machine import MachineConfig, load_machine_config
+from dbc.signal_range import named_values
 from estimator import foot_force_N
 from tests.helpers import LEG_DEFAULTS_TOML, dbc_text
 
@@ -124,3 +125,63 @@ def test_named_pressures_are_those_inside_the_declared_range(tmp_path: Path) -> 
     assert legs["HUB"].rod.named_Pa == {"Zero": 0.0}  # not "SNA", 655.35 bar > 642.55 bar
     assert legs["J"].piston.named_Pa == {}  # both codes above [0|3212.75] kPa
     assert legs["BARE"].rod.named_Pa == {}  # no declared range
+
+
+#: A 250 bar transducer's 12-bit pressures (0.05 bar/bit, Motorola) and a signed one, each
+#: declared over all its bits (CANdb++'s default range), with codes named at the ends.
+ENDS_DBC = dbc_text(
+    """
+BO_ 2148532496 HYD_P_ZYL1: 8 Tx
+ SG_ HYD_P_ZYL1_A : 7|12@0+ (0.05,0) [0|204.75] "bar" DAQ
+ SG_ HYD_P_ZYL1_B : 11|12@0+ (0.05,0) [0|204.75] "bar" DAQ
+ SG_ HYD_P_ZYL1_DIFF : 31|16@0- (0.01,0) [-327.68|327.67] "bar" DAQ
+""",
+    """
+BA_ "GenMsgCycleTime" BO_ 2148532496 10;
+VAL_ 2148532496 HYD_P_ZYL1_A 4095 "SNA" 4094 "Fehler" 0 "Null" ;
+VAL_ 2148532496 HYD_P_ZYL1_B 4095 "SNA" 4093 "Init" ;
+VAL_ 2148532496 HYD_P_ZYL1_DIFF -32768 "Invalid" 32767 "SNA" 0 "Null" ;
+""",
+    nodes="Tx DAQ",
+)
+
+
+def _zyl1(a_raw: int, b_raw: int) -> RawFrame:
+    packed = (a_raw << 12 | b_raw).to_bytes(3, "big") + bytes(5)
+    return RawFrame(1.0, 0x00100110, True, packed)
+
+
+@pytest.mark.parametrize("compiled", [True, False], ids=["compiled", "reference"])
+def test_a_code_named_at_the_top_of_the_bits_is_no_pressure_in_a_range_reaching_it(
+    tmp_path: Path, compiled: bool
+) -> None:
+    """``4095 "SNA"`` of a 12-bit [0|204.75] bar signal was a valid 204.75 bar sample
+    (inside the declared range, so taken for a named measurement, below the 400 bar
+    sensor range)."""
+    (tmp_path / "ends.dbc").write_text(ENDS_DBC)
+    (tmp_path / "machine.toml").write_text(
+        '[machine]\nid = "ends"\nmass_kg = 5000.0\ndbc = "ends.dbc"\n'
+        + LEG_DEFAULTS_TOML
+        + '[legs.ZYL1]\npiston = "HYD_P_ZYL1.HYD_P_ZYL1_A"\nrod = "HYD_P_ZYL1.HYD_P_ZYL1_B"\n'
+    )
+    config, database = load_machine_config(tmp_path / "machine.toml")
+    diff = database.get_message_by_name("HYD_P_ZYL1").get_signal_by_name("HYD_P_ZYL1_DIFF")
+    assert named_values(diff, j1939=False) == {"Null": 0.0}  # not -327.68 nor 327.67 bar
+    assert config.legs["ZYL1"].piston.named_Pa == {"Null": 0.0}
+    assert config.legs["ZYL1"].rod.named_Pa == {"Init": 4093 * 0.05e5}  # not next to the SNA
+    pipeline = Pipeline.from_config(config, database)
+    if not compiled:
+        pipeline.decoder = type(pipeline.decoder)(
+            database, config.protection, config.unit_factors, compiled=False
+        )
+    estimates = [pipeline.process(_zyl1(a, 400)).estimates[0] for a in (4095, 4094, 0, 2000)]
+    assert [(e.valid, e.reasons) for e in estimates] == [
+        (False, ("range",)),
+        (False, ("range",)),
+        (True, ()),
+        (True, ()),
+    ]
+    assert math.isnan(estimates[0].p_piston_Pa) and math.isnan(estimates[1].p_piston_Pa)
+    assert [e.p_piston_Pa for e in estimates[2:]] == [0.0, pytest.approx(100e5)]
+    (estimate,) = pipeline.process(_zyl1(2000, 4095)).estimates
+    assert estimate.reasons == ("range",) and math.isnan(estimate.p_rod_Pa)
