@@ -12,7 +12,9 @@ column and ``-x``'s direction columns ignored) into the ``-L`` line python-can p
 an ``-L`` line passes as it is. A line without a time (plain ``candump can0``) cannot
 be replayed (every rule of the estimator judges frame times): ValueError saying which
 option writes one; so do ``-td``'s steps between frames, which :class:`CandumpReader`
-tells by times going backwards.
+tells by times going backwards from a time before 2000 (a step is no date). A dated time
+going back is the clock's step (NTP; ``-tA``'s local time when daylight saving ends),
+kept as in a ``-L`` log: the estimator's time rules take it.
 
 >>> dash_l_line(" (1733100000.123456)  can0  100   [8]  46 12 08 07 00 00 00 1C  '........'")
 '(1733100000.123456) can0 100#461208070000001C\\n'
@@ -26,6 +28,8 @@ from datetime import datetime
 from typing import Any, TextIO, cast
 
 import can
+
+from daq.frames import DATED_FROM_S
 
 #: A readable candump line: time, interface, ``-x``'s direction columns, ID, [length], rest.
 _READABLE = re.compile(
@@ -68,7 +72,8 @@ def dash_l_line(line: str) -> str:
 
 class CandumpReader(can.CanutilsLogReader):
     """python-can's candump reader that also reads candump's readable lines
-    (:func:`dash_l_line`); frame times going backwards in those are ``-td``'s steps."""
+    (:func:`dash_l_line`); frame times going backwards in those from a time that is no
+    date are ``-td``'s steps."""
 
     def __iter__(self) -> Generator[can.Message, None, None]:
         original = self.file
@@ -83,9 +88,9 @@ class CandumpReader(can.CanutilsLogReader):
         latest_s = None
         for line in lines:
             converted = dash_l_line(line)
-            if converted is not line:  # a readable line: its times must not go back
+            if converted is not line:  # a readable line: undated times must not go back
                 t_s = float(converted[1 : converted.index(")")])
-                if latest_s is not None and t_s < latest_s:
+                if latest_s is not None and t_s < latest_s < DATED_FROM_S:
                     raise ValueError(
                         f"frame times go backwards ({latest_s:.6f} then {t_s:.6f}): "
                         f"candump -td's steps between frames? {_NEEDS_TIME}"

@@ -10,6 +10,10 @@ import can
 
 from estimator.records import fast_init
 
+#: Unix time of 2000-01-01: an earlier frame time is no date (a clock not set yet, or a
+#: log of another tool that counts from its start).
+DATED_FROM_S = 946_684_800.0
+
 
 @fast_init  # one per frame received
 @dataclass(frozen=True, slots=True)

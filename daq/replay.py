@@ -45,6 +45,7 @@ from daq.mcap_file import BUS_TOPIC, CONFIG_ATTACHMENT, DBC_ATTACHMENT, RAW_TOPI
 from daq.mcap_reading import RecordedAttachment, RecordedMessage, RecordingStream
 from daq.pipeline import FrameResult, Pipeline
 from daq.recording_run import MCAP_SUFFIX, expand, run_files
+from daq.trc_log import TrcReader
 from dbc.database import load_database_bytes
 from dbc.errors import ConfigError
 from dbc.machine import MachineConfig, load_machine_config, parse_machine_config
@@ -361,20 +362,6 @@ class AscReader(can.ASCReader):
             return message
         message.is_fd = bool(flags & _EDL)
         return message
-
-
-class TrcReader(can.TRCReader):
-    """python-can's TRC reader, except that a frame line it cannot parse (too few
-    columns: a line cut in the middle of the log) stops reading, as in every other text
-    log; python-can left it out with a warning of its own, a frame lost uncounted."""
-
-    def _parse_line(self, line: str) -> can.Message | None:
-        if not line.strip():  # python-can's header reading hands on an empty file's ''
-            return None
-        try:
-            return self._parse_cols(tuple(line.split(maxsplit=self._num_columns)))
-        except IndexError as exc:
-            raise ValueError(f"a frame line with too few columns: {line.strip()!r}") from exc
 
 
 #: Our readers where python-can's read a suffix wrongly.

@@ -17,6 +17,7 @@ from datetime import UTC, datetime
 
 import numpy as np
 
+from daq.frames import DATED_FROM_S
 from daq.report.cycles import (
     Cycle,
     CycleClock,
@@ -41,14 +42,10 @@ from estimator.settings import EstimatorSettings
 #: leg is drawn as a gap (the service's own default staleness is 3 cycle times).
 GAP_PERIODS = 3.0
 
-#: Frame times before 2000-01-01 are no Unix times: a log of another tool that counts
-#: from its start (candump of a logger without a clock, an ASC log as python-can reads it).
-UNIX_TIME_FROM_S = 946_684_800.0
-
 
 def log_time(t_s: float) -> str | None:
     """``t_s`` in words when it is a log's own time (no date to show), else None."""
-    return f"{t_s:.3f} s (log time, no date)" if t_s < UNIX_TIME_FROM_S else None
+    return f"{t_s:.3f} s (log time, no date)" if t_s < DATED_FROM_S else None
 
 
 @dataclass(frozen=True)

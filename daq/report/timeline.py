@@ -19,8 +19,7 @@ back are unchanged, bit for bit.
 
 import math
 
-#: Unix time of 2000-01-01: an earlier frame time is no date (a clock not set yet).
-DATED_FROM_S = 946_684_800.0
+from daq.frames import DATED_FROM_S
 
 
 class Timeline:

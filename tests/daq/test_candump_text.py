@@ -53,6 +53,25 @@ def test_a_readable_candump_trace_replays_as_its_dash_l_log(
     assert got.getvalue() == expected.getvalue()
 
 
+def test_a_readable_trace_whose_clock_steps_back_replays_as_its_dash_l_log(
+    tmp_path: Path,
+) -> None:
+    # NTP stepping the logger's clock back 3 s mid-trace (or -tA's local time when
+    # daylight saving ends): dated times going back are no -td steps; it was refused.
+    log = sim_log(tmp_path, seconds=0.3)
+    lines = log.read_text().splitlines()
+    middle = len(lines) // 2
+    for i in range(middle, len(lines)):
+        stamp, rest = lines[i].split(")", 1)
+        lines[i] = f"({float(stamp[1:]) - 3.0:.6f}){rest}"
+    log.write_text("\n".join(lines) + "\n")
+    trace = tmp_path / "trace.log"
+    trace.write_text(readable(log))
+    expected, got = io.StringIO(), io.StringIO()
+    assert replay(log, expected, EXAMPLE_CONFIG) == replay(trace, got, EXAMPLE_CONFIG) == 6 * 30
+    assert got.getvalue() == expected.getvalue()
+
+
 def test_the_ascii_column_a_data_byte_0x23_prints_as_hash_is_no_dash_l_line() -> None:
     line = " (1750000000.000000)  can0  100   [2]  23 41   '#A'"
     assert dash_l_line(line) == "(1750000000.000000) can0 100#2341\n"

@@ -1,13 +1,17 @@
 """PEAK ``.trc`` logs as PCAN-View writes them (file versions 1.0, 1.1, 2.0; python-can
 writes 2.1): replayed to the frames in them, and a frame line cut in the middle of
-the file is one line naming the frames before it, as in every other text log."""
+the file is one line naming the frames before it, as in every other text log. PEAK's
+own examples of every file version (1.0 to 2.1), with error frames, status lines and
+remote frames: each frame used or counted."""
 
+import io
 from pathlib import Path
 
 import pytest
 
 from daq.errors import RecordingError
-from daq.replay import can_log_frames
+from daq.replay import can_log_frames, replay
+from tests.helpers import EXAMPLE_CONFIG
 
 #: (time offset ms, ID, data) of the frames in every log below.
 FRAMES = [(0.0, 0x100, "46 12 08 07 00 00 00 1C"), (10.25, 0x18FF5031, "80 3E 00 00 00 00 FF FF")]
@@ -73,3 +77,92 @@ def test_an_empty_trc_log_has_no_frame(tmp_path: Path) -> None:
     path = tmp_path / "empty.trc"
     path.write_text(HEADERS["2.0"])
     assert list(can_log_frames(path)) == []
+
+
+#: The body of PEAK's example of each file version (PEAK CAN TRC File Format): data,
+#: remote and error frames, and the controller's status lines (no frames).
+PEAK_EXAMPLES = {
+    "1.0": """\
+     1)      1841      0001  8  00 00 00 00 00 00 00 00
+     2)      1842      0008  4  ERROR 00 19 08 08
+     3)      1843  FFFFFFFF  4  00 00 00 04 -- -- -- --  BUSLIGHT
+     4)      1844      0100  3  RTR
+""",
+    "1.1": """\
+;$FILEVERSION=1.1
+;$STARTTIME=37704.5364870833
+     1)      1059.9  Rx         0300  7  00 00 00 00 04 00 00
+     3)      1298.9  Tx         0400  2  00 00
+     5)      1346.8  Warng  FFFFFFFF  4  00 00 00 04  BUSLIGHT
+     6)      1349.2  Error      0008  4  00 19 08 08
+     7)      1352.7  Rx         0100  3  RTR
+""",
+    "1.2": """\
+;$FILEVERSION=1.2
+;$STARTTIME=39878.6772258947
+     1)      1059.900  1  Rx         0300  7  00 00 00 00 04 00 00
+     3)      1298.945  1  Tx         0400  2  00 00
+     5)      1346.834  1  Warng  FFFFFFFF  4  00 00 00 04  BUSLIGHT
+     6)      1349.222  1  Error      0008  4  00 19 08 08
+     7)      1352.743  1  Rx         0100  3  RTR
+""",
+    "1.3": """\
+;$FILEVERSION=1.3
+;$STARTTIME=40023.5245451516
+     1)      1059.900 1  Rx        0300 -  7    00 00 00 00 04 00 00
+     3)      1298.945 1  Tx        0400 -  2    00 00
+     5)      1346.834 1  Warng FFFFFFFF -  4    00 00 00 04  BUSLIGHT
+     6)      1349.222 1  Error     0008 -  4    00 19 08 08
+     7)      1352.743 1  Rx        0100 -  3    RTR
+""",
+    "2.0": """\
+;$FILEVERSION=2.0
+;$STARTTIME=42209.4075997106
+;$COLUMNS=N,O,T,I,d,l,D
+      1      1059.900 DT     0300 Rx 7  00 00 00 00 04 00 00
+      3      1298.945 DT     0400 Tx 2  00 00
+      6      1334.522 ER          Rx    04 00 02 00 00
+      7      1334.531 ST          Rx    00 00 00 08
+      8      1334.643 EC          Rx    02 02
+     10      1336.543 RR     0100 Rx 3
+""",
+    "2.1": """\
+;$FILEVERSION=2.1
+;$STARTTIME=41766.4648963872
+;$COLUMNS=N,O,T,B,I,d,R,L,D
+      1      1059.900 DT 1      0300 Rx -  7    00 00 00 00 04 00 00
+      3      1298.945 DT 1      0400 Tx -  2    00 00
+      6      1334.222 ER 1         - Rx -  5    04 00 02 00 00
+      7      1334.224 EV 1  User-defined event for bus 1
+      9      1334.231 ST 1         - Rx -  4    00 00 00 08
+     10      1334.268 ER 1         - Rx -  5    04 00 02 08 00
+     11      1334.643 EC 1         - Rx -  2    02 02
+     13      1336.543 RR 1      0100 Rx -  3
+""",
+}
+
+
+@pytest.mark.parametrize("version", sorted(PEAK_EXAMPLES))
+def test_every_frame_of_peaks_examples_is_used_or_counted(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture, version: str
+) -> None:
+    """Error frames were left out uncounted (1.1 to 2.x) or stopped the replay (1.0's
+    ``ERROR``), and a 1.2 log was unreadable at its first line (read as 1.0)."""
+    path = tmp_path / "peak.trc"
+    path.write_text(PEAK_EXAMPLES[version].replace("\n", "\r\n"), newline="")
+    kinds = [
+        "error" if f.is_error_frame else "remote" if f.is_remote_frame else f"{f.arbitration_id:X}"
+        for f in can_log_frames(path)
+    ]
+    errors = ["error", "error"] if version == "2.1" else ["error"]
+    data = ["1"] if version == "1.0" else ["300", "400"]
+    assert kinds == [*data, *errors, "remote"]
+    replay(path, io.StringIO(), EXAMPLE_CONFIG)
+    assert f"error_frame {len(errors)}, remote_frame 1, unknown_id {len(data)})" in caplog.text
+
+
+def test_a_trc_file_version_peak_has_not_defined_is_refused_by_name(tmp_path: Path) -> None:
+    path = tmp_path / "future.trc"
+    path.write_text(PEAK_EXAMPLES["2.1"].replace("=2.1", "=3.0"))
+    with pytest.raises(RecordingError, match="TRC file version 3.0: not one PEAK defines"):
+        list(can_log_frames(path))
