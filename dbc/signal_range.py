@@ -7,6 +7,11 @@ J1939-71 reserves the top of such a parameter's raw range for indicators: above 
 available" (0xFF..). A transducer without a value sends 0xFFFF; at 0.05 kPa/bit that is
 3.28 MPa, a plausible pressure, so where the DBC declares no range (cantools reads the
 DBC's ``[0|0]`` as none) only this rule tells the code from a measurement.
+
+Any integer signal's last raw value (all ones; a signed signal's least too) is no
+measurement either, whatever the declared range: it is a code ("not available" in most
+vendors' DBCs) or a transducer saturated there, whose true pressure may be anything
+above; read as a value, a 3000 psi transducer at 3127 psi was a valid 3000 psi.
 """
 
 import math
@@ -20,18 +25,24 @@ J1939_VALID_RAW_MAX = {8: 0xFA, 16: 0xFAFF, 32: 0xFAFFFFFF}
 
 def value_range(signal: Signal, j1939: bool) -> tuple[float, float]:
     """The physical values ``signal`` may take, in its DBC unit, half a step wider for
-    rounding; unbounded where neither the DBC nor J1939 (``j1939``: the signal is in a
-    J1939 message) bounds it."""
+    rounding; without the last raw value of its bits (see the module docstring); else
+    unbounded where neither the DBC nor J1939 (``j1939``: the signal is in a J1939
+    message) bounds it."""
     low, high = -math.inf, math.inf
     if signal.minimum is not None and signal.maximum is not None:
         if signal.minimum < signal.maximum:
             margin = 0.5 * abs(signal.scale) if not signal.is_float else 0.0
             margin += 1e-9 * max(abs(signal.minimum), abs(signal.maximum))
             low, high = signal.minimum - margin, signal.maximum + margin
+    if signal.is_float or signal.scale <= 0:
+        return (low, high)
+    bits = signal.length - 1 if signal.is_signed else signal.length
+    high = min(high, ((1 << bits) - 1.5) * signal.scale + signal.offset)
+    if signal.is_signed:
+        low = max(low, (0.5 - (1 << bits)) * signal.scale + signal.offset)
     raw_max = J1939_VALID_RAW_MAX.get(signal.length)
-    if j1939 and raw_max is not None and not (signal.is_signed or signal.is_float):
-        if signal.scale > 0:
-            high = min(high, (raw_max + 0.5) * signal.scale + signal.offset)
+    if j1939 and raw_max is not None and not signal.is_signed:
+        high = min(high, (raw_max + 0.5) * signal.scale + signal.offset)
     return (low, high)
 
 

@@ -278,8 +278,6 @@ class FaultInjector:
         each leg's column in ``result`` (see :func:`~sim_bridge.result.leg_column`)."""
         faults = self.faults
         changed: dict[str, tuple[float, float, str | None]] = {}
-        # Legs whose piston an out-of-range fault sets (a later fault keeps it so).
-        beyond: set[str] = set()
 
         def current(leg: str) -> tuple[float, float, str | None]:
             if leg in changed:
@@ -300,15 +298,11 @@ class FaultInjector:
             if window.active(sim_t_ns):
                 _, p_rod, status = current(window.target)
                 changed[window.target] = (faults.out_of_range_Pa, p_rod, status)
-                beyond.add(window.target)
         for window in faults.sensor_fault:
             if window.active(sim_t_ns):
                 p_piston, p_rod, _ = current(window.target)
                 changed[window.target] = (p_piston, p_rod, self._fault_status[window.target])
-        return {
-            leg: LegOverride(*values, piston_beyond_range=leg in beyond)
-            for leg, values in changed.items()
-        }
+        return {leg: LegOverride(*values) for leg, values in changed.items()}
 
 
 def _check_leg(flag: str, window: FaultWindow, targets: FaultTargets) -> None:

@@ -62,10 +62,6 @@ class LegOverride:
     p_rod_Pa: float
     #: Status value-table name; None keeps the config's ``status_ok``.
     status: str | None = None
-    #: The piston pressure is meant to be out of range (``--out-of-range``): it is clipped
-    #: into what its signal's bits hold only, not into the DBC's range, which the service
-    #: judges too (a DBC range ending below it made it a valid top-of-range value).
-    piston_beyond_range: bool = False
 
 
 @dataclass(frozen=True, slots=True)
@@ -317,7 +313,6 @@ class FrameBuilder:
         for chamber in plan.chambers:
             override = (overrides or {}).get(chamber.leg)
             status: SignalValue
-            in_range = True
             if override is None:
                 field = result.p_piston_Pa if chamber.chamber == "piston" else result.p_rod_Pa
                 p_Pa = float(field[row, chamber.column])
@@ -326,9 +321,12 @@ class FrameBuilder:
                 piston = chamber.chamber == "piston"
                 p_Pa = override.p_piston_Pa if piston else override.p_rod_Pa
                 status = override.status or chamber.status_nominal
-                in_range = not (piston and override.piston_beyond_range)
             p_Pa += chamber.atmosphere_Pa
-            values[chamber.pressure.name] = clip(chamber.pressure, p_Pa, chamber.to_Pa, in_range)
+            # Into the bits only, not the DBC's range: a pressure beyond the transducer's
+            # range (a 3000 psi one at 216 bar, or --out-of-range) goes out beyond it, or as
+            # the bits' end, which the service flags; clipped to the range's end it was a
+            # valid sample the truth disagreed with.
+            values[chamber.pressure.name] = clip(chamber.pressure, p_Pa, chamber.to_Pa, False)
             if chamber.status is not None:
                 values[chamber.status.name] = status
         for signal, getter, to_si in plan.named:

@@ -11,8 +11,9 @@ from cantools.database.can import Database
 
 from daq.frames import RawFrame
 from daq.pipeline import Pipeline
+from dbc.database import load_database_string
 from dbc.machine import MachineConfig, load_machine_config
-from dbc.signal_range import named_values
+from dbc.signal_range import named_values, value_range
 from estimator import foot_force_N
 from tests.helpers import LEG_DEFAULTS_TOML, dbc_text
 
@@ -185,3 +186,13 @@ def test_a_code_named_at_the_top_of_the_bits_is_no_pressure_in_a_range_reaching_
     assert [e.p_piston_Pa for e in estimates[2:]] == [0.0, pytest.approx(100e5)]
     (estimate,) = pipeline.process(_zyl1(2000, 4095)).estimates
     assert estimate.reasons == ("range",) and math.isnan(estimate.p_rod_Pa)
+
+
+def test_the_last_raw_values_of_the_bits_are_outside_the_value_range() -> None:
+    """All ones (a signed signal's least value too) is a code or a saturated transducer,
+    never a measurement, whatever range the DBC declares (here all the bits hold)."""
+    message = load_database_string(ENDS_DBC, "ends.dbc").get_message_by_name("HYD_P_ZYL1")
+    low, high = value_range(message.get_signal_by_name("HYD_P_ZYL1_A"), j1939=False)
+    assert low <= 0.0 and 4094 * 0.05 <= high < 4095 * 0.05
+    low, high = value_range(message.get_signal_by_name("HYD_P_ZYL1_DIFF"), j1939=False)
+    assert -32768 * 0.01 < low <= -32767 * 0.01 and 32766 * 0.01 <= high < 32767 * 0.01

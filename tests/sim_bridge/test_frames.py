@@ -366,3 +366,46 @@ BO_ 768 HYD: 4 Hub
             sent_Pa.append(processed.decoded.signals["pCap"])
     assert [e.reasons for e in estimates] == [()] * 5 + [("range",)] * 5 + [()] * 10
     assert sent_Pa[5:10] == [pytest.approx(45e6)] * 5  # on /signals; the estimate's is NaN
+
+
+@pytest.mark.parametrize(
+    ("piston", "top_Pa"),
+    [
+        ('0|16@1+ (0.1,0) [0|3000] "psi"', 3000 * 6894.757293168361),  # a 3000 psi transducer
+        ('0|12@1+ (0.05,0) [0|204.75] "bar"', 204.75e5),  # 12 bits, the range all they hold
+    ],
+    ids=["range-below-the-bits", "range-of-all-the-bits"],
+)
+def test_a_simulated_pressure_beyond_the_transducer_is_flagged_not_sent_as_its_top(
+    result: SimulationResult, tmp_path: Path, piston: str, top_Pa: float
+) -> None:
+    """The simulation's piston pressure above a transducer's range (216 bar on a 3000
+    psi, 206.8 bar, one): it was sent as the range's top, a valid sample 10 bar short of
+    the truth; now it goes out beyond the range, or as the last value the bits hold
+    (saturated), and the service flags it ``range``."""
+    config, database = small_machine(
+        tmp_path,
+        f"""
+BO_ 768 HYD: 4 Hub
+ SG_ pCap : {piston} DAQ
+ SG_ pRod : 16|16@1+ (0.1,0) [0|6000] "bar" DAQ
+""",
+        'BA_ "GenMsgCycleTime" BO_ 768 10;\n',
+        '[legs.front]\npiston = "HYD.pCap"\nrod = "HYD.pRod"\n',
+    )
+    result.p_piston_Pa[5:10, 0] = top_Pa + 10e5
+    playout = make_playout(result, config=config, database=database)
+    pipeline = Pipeline.from_config(config, database)
+    estimates = []
+    for instant in instants(schedule(playout.cycles, end_sim_ns=200_000_000)):
+        position, outgoing = playout.frames(instant)
+        for item in outgoing:
+            frame = item.frame
+            raw = RawFrame(instant.sim_t_ns / 1e9, frame.arbitration_id, False, frame.data)
+            estimates += [(e, position.row) for e in pipeline.process(raw).estimates]
+    assert [e.reasons for e, _ in estimates] == [()] * 5 + [("range",)] * 5 + [()] * 10
+    for estimate, row in estimates:
+        if estimate.valid:
+            assert estimate.p_piston_Pa == pytest.approx(result.p_piston_Pa[row, 0], abs=3500)
+        else:
+            assert math.isnan(estimate.p_piston_Pa)
