@@ -6,7 +6,10 @@ batches of :mod:`daq.can_batch`, or the JSON frames of older recordings; the fil
 one run chained in its order) and writes every frame, bad ones included, with its
 receive time, through :class:`can.CanutilsLogWriter`, :class:`can.ASCWriter` or
 :class:`can.BLFWriter`. What python-can writes back reads with ``can.LogReader`` (and
-``portal-daq replay --config``) into the same frames.
+``portal-daq replay --config``) into the same frames. The log is written beside its
+path and takes its place once complete (:mod:`daq.output_file`): an export that fails
+leaves an earlier file of that name as it was, and one that names a file it reads is
+refused.
 """
 
 from collections.abc import Iterable
@@ -16,6 +19,7 @@ import can
 
 from daq.errors import RecordingError
 from daq.frames import RawFrame
+from daq.output_file import refuse_an_input, replacing_path
 from daq.recording_run import expand, run_files
 from daq.replay import run_items
 
@@ -44,11 +48,12 @@ def message(frame: RawFrame, channel: str) -> can.Message:
 
 
 def write_frames(frames: Iterable[RawFrame], out: Path, fmt: str, channel: str = "can0") -> int:
-    """Write ``frames`` to ``out`` in ``fmt`` (a key of :data:`FORMATS`); the count."""
+    """Write ``frames`` to ``out`` in ``fmt`` (a key of :data:`FORMATS`), in its place
+    once all are written; the count."""
     writer_type, _ = FORMATS[fmt]
     count = 0
     try:
-        with writer_type(out) as writer:
+        with replacing_path(out) as target, writer_type(target) as writer:
             for frame in frames:
                 writer.on_message_received(message(frame, channel))
                 count += 1
@@ -61,6 +66,7 @@ def export(paths: Iterable[Path], out: Path, fmt: str) -> int:
     """The raw frames of the recording at ``paths`` (MCAP files or a directory of one
     run) into ``out``; returns the number of frames written."""
     files = run_files(expand(list(paths)))
+    refuse_an_input(out, files)
     frames = (item for item in run_items(files) if isinstance(item, RawFrame))
     return write_frames(frames, out, fmt)
 

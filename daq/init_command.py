@@ -15,6 +15,7 @@ from importlib.resources.abc import Traversable
 from pathlib import Path
 
 from daq.subcommand import PROG, Subcommand, fail
+from dbc.errors import ConfigError
 
 #: The examples, one folder each.
 EXAMPLES = resources.files("daq") / "examples"
@@ -37,8 +38,11 @@ def write_example(name: str, directory: Path, *, force: bool = False) -> list[Pa
     """Copy example ``name`` into ``directory`` (created); the paths written.
 
     Raises ``FileExistsError`` naming the files that exist (none is written) unless
-    ``force``, and ``OSError`` when the directory cannot be written.
+    ``force``, :class:`~dbc.errors.ConfigError` when ``directory`` is a file, and
+    ``OSError`` when the directory cannot be written.
     """
+    if directory.exists() and not directory.is_dir():
+        raise ConfigError(directory, "", "it is a file; give init a directory to write into")
     files = example_files(name)
     targets = [directory / entry.name for entry in files]
     existing = [str(target) for target in targets if target.exists()]
@@ -66,7 +70,7 @@ def init_main(args: Sequence[str]) -> int:
     options = parser.parse_args(args)
     try:
         written = write_example(options.example, options.directory, force=options.force)
-    except FileExistsError as exc:
+    except (FileExistsError, ConfigError) as exc:
         return fail(exc, 2)
     except OSError as exc:
         return fail(f"{options.directory}: cannot write the example: {exc.strerror or exc}", 1)

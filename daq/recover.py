@@ -139,8 +139,11 @@ def recover_file(path: Path, out: Path | None = None, *, compression: str = "zst
 
     Raises :class:`RecordingError` when a file cannot be read or written.
     """
+    target = out or path
     try:
-        with open(path, "rb") as source, replacing(out or path, "wb") as sink:
+        with open(path, "rb") as source, replacing(target, "wb") as sink:
             return recover(source, sink, compression=compression, name=str(path))
     except OSError as exc:
-        raise RecordingError(exc.filename or path, f"cannot recover: {exc.strerror}") from exc
+        # The output's error names the path given, not the .part written beside it.
+        where = path if exc.filename in (None, str(path)) else target
+        raise RecordingError(where, f"cannot recover: {exc.strerror}") from exc

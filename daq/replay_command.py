@@ -11,7 +11,8 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from daq.errors import RecordingError
-from daq.output_file import replacing
+from daq.output_file import refuse_an_input, replacing
+from daq.recording_run import expand
 from daq.replay import replay
 from daq.subcommand import PROG, Subcommand, add_channel_option, fail, setup_logging
 from dbc.errors import ConfigError, DbcError, PortalDaqError
@@ -48,7 +49,9 @@ def replay_main(args: Sequence[str]) -> int:
 
 def write_csv_to(path: Path, options: argparse.Namespace) -> None:
     """The replay's CSV into ``path`` (:func:`~daq.output_file.replacing`: a replay that
-    fails leaves what was there as it was)."""
+    fails leaves what was there as it was; one that would write a file it reads is
+    refused)."""
+    refuse_an_input(path, expand(options.recording))
     try:
         with replacing(path) as out:
             replay(options.recording, out, options.config, options.channel)

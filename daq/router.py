@@ -1,10 +1,11 @@
-"""``portal-daq router --config zenoh-router.json5``: a site Zenoh router in Python.
+"""``portal-daq router [--config zenoh-router.json5]``: a site Zenoh router in Python.
 
 The site router is what every machine's service connects to (``[zenoh] connect``)
 and what the fleet dashboard and monitor connect to (``--connect``). Eclipse's
 ``zenohd`` is the production choice (``zenohd -c deploy/zenoh-router.json5``): it
 reads the same file. This command opens a Python Zenoh session in router mode
-with that file where zenohd is not installed (bench, tests).
+with that file where zenohd is not installed (bench, tests); without ``--config``,
+the one shipped in the package (:data:`DEFAULT_CONFIG`), so that it runs from a wheel.
 
 The file's ``mode`` must be ``router`` (or absent). Exit status: 0 after
 SIGINT/SIGTERM; 2 for a file that is not a valid Zenoh config or asks for
@@ -16,6 +17,7 @@ import argparse
 import json
 import sys
 from collections.abc import Sequence
+from importlib import resources
 from pathlib import Path
 
 import zenoh
@@ -27,10 +29,16 @@ from dbc.errors import ConfigError, PortalDaqError
 
 COMMAND = "router"
 MODE = "router"
+#: The site router's config shipped in the package (``deploy/zenoh-router.json5`` in the
+#: repository points to it): listens on ``tcp/0.0.0.0:7447``, 2 s lease, no scouting.
+DEFAULT_CONFIG = Path(str(resources.files("daq").joinpath("zenoh-router.json5")))
 
 
 def router_config(path: Path) -> zenoh.Config:
     """The router's :class:`zenoh.Config` from ``path``; ConfigError when unusable."""
+    if not path.is_file():
+        reason = "it is a directory" if path.is_dir() else "no such file"
+        raise ConfigError(path, "", f"{reason}; give --config a Zenoh JSON5 file")
     try:
         config = zenoh.Config.from_file(str(path))
     except zenoh.ZError as exc:
@@ -56,7 +64,10 @@ def router_main(args: Sequence[str]) -> int:
         "fleet views to connect to; zenohd with the same file is the production choice.",
     )
     parser.add_argument(
-        "--config", type=Path, required=True, help="Zenoh JSON5 file, e.g. zenoh-router.json5"
+        "--config",
+        type=Path,
+        default=DEFAULT_CONFIG,
+        help=f"Zenoh JSON5 file [the packaged one: {DEFAULT_CONFIG}]",
     )
     parser.add_argument("--log-level", default="WARNING", help="DEBUG, INFO, WARNING, ERROR")
     options = parser.parse_args(args)

@@ -91,13 +91,18 @@ def open_config_session(config: zenoh.Config, hint: str) -> zenoh.Session:
 
 def one_line(message: str) -> str:
     """A Zenoh error on one line, without the noise of its source location for an operator
-    (`` at /root/.cargo/.../tcp.rs:61.``).
+    (`` at /root/.cargo/.../tcp.rs:61.``) nor the whole file it could not parse (a TOML
+    error's ``input: Some("...")``: a service config given as the Zenoh file printed
+    all of its 10 KB).
 
     >>> one_line("bad --> 1:8\\n  |\\n  = expected array at /x/lib.rs:1486.")
     'bad --> 1:8 = expected array'
+    >>> one_line('Error { message: "unclosed table", input: Some("[m\\\\n\\\\"x\\\\""), span: 8 }')
+    'Error { message: "unclosed table", span: 8 }'
     """
     lines = [line.strip() for line in message.strip().splitlines()]
     text = " ".join(line for line in lines if line and line != "|")
+    text = re.sub(r'input: Some\("(?:[^"\\]|\\.)*"\), ', "", text)
     return re.sub(r"\s+at \S+\.rs:\d+\.?", "", text)
 
 

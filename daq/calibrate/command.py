@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from daq.output_file import refuse_an_input
 from daq.subcommand import PROG, Subcommand, add_channel_option, fail
 from dbc.errors import ConfigError, DbcError, PortalDaqError
 
@@ -46,6 +47,7 @@ def calibrate_main(args: Sequence[str]) -> int:
     from estimator.calibration import fit_calibration
 
     try:
+        refuse_an_input(options.out, options.recording)
         machine = machine_for(options.recording, options.config)
         instants = read_instants(options.recording, machine, options.channel)
     except (ConfigError, DbcError) as exc:

@@ -18,7 +18,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from daq.errors import EmptyRecordingError
+from daq.errors import EmptyRecordingError, RecordingError
 from daq.subcommand import Subcommand, add_channel_option
 from dbc.errors import ConfigError, DbcError, PortalDaqError
 
@@ -139,6 +139,11 @@ def report_main(args: Sequence[str]) -> int:
     options = parse_report_args(args)
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     try:
+        if options.directory.exists() and not options.directory.is_dir():
+            # Found before the recording is read (mkdir said "File exists" at the end).
+            raise RecordingError(
+                options.directory, "it is a file; --out names the directory the report goes into"
+            )
         written = campaign_report(options) if options.campaign else report(options)
     except (ConfigError, DbcError) as exc:
         return _fail(str(exc), 2)

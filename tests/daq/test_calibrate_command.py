@@ -272,3 +272,18 @@ def test_calibrate_from_one_bus_of_a_log_of_two(
     assert capsys.readouterr().err == (
         "portal-daq: --channel: picks a CAN log's bus; a service recording has one\n"
     )
+
+
+def test_calibrate_refuses_an_output_that_names_a_recording(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--out REC.mcap`` would have written the TOML snippet over the recording."""
+    recorded = tmp_path / "rec.mcap"
+    recorded.write_bytes(b"\x89MCAP0\r\nnot more")
+    assert calibrate_main([str(recorded), "--out", str(recorded)]) == 1
+    assert recorded.read_bytes() == b"\x89MCAP0\r\nnot more"
+    stderr = capsys.readouterr().err
+    assert (
+        stderr == f"portal-daq: {recorded}: --out names {recorded}, which this reads; "
+        "give --out another file\n"
+    )

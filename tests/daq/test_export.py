@@ -3,12 +3,14 @@ read back with python-can's reader into the same frames."""
 
 import subprocess
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 
 import can
 import pytest
 
-from daq.export import FORMATS, export
+from daq.errors import RecordingError
+from daq.export import FORMATS, export, write_frames
 from daq.frames import RawFrame
 from daq.mcap_file import McapFile, RecordBatch
 from tests.helpers import ROOT, example_machine
@@ -70,3 +72,31 @@ def test_the_command_line(tmp_path: Path) -> None:
     )
     assert missing.returncode == 1 and missing.stderr.count("\n") == 1
     assert missing.stderr.startswith("portal-daq: ")
+
+
+def test_an_output_that_names_the_recording_is_refused(tmp_path: Path) -> None:
+    """``export REC.mcap --out REC.mcap`` emptied the recording (the writer opened it
+    before it was read) and said ``0 frames``, exit 0."""
+    source = recording(tmp_path / "rec.mcap")
+    before = source.read_bytes()
+    with pytest.raises(RecordingError, match="--out names .*rec.mcap, which this reads"):
+        export([tmp_path], source, "candump")
+    assert source.read_bytes() == before
+
+
+def test_an_export_that_fails_leaves_the_earlier_file(tmp_path: Path) -> None:
+    """The writer wrote into the output as it went: a recording unreadable half way left
+    an earlier export of that name emptied or cut."""
+    out = tmp_path / "rec.log"
+    out.write_text("earlier\n")
+
+    def failing() -> Iterator[RawFrame]:
+        yield FRAMES[0]
+        raise RecordingError(tmp_path / "rec.mcap", "unreadable")
+
+    with pytest.raises(RecordingError, match="unreadable"):
+        write_frames(failing(), out, "candump")
+    assert out.read_text() == "earlier\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["rec.log"]
+    assert write_frames(FRAMES, out, "candump") == len(FRAMES)
+    assert out.read_text().count(" can0 ") == len(FRAMES)

@@ -81,3 +81,17 @@ def test_an_unknown_example_is_a_usage_error(capsys: pytest.CaptureFixture[str])
         main(["init", "--example", "nope"])
     assert exit_info.value.code == 2
     assert "invalid choice: 'nope'" in capsys.readouterr().err
+
+
+def test_a_file_where_the_directory_goes_is_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``portal-daq init my.toml`` (a file named instead of a directory) printed Python's
+    ``[Errno 17] File exists: 'my.toml'``."""
+    mine = tmp_path / "my.toml"
+    mine.write_text("# mine\n")
+    assert main(["init", str(mine)]) == 2
+    assert capsys.readouterr().err == (
+        f"portal-daq: {mine}: it is a file; give init a directory to write into\n"
+    )
+    assert mine.read_text() == "# mine\n"

@@ -231,3 +231,22 @@ def test_what_out_named_before_is_never_removed(tmp_path: Path) -> None:
         recover_file(not_mcap, earlier)
     assert earlier.read_bytes() == b"the user's file"  # was left emptied
     assert sorted(p.name for p in tmp_path.iterdir()) == ["earlier.mcap", "notes.txt", "sink"]
+
+
+def test_an_output_that_cannot_be_written_is_named_as_given(tmp_path: Path) -> None:
+    """``recover CUT.mcap -o nowhere/out.mcap`` named ``nowhere/.out.mcap.part``, a file
+    the user never heard of; a missing input is still named as the input."""
+    from daq.errors import RecordingError
+    from daq.recover import recover_file
+
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(b"\x89MCAP0\r\n")
+    out = tmp_path / "nowhere" / "out.mcap"
+    with pytest.raises(RecordingError) as raised:
+        recover_file(cut, out)
+    assert str(raised.value) == f"{out}: cannot recover: No such file or directory"
+    with pytest.raises(RecordingError) as raised:
+        recover_file(tmp_path / "gone.mcap", out)
+    assert (
+        str(raised.value) == f"{tmp_path / 'gone.mcap'}: cannot recover: No such file or directory"
+    )

@@ -129,3 +129,17 @@ def test_a_replaced_output_keeps_its_permissions(tmp_path: Path, earlier: Path) 
     assert result.returncode == 0, result.stderr
     assert earlier.read_text().count("\nSB1_F1,") == 2
     assert stat.S_IMODE(earlier.stat().st_mode) == 0o640
+
+
+@pytest.mark.parametrize("name", ["cycle.log", "again.log"])
+def test_an_output_that_names_the_log_replayed_is_refused(tmp_path: Path, name: str) -> None:
+    """``replay cycle.log --out cycle.log`` replaced the log with its own CSV (exit 0): the
+    recording was gone. Also under another name (a hard link) it is refused."""
+    log = tmp_path / "cycle.log"
+    log.write_text(LOG)
+    if name != log.name:
+        os.link(log, tmp_path / name)
+    result = replay_into(log, tmp_path / name)
+    assert_one_line_error(result, 1, f"{name}: --out names {log}, which this reads")
+    assert log.read_text() == LOG
+    assert sorted(p.name for p in tmp_path.iterdir() if p.name.endswith(".part")) == []

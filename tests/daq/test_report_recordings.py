@@ -271,6 +271,22 @@ def test_the_command_line(tmp_path: Path) -> None:
     assert help_text.returncode == 0 and "--config" in help_text.stdout
 
 
+@pytest.mark.parametrize("campaign", [[], ["--campaign"]])
+def test_an_out_that_is_a_file_is_one_line_before_reading(
+    tmp_path: Path, campaign: list[str]
+) -> None:
+    """``--out`` naming a file (the recording itself, say) read the whole recording, then
+    said ``portal-daq: run.mcap: File exists``."""
+    path = tmp_path / "run.mcap"
+    path.write_bytes(b"not read")
+    done = run_cli(str(tmp_path / "nope.mcap"), *campaign, "--out", str(path))
+    assert done.returncode == 1
+    assert done.stderr.splitlines() == [
+        f"portal-daq: {path}: it is a file; --out names the directory the report goes into"
+    ]
+    assert path.read_bytes() == b"not read"
+
+
 def test_input_without_frames_or_estimates_exits_1_with_one_line(tmp_path: Path) -> None:
     """A TOML file, or an MCAP file with only the simulator's truth: nothing to report."""
     toml = run_cli(str(EXAMPLE_CONFIG), "--out", str(tmp_path / "toml"))

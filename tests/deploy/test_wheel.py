@@ -47,8 +47,9 @@ def venv(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return fresh
 
 
-def installed_default_config(venv: Path, cwd: Path) -> Path:
-    code = "import sim_bridge._args as a; print(a.DEFAULT_CONFIG)"
+def installed_default_config(venv: Path, cwd: Path, module: str = "sim_bridge._args") -> Path:
+    """``module.DEFAULT_CONFIG`` as the installed package has it."""
+    code = f"import {module} as a; print(a.DEFAULT_CONFIG)"
     where = run(venv / "bin" / "python", "-c", code, cwd=cwd)
     assert where.returncode == 0, where.stderr
     return Path(where.stdout.strip())
@@ -60,6 +61,10 @@ def test_the_wheel_ships_the_example_config_as_the_simulators_default(venv: Path
     default = installed_default_config(venv, elsewhere)
     assert default.is_file() and default.is_relative_to(venv), default
     assert not default.is_relative_to(ROOT)
+    # `portal-daq router`'s default, the site router's config (deploy/ is not in a wheel)
+    router = installed_default_config(venv, elsewhere, "daq.router")
+    assert router.is_file() and router.is_relative_to(venv), router
+    assert "tcp/0.0.0.0:7447" in router.read_text()
     # license = "MIT" in pyproject.toml, and its text ships with the wheel
     (license_file,) = venv.glob("lib/python*/site-packages/portal_daq-*.dist-info/licenses/LICENSE")
     assert license_file.read_text().startswith("MIT License")

@@ -1,0 +1,45 @@
+"""``portal-daq router``: its default config ships in the package (a wheel has no
+``deploy/``), and a file it cannot use is one line naming it, exit 2."""
+
+import json
+from pathlib import Path
+
+import pytest
+
+import daq
+from daq.router import DEFAULT_CONFIG, listen_endpoints, router_config, router_main
+from tests.helpers import ROOT
+
+
+def test_the_default_config_is_the_packaged_site_router() -> None:
+    """``portal-daq router --config deploy/zenoh-router.json5`` was the only way: the
+    README's fleet commands did not run from an installed wheel."""
+    assert DEFAULT_CONFIG.is_relative_to(Path(daq.__file__).parent)
+    assert (ROOT / "deploy" / "zenoh-router.json5").resolve() == DEFAULT_CONFIG.resolve()
+    config = router_config(DEFAULT_CONFIG)
+    assert json.loads(config.get_json("mode")) == "router"
+    assert listen_endpoints(config) == ["tcp/0.0.0.0:7447"]
+
+
+@pytest.mark.parametrize(
+    ("name", "text", "reason"),
+    [
+        ("missing.json5", None, "missing.json5: no such file; give --config a Zenoh JSON5 file"),
+        ("folder", "", "folder: it is a directory; give --config a Zenoh JSON5 file"),
+        ("peer.json5", '{ mode: "peer" }', "peer.json5: mode: must be 'router' for a router"),
+        # A service config given instead: the TOML error carried the whole file.
+        ("portal-daq.toml", "[machine\n" + "# a long comment\n" * 500, "not a valid Zenoh"),
+    ],
+)
+def test_a_config_it_cannot_use_is_one_short_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], name: str, text: str | None, reason: str
+) -> None:
+    path = tmp_path / name
+    if name == "folder":
+        path.mkdir()
+    elif text is not None:
+        path.write_text(text)
+    assert router_main(["--config", str(path)]) == 2
+    stderr = capsys.readouterr().err
+    assert stderr.startswith(f"portal-daq: {path}") and stderr.count("\n") == 1
+    assert reason in stderr and "a long comment" not in stderr and len(stderr) < 300
