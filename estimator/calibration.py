@@ -28,6 +28,7 @@ their gains trades against that sum: a foot in the air (it carries nothing: ``k 
 are reported with the reason; the others are fitted with those held fixed.
 """
 
+import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
@@ -75,7 +76,14 @@ def snapshots(
     estimates: Iterable[LegEstimate], legs: Sequence[str], period_s: float, stale_s: float
 ) -> Snapshots:
     """Sample a stream of leg estimates (in frame order) every ``period_s``: each leg's
-    latest estimate, invalid once older than ``stale_s``."""
+    latest estimate, invalid once older than ``stale_s``.
+
+    A silence longer than the stale time (a gap, or the clock stepped forward: set from
+    1970, say) is one snapshot with every leg stale, not one every ``period_s`` across
+    it (56 years of them filled the memory); a step back of the clock by more than the
+    stale time starts the sampling again at the new time, every leg stale until heard
+    (before, nothing was sampled until the frame times caught up).
+    """
     index = {leg: i for i, leg in enumerate(legs)}
     n = len(legs)
     latest_t = np.full(n, -np.inf)
@@ -90,13 +98,16 @@ def snapshots(
         if i is None:
             continue
         t = estimate.t_s
-        if next_t is None:
+        if next_t is None or t < next_t - period_s - stale_s:  # the first, or a step back
+            latest_t[:] = -np.inf  # heard after the new time
             next_t = t
         while t >= next_t:
             fresh = next_t - latest_t <= stale_s
             rows_t.append(next_t)
             rows.append((force.copy(), valid & fresh, contact.copy()))
             next_t += period_s
+            if not fresh.any() and t - next_t > period_s:  # silent: on to the next frame
+                next_t += period_s * math.floor((t - next_t) / period_s)
         latest_t[i] = t
         force[i] = estimate.force_N
         valid[i] = estimate.valid
