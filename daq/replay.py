@@ -138,6 +138,7 @@ def replay(
     machine = load_machine_config(config_path) if config_path is not None else None
     files = expand([paths] if isinstance(paths, Path) else paths)
     if all(path.suffix.lower() == MCAP_SUFFIX for path in files):
+        no_channel_of_recordings(channel)  # was ignored: every frame of the one bus
         source = run_source(run_files(files), machine)
         if source is None:
             return write_csv((), out)
