@@ -9,22 +9,24 @@ estimates and the truth line up. The rules, in this order:
 1. **Stated**: ``simulated_leg = "SB1_F1"`` in the leg's ``[legs.<LEG>]`` table (checked
    when the config is loaded: a simulated leg, none twice).
 2. **By name**: a leg named like a simulated leg (and not stated by another) is that one.
-3. **Derived**, only when neither rule maps any leg and the config has at most six:
+3. **Derived**, only when neither rule maps any leg:
 
    - from ``[stability.bases.*]``: the first base (it stands first, as SB1 does) is SB1,
-     the second SB2; within a base, each foot by its angle about the centre of the
-     base's three feet, where the simulation puts F1 at 0 deg, F2 at 120 deg and F3 at
-     240 deg (:data:`~sim_bridge.params.FOOT_ANGLES_DEG`) when every foot is within
-     :data:`ANGLE_TOLERANCE_DEG` of a different one of them; else by the feet's order
-     in ``feet_m``;
-   - without ``[stability]`` (or when its bases do not have three feet each, e.g. a
-     machine of fewer legs): the legs' order in the config, the first three SB1_F1..F3,
-     the next three SB2_F1..F3.
+     the second SB2; within a base of three feet, each foot by its angle about the
+     centre of the base's feet, where the simulation puts F1 at 0 deg, F2 at 120 deg and
+     F3 at 240 deg (:data:`~sim_bridge.params.FOOT_ANGLES_DEG`) when every foot is
+     within :data:`ANGLE_TOLERANCE_DEG` of a different one of them; else, and in a base
+     of other than three feet (two, four), by the feet's order in ``feet_m``, a fourth
+     foot playing F1 again;
+   - without ``[stability]``: the legs' order in the config, the first three SB1_F1..F3,
+     the next three SB2_F1..F3, a seventh SB1_F1 again.
 
-Anything else (legs left over after rules 1 and 2, or more than six legs) is a
-:class:`~dbc.errors.ConfigError` naming the leg and what to add.
-Derived maps only matter for the stability margin (which foot stands where); the truth
-lines up with the estimates under any of them.
+   A machine of more than six legs plays some simulated legs twice: their frames carry
+   the same pressures, and the truth gives each config leg its simulated leg's.
+
+Anything else (legs left over after rules 1 and 2) is a :class:`~dbc.errors.ConfigError`
+naming the leg and what to add. Derived maps only matter for the stability margin (which
+foot stands where); the truth lines up with the estimates under any of them.
 
 >>> from types import SimpleNamespace as Leg
 >>> config = Leg(source="m.toml", stability=None, legs={
@@ -96,16 +98,12 @@ def leg_map(config: MachineConfig) -> LegMap:
         )
         hint = f"add simulated_leg = one of {', '.join(free)}" if free else "remove the leg"
         raise ConfigError(config.source, f"legs.{name}", f"{why}; {hint}")
-    if len(config.legs) > len(LEGS):
-        raise ConfigError(
-            config.source,
-            "legs",
-            f"the simulation has {len(LEGS)} legs ({', '.join(LEGS)}), the config "
-            f"{len(config.legs)} ({', '.join(config.legs)}): the bridge plays six at most",
-        )
     derived = _by_bases(config.stability.layout.bases) if config.stability else None
-    if derived is None:
-        return LegMap(dict(zip(config.legs, LEGS, strict=False)), "the legs' order in the config")
+    if derived is None or set(derived[0]) != set(config.legs):
+        return LegMap(
+            {leg: LEGS[i % len(LEGS)] for i, leg in enumerate(config.legs)},
+            "the legs' order in the config",
+        )
     simulated, rule = derived
     return LegMap({leg: simulated[leg] for leg in config.legs}, rule)
 
@@ -115,18 +113,17 @@ def _stater(stated: Mapping[str, str], simulated: str) -> str:
 
 
 def _by_bases(bases: Sequence[BaseLayout]) -> tuple[dict[str, str], str] | None:
-    """The map from two bases of three feet each, and its rule; None when they are not
-    that."""
-    if len(bases) != 2 or any(len(base.feet_m) != 3 for base in bases):
+    """The map from two bases, and its rule; None when they are not two."""
+    if len(bases) != 2:
         return None
     simulated: dict[str, str] = {}
     how = []
     for b, base in enumerate(bases):
         feet = list(base.feet_m)
-        order = _by_angles([base.feet_m[leg] for leg in feet])
+        order = _by_angles([base.feet_m[leg] for leg in feet]) if len(feet) == 3 else None
         how.append(f"{base.name}'s feet by {'order' if order is None else 'angle'}")
-        for leg, foot in zip(feet, order or range(3), strict=True):
-            simulated[leg] = LEGS[3 * b + foot]
+        for k, leg in enumerate(feet):
+            simulated[leg] = LEGS[3 * b + (k % 3 if order is None else order[k])]
     return simulated, f"[stability.bases] ({', '.join(how)})"
 
 

@@ -183,9 +183,9 @@ def test_a_leg_named_like_a_stated_one_is_left_over() -> None:
         leg_map(parse_machine_config(data, "m.toml", load_machine_config(EXAMPLE_CONFIG)[1]))
 
 
-def test_fewer_legs_than_six_go_by_their_order_and_more_are_refused() -> None:
+def test_fewer_or_more_legs_than_six_go_by_their_order() -> None:
     """A machine of fewer legs (a held-out hub of two) plays the first simulated legs; a
-    seventh leg has no simulated leg to play."""
+    seventh leg plays the first again (it was refused: "the bridge plays six at most")."""
     data = renamed_without_stability()
     del data["legs"]["far_right"]
     del data["legs"]["far_tip"]
@@ -201,10 +201,32 @@ def test_fewer_legs_than_six_go_by_their_order_and_more_are_refused() -> None:
     config = Leg(
         source="m.toml", stability=None, legs={name: Leg(simulated_leg=None) for name in seven}
     )
-    with pytest.raises(ConfigError) as error:
-        leg_map(config)
-    assert str(error.value) == (
-        "m.toml: legs: the simulation has 6 legs (SB1_F1, SB1_F2, SB1_F3, SB2_F1, SB2_F2, "
-        "SB2_F3), the config 7 (leg0, leg1, leg2, leg3, leg4, leg5, leg6): the bridge plays "
-        "six at most"
-    )
+    assert list(leg_map(config).simulated.values()) == [*LEGS, "SB1_F1"]
+    assert leg_map(config).columns["leg6"] == 0
+
+
+def test_bases_of_two_or_four_feet_play_their_simulated_bases_legs_in_feet_order() -> None:
+    """Each base's feet play its own simulated base's legs (a fourth foot F1 again), so a
+    lifted simulated base lifts the config's base; by the legs' order a 2 + 2 machine's
+    rear left foot played SB1_F3."""
+
+    def base(name: str, feet: list[str]) -> Leg:
+        return Leg(name=name, feet_m={leg: (float(k), 0.0) for k, leg in enumerate(feet)})
+
+    for front, rear, played in [
+        (["VL", "VR"], ["HL", "HR"], ["SB1_F1", "SB1_F2", "SB2_F1", "SB2_F2"]),
+        (
+            ["VL1", "VL2", "VR1", "VR2"],
+            ["HL1", "HL2", "HR1", "HR2"],
+            ["SB1_F1", "SB1_F2", "SB1_F3", "SB1_F1", "SB2_F1", "SB2_F2", "SB2_F3", "SB2_F1"],
+        ),
+    ]:
+        layout = Leg(bases=(base("front", front), base("rear", rear)))
+        config = Leg(
+            source="m.toml",
+            stability=Leg(layout=layout),
+            legs={name: Leg(simulated_leg=None) for name in rear + front},
+        )
+        legs = leg_map(config)
+        assert [legs.simulated[leg] for leg in front + rear] == played
+        assert legs.rule == "[stability.bases] (front's feet by order, rear's feet by order)"

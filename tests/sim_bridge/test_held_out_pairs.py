@@ -1,0 +1,125 @@
+"""Held-out DBC and machine-config pairs as other vendors and integrators write them
+(tests/files/stranger/, each file says what it is), played by the bridge into the
+service's Pipeline: every estimate valid, each chamber pressure within half a step of its
+DBC signal of the simulation's (the truth's), each foot force within what that allows.
+
+- ``zyl4_mbar12``: four legs, two per base, German names, 12-bit Motorola pressures
+  across byte boundaries in mbar with an offset, cycle time only as the DBC's default;
+- ``xdcr_two_rates``: one J1939 transducer per chamber, pistons and rods on two
+  proprietary-B PGNs at 10 and 100 ms, one in psi, the controller peer to peer;
+- ``fd_be_float``: a 32-byte CAN FD hub of big-endian float32 (Pa, hPa) and signed
+  16-bit pressures, E2E profile 5;
+- ``eight_legs_mux``: eight legs, four per base, on two multiplexed hubs.
+"""
+
+from collections import defaultdict
+from pathlib import Path
+
+import pytest
+from cantools.database.can import Database
+
+from daq.frames import RawFrame
+from daq.pipeline import Pipeline
+from dbc.machine import ChamberSignal, MachineConfig, load_machine_config
+from dbc.units import chamber_unit
+from estimator import foot_force_N
+from estimator.leg import LegEstimate
+from sim_bridge.faults import FaultConfig
+from sim_bridge.leg_map import leg_map
+from sim_bridge.schedule import instants, schedule
+from tests.helpers import FILES
+from tests.sim_bridge.synthetic import make_playout, make_result, sent_by_the_command
+
+STRANGER = FILES / "stranger"
+PAIRS = ("zyl4_mbar12", "xdcr_two_rates", "fd_be_float", "eight_legs_mux")
+PLAYED_S = 0.5
+
+
+def half_step_Pa(database: Database, chamber: ChamberSignal, p_Pa: float) -> float:
+    """The most encoding and decoding may move ``p_Pa`` on ``chamber``'s signal (a float
+    signal: its 24-bit mantissa)."""
+    signal = database.get_message_by_name(chamber.message).get_signal_by_name(chamber.signal)
+    in_Pa = chamber_unit(chamber.unit)
+    assert in_Pa is not None
+    if signal.is_float:
+        return abs(p_Pa) * 2.0**-24 + abs(signal.scale) * in_Pa[0] * 1e-6
+    return abs(signal.scale) * in_Pa[0] / 2 * (1 + 1e-9)
+
+
+def played(
+    name: str, drop_source_address: int | None = None
+) -> tuple[MachineConfig, Database, dict[str, list[tuple[LegEstimate, int]]], Pipeline]:
+    """``PLAYED_S`` of a synthetic cycle on pair ``name``: each leg's estimates with the
+    simulation row their frames were built from."""
+    config, database = load_machine_config(STRANGER / f"{name}.toml")
+    playout = make_playout(make_result(), FaultConfig(seed=1), config, database)
+    pipeline = Pipeline.from_config(config, database)
+    estimates: dict[str, list[tuple[LegEstimate, int]]] = defaultdict(list)
+    for instant in instants(schedule(playout.cycles, end_sim_ns=round(PLAYED_S * 1e9))):
+        position, outgoing = playout.frames(instant)
+        for item in outgoing:
+            frame = item.frame
+            if frame.is_extended_id and frame.arbitration_id & 0xFF == drop_source_address:
+                continue
+            raw = RawFrame(
+                1000.0 + instant.sim_t_ns / 1e9,
+                frame.arbitration_id,
+                frame.is_extended_id,
+                bytes(frame.data),
+            )
+            for estimate in pipeline.process(raw).estimates:
+                estimates[estimate.leg].append((estimate, position.row))
+    return config, database, estimates, pipeline
+
+
+@pytest.mark.parametrize("name", PAIRS)
+def test_each_pair_estimates_the_simulated_pressures_and_forces(name: str) -> None:
+    config, database, estimates, pipeline = played(name)
+    assert pipeline.bad == {} and pipeline.frames_lost == 0
+    result = make_result()
+    columns = leg_map(config).columns
+    assert sorted(estimates) == sorted(config.legs)
+    for leg_name, leg in config.legs.items():
+        cycle_s = (leg.piston if leg.trigger == "piston" else leg.rod).cycle_time_s
+        assert cycle_s is not None
+        assert len(estimates[leg_name]) == round(PLAYED_S / cycle_s)
+        column = columns[leg_name]
+        for estimate, row in estimates[leg_name]:
+            assert estimate.valid, (leg_name, estimate.reasons)
+            p_Pa, r_Pa = result.p_piston_Pa[row, column], result.p_rod_Pa[row, column]
+            p_step_Pa = half_step_Pa(database, leg.piston, p_Pa)
+            r_step_Pa = half_step_Pa(database, leg.rod, r_Pa)
+            assert abs(estimate.p_piston_Pa - p_Pa) <= p_step_Pa
+            assert abs(estimate.p_rod_Pa - r_Pa) <= r_step_Pa
+            force_step_N = foot_force_N(p_step_Pa, -r_step_Pa, leg.geometry) - foot_force_N(
+                0.0, 0.0, leg.geometry
+            )
+            truth_N = result.force_true_N[row, column]
+            assert abs(estimate.force_raw_N - truth_N) <= force_step_N + 1e-6
+
+
+@pytest.mark.parametrize("name", PAIRS)
+def test_the_bridge_command_plays_each_pair(name: str, tmp_path: Path) -> None:
+    config_path = STRANGER / f"{name}.toml"
+    config, database = load_machine_config(config_path)
+    fd = any(message.is_fd for message in database.messages)
+    sent = sent_by_the_command(config_path, tmp_path, make_result(duration_s=0.3), fd=fd)
+    pipeline = Pipeline.from_config(config, database)
+    estimates = [
+        estimate
+        for m in sent
+        for estimate in pipeline.process(
+            RawFrame(m.timestamp, m.arbitration_id, m.is_extended_id, bytes(m.data))
+        ).estimates
+    ]
+    assert pipeline.bad == {} and pipeline.frames_lost == 0
+    assert {e.leg for e in estimates} == set(config.legs) and all(e.valid for e in estimates)
+
+
+def test_a_transducer_that_never_speaks_makes_its_legs_samples_invalid() -> None:
+    """B3's rod transducer (0x55) named in the config, silent on the bus: B3's samples are
+    invalid (``rod_stale``, no rod value), the other legs' untouched."""
+    _, _, estimates, pipeline = played("xdcr_two_rates", drop_source_address=0x55)
+    assert {e.reasons for e, _ in estimates["B3"]} == {("rod_stale", "range")}
+    assert all(e.valid for leg in ("A1", "A2", "A3", "B1", "B2") for e, _ in estimates[leg])
+    assert pipeline.bad == {}
