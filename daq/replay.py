@@ -149,6 +149,7 @@ def replay(
     files = expand([paths] if isinstance(paths, Path) else paths)
     lost: Counter[str] = Counter()
     if all(path.suffix.lower() == MCAP_SUFFIX for path in files):
+        no_channel_of_recordings(channel)  # was ignored: every frame of the one bus
         source = run_source(run_files(files), machine)
         if source is None:
             return write_csv((), out)
