@@ -2,6 +2,7 @@
 (:class:`LogLines`), and Vector's ASC read as Vector writes it (:class:`AscReader`)."""
 
 import gzip
+import re
 import zlib
 from typing import IO, Any
 
@@ -9,6 +10,9 @@ import can
 
 #: EDL in the flags of an ASC ``CANFD`` line (and of a BLF CAN FD message): an FD frame.
 _EDL = 1 << 12
+
+#: The header's last line in an ASC log (python-can's pattern).
+_EVENTS_LINE = re.compile(r"(no)?\s*internal\s+events\s+logged", re.IGNORECASE)
 
 
 class LogLines:
@@ -23,12 +27,23 @@ class LogLines:
         self._file = file
         #: Why reading stopped before the end of the file (None: it did not).
         self.cut: str | None = None
+        #: The line read last (None before the first).
+        self.last: str | None = None
+        self._again: str | None = None
         self._started = False
 
     def __iter__(self) -> "LogLines":
         return self
 
+    def read_again(self) -> None:
+        """The next line is the one read last once more (a header reader that read a
+        line too far)."""
+        self._again = self.last
+
     def __next__(self) -> str:
+        if self._again is not None:
+            line, self._again = self._again, None
+            return line
         if self.cut is not None:
             raise StopIteration
         try:
@@ -42,6 +57,7 @@ class LogLines:
         if not line.endswith("\n"):
             self.cut = f"its last line has no line end: {line.strip()[:60]!r}, left out"
             raise StopIteration
+        self.last = line
         return line
 
     def close(self) -> None:
@@ -52,7 +68,16 @@ class AscReader(can.ASCReader):
     """python-can's ASC reader, except that a ``CANFD`` line is an FD frame only when its
     flags have EDL (bit 12) set, as python-can's BLF reader has it: Vector's tools log
     the classic frames of a CAN FD channel as ``CANFD`` lines too, which python-can made
-    FD frames (refused as ``fd_frame``)."""
+    FD frames (refused as ``fd_frame``); and that a header without its last line,
+    ``internal events logged`` (older CANalyzers, other tools), does not cost the log's
+    first line: python-can's header reading took it and dropped it, a frame lost
+    uncounted where a frame came next (of a :class:`LogLines` file)."""
+
+    def _extract_header(self) -> None:
+        super()._extract_header()  # reads up to the events line, or one line past the header
+        lines: object = self.file
+        if isinstance(lines, LogLines) and not _EVENTS_LINE.match((lines.last or "").strip()):
+            lines.read_again()
 
     def _process_fd_can_frame(self, line: str, msg_kwargs: dict[str, Any]) -> can.Message:
         message = super()._process_fd_can_frame(line, msg_kwargs)
