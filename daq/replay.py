@@ -46,7 +46,7 @@ from daq.mcap_file import BUS_TOPIC, CONFIG_ATTACHMENT, DBC_ATTACHMENT, RAW_TOPI
 from daq.mcap_reading import RecordedAttachment, RecordedMessage, RecordingStream
 from daq.pipeline import FrameResult, Pipeline
 from daq.recording_run import MCAP_SUFFIX, expand, run_files
-from daq.text_log import AscReader, LogLines
+from daq.text_log import AscReader, CsvReader, LogLines
 from daq.trc_log import TrcReader
 from dbc.database import load_database_bytes
 from dbc.errors import ConfigError
@@ -349,6 +349,7 @@ def blf_cut(path: Path, reader: MessageReader) -> str | None:
 #: Our readers where python-can's read a suffix wrongly.
 _OWN_READERS: dict[str, type[TextIOMessageReader]] = {
     ".asc": AscReader,
+    ".csv": CsvReader,
     ".trc": TrcReader,
     ".log": CandumpReader,
 }

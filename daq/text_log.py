@@ -4,12 +4,16 @@
 import gzip
 import re
 import zlib
+from collections.abc import Generator
 from typing import IO, Any
 
 import can
 
 #: EDL in the flags of an ASC ``CANFD`` line (and of a BLF CAN FD message): an FD frame.
 _EDL = 1 << 12
+
+#: The header line of python-can's CSV log.
+_CSV_HEADER = "timestamp,arbitration_id,extended,remote,error,dlc,data\n"
 
 #: The header's last line in an ASC log (python-can's pattern).
 _EVENTS_LINE = re.compile(r"(no)?\s*internal\s+events\s+logged", re.IGNORECASE)
@@ -29,21 +33,22 @@ class LogLines:
         self.cut: str | None = None
         #: The line read last (None before the first).
         self.last: str | None = None
-        self._again: str | None = None
+        self._again: list[str] = []
         self._started = False
 
     def __iter__(self) -> "LogLines":
         return self
 
-    def read_again(self) -> None:
-        """The next line is the one read last once more (a header reader that read a
-        line too far)."""
-        self._again = self.last
+    def read_again(self, line: str | None = None) -> None:
+        """The next line is ``line``, by default the one read last once more (a header
+        reader that read a line too far)."""
+        line = self.last if line is None else line
+        if line is not None:
+            self._again.append(line)
 
     def __next__(self) -> str:
-        if self._again is not None:
-            line, self._again = self._again, None
-            return line
+        if self._again:
+            return self._again.pop()
         if self.cut is not None:
             raise StopIteration
         try:
@@ -92,3 +97,18 @@ class AscReader(can.ASCReader):
             return message
         message.is_fd = bool(flags & _EDL)
         return message
+
+
+class CsvReader(can.CSVReader):
+    """python-can's CSV reader, except that a file without the header line (the columns
+    written by another program) costs no frame: python-can skipped its first line as the
+    header, a frame lost uncounted (of a :class:`LogLines` file)."""
+
+    def __iter__(self) -> Generator[can.Message, None, None]:
+        lines: object = self.file
+        if isinstance(lines, LogLines):
+            first = next(lines, None)
+            lines.read_again()
+            if first is not None and not first.lstrip().lower().startswith("timestamp"):
+                lines.read_again(_CSV_HEADER)  # for python-can to skip
+        yield from super().__iter__()

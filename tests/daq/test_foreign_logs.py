@@ -589,3 +589,17 @@ def test_an_asc_header_without_its_events_line_costs_no_frame(tmp_path: Path, he
         (0x101, 0.01),
         (0x102, 0.02),
     ]
+
+
+@pytest.mark.parametrize(
+    "header", ["timestamp,arbitration_id,extended,remote,error,dlc,data\n", ""]
+)
+def test_a_csv_log_without_its_header_line_costs_no_frame(tmp_path: Path, header: str) -> None:
+    """python-can's CSV reader skips the first line as the header: of a CSV written
+    without one, the first frame was lost uncounted."""
+    log = tmp_path / "frames.csv"
+    log.write_text(header + "1.0,0x101,0,0,0,1,AQ==\n2.0,0x102,0,0,0,1,Ag==\n")
+    assert [(f.arbitration_id, f.data) for f in can_log_frames(log)] == [
+        (0x101, b"\1"),
+        (0x102, b"\2"),
+    ]
