@@ -89,8 +89,7 @@ def test_value_tables_and_float_types_of_signals_the_dbc_lacks_are_left_out(
     with caplog.at_level(logging.WARNING, logger="dbc.database"):
         config, database = load_machine_config(_machine(tmp_path, dbc))
     assert [r.getMessage() for r in caplog.records] == [
-        f"{tmp_path / 'motorola_psi.dbc'}: left out, naming no signal of the DBC: "
-        + entries
+        f"{tmp_path / 'motorola_psi.dbc'}: left out, naming no signal of the DBC: " + entries
         for entries in (
             "VAL_ 2164195329 FL_Status, VAL_ 1792 Gone",
             "SIG_VALTYPE_ 2164195329 FL_pOld",
