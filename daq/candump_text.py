@@ -28,6 +28,7 @@ from datetime import datetime
 from typing import Any, TextIO, cast
 
 import can
+from can.io.canutils import CAN_ERR_BUSERROR, CAN_ERR_FLAG
 
 from daq.frames import DATED_FROM_S
 
@@ -44,6 +45,16 @@ _DATE_FORMAT = "%Y-%m-%d %H:%M:%S.%f"
 _CLASSIC_MAX_BYTES = 8
 
 _NEEDS_TIME = "candump -L (or -ta) writes the frame times a replay needs"
+
+#: What ``candump -d`` writes, into its log and its readable output, when the kernel
+#: dropped frames before candump read them (the socket's receive buffer was full).
+_DROPCOUNT = re.compile(r"\s*DROPCOUNT: dropped (?P<frames>\d+) CAN frames? on ")
+#: ``candump -e``'s description of an error frame, on tab-indented lines after it
+#: (``\tcontroller-problem{rx-error-warning}``, ``\terror-counter-tx-rx{{0}{96}}``).
+_ERROR_DETAIL = re.compile(r"\t[a-z][a-z-]*(?:[{,]|\s*$)")
+#: A ``-L`` line of an error frame: its ID has CAN_ERR_FLAG (bit 29), which no data
+#: frame's 29-bit ID has, and the class bits (bus-off 0x040, controller 0x004, ...).
+_ERROR_ID = re.compile(r"(?P<head>\s*\(\S+\)\s+\S+\s+)(?P<id>[2-9A-Fa-f][0-9A-Fa-f]{7})#")
 
 
 def dash_l_line(line: str) -> str:
@@ -73,7 +84,17 @@ def dash_l_line(line: str) -> str:
 class CandumpReader(can.CanutilsLogReader):
     """python-can's candump reader that also reads candump's readable lines
     (:func:`dash_l_line`); frame times going backwards in those from a time that is no
-    date are ``-td``'s steps."""
+    date are ``-td``'s steps. ``candump -d``'s ``DROPCOUNT`` lines (python-can stopped
+    at them) are summed in :attr:`dropped_frames`. An error frame of any class is an
+    error frame: python-can read only the bus-error class (0x080) as one, any other
+    (bus-off, controller problems, ...) as a data frame of the class's 29-bit ID; the
+    lines ``candump -e`` describes it in are left out (python-can stopped at them)."""
+
+    def __init__(self, file: Any, **kwargs: Any) -> None:
+        super().__init__(file, **kwargs)
+        #: Frames the kernel dropped before candump read them, as its ``DROPCOUNT``
+        #: lines read so far say.
+        self.dropped_frames = 0
 
     def __iter__(self) -> Generator[can.Message, None, None]:
         original = self.file
@@ -83,10 +104,15 @@ class CandumpReader(can.CanutilsLogReader):
         finally:
             self.file = original
 
-    @staticmethod
-    def _dash_l_lines(lines: Any) -> Iterator[str]:
+    def _dash_l_lines(self, lines: Any) -> Iterator[str]:
         latest_s = None
         for line in lines:
+            dropped = _DROPCOUNT.match(line)
+            if dropped is not None:
+                self.dropped_frames += int(dropped["frames"])
+                continue
+            if _ERROR_DETAIL.match(line):  # the error frame's line before says it all
+                continue
             converted = dash_l_line(line)
             if converted is not line:  # a readable line: undated times must not go back
                 t_s = float(converted[1 : converted.index(")")])
@@ -96,4 +122,9 @@ class CandumpReader(can.CanutilsLogReader):
                         f"candump -td's steps between frames? {_NEEDS_TIME}"
                     )
                 latest_s = t_s
+            error = _ERROR_ID.match(converted)
+            if error is not None and int(error["id"], 16) & CAN_ERR_FLAG:
+                # python-can keeps neither the class nor the data of an error frame
+                error_id = int(error["id"], 16) | CAN_ERR_BUSERROR
+                converted = f"{error['head']}{error_id:08X}{converted[error.end() - 1 :]}"
             yield converted

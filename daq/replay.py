@@ -23,10 +23,12 @@ import gzip
 import itertools
 import json
 import logging
+import math
 import sqlite3
 import struct
 import tomllib
 import zlib
+from collections import Counter
 from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import IO, Any, TextIO, cast
@@ -40,7 +42,7 @@ from cantools.database.can import Database
 from daq.can_batch import recorded_frames
 from daq.candump_text import CandumpReader
 from daq.errors import RecordingError
-from daq.frames import BusEvent, RawFrame, from_can_message
+from daq.frames import BUS_UP, BusEvent, RawFrame, from_can_message
 from daq.mcap_file import BUS_TOPIC, CONFIG_ATTACHMENT, DBC_ATTACHMENT, RAW_TOPIC
 from daq.mcap_reading import RecordedAttachment, RecordedMessage, RecordingStream
 from daq.pipeline import FrameResult, Pipeline
@@ -84,19 +86,27 @@ _LINE_FORMATS = {
 }
 
 
-def results(pipeline: Pipeline, items: Iterable[RawFrame | BusEvent]) -> Iterator[FrameResult]:
-    """What each frame gives, in order; bus gaps reset the counters."""
+def results(
+    pipeline: Pipeline, items: Iterable[RawFrame | BusEvent], lost: Counter[str] | None = None
+) -> Iterator[FrameResult]:
+    """What each frame gives, in order; bus gaps reset the counters. The frames lost
+    before the recording or log (by the kernel, by the service's queue: the bus events'
+    ``kernel_dropped``, ``rx_dropped``) are added up in ``lost``."""
     for item in items:
         if isinstance(item, BusEvent):
             if item.reset_counters:
                 pipeline.reset_counters()
+            if lost is not None:
+                lost.update(kernel_dropped=item.kernel_dropped, rx_dropped=item.rx_dropped)
             continue
         yield pipeline.process(item)
 
 
-def estimates(pipeline: Pipeline, items: Iterable[RawFrame | BusEvent]) -> Iterator[LegEstimate]:
+def estimates(
+    pipeline: Pipeline, items: Iterable[RawFrame | BusEvent], lost: Counter[str] | None = None
+) -> Iterator[LegEstimate]:
     """Every leg estimate the frames give, in order; bus gaps reset the counters."""
-    for result in results(pipeline, items):
+    for result in results(pipeline, items, lost):
         yield from result.estimates
 
 
@@ -137,17 +147,27 @@ def replay(
     """
     machine = load_machine_config(config_path) if config_path is not None else None
     files = expand([paths] if isinstance(paths, Path) else paths)
+    lost: Counter[str] = Counter()
     if all(path.suffix.lower() == MCAP_SUFFIX for path in files):
+        no_channel_of_recordings(channel)  # was ignored: every frame of the one bus
         source = run_source(run_files(files), machine)
         if source is None:
             return write_csv((), out)
         pipeline, items = source
-        rows = write_csv(estimates(pipeline, items), out)
+        rows = write_csv(estimates(pipeline, items, lost), out)
     elif machine is None:
         raise ConfigError(files[0], "", "replaying a CAN log needs --config (the machine config)")
     else:
         pipeline = Pipeline.from_config(*machine)
-        rows = write_csv(estimates(pipeline, chained_log_frames(files, channel)), out)
+        rows = write_csv(estimates(pipeline, chained_log_frames(files, channel), lost), out)
+    if lost.total():
+        logger.warning(
+            "%d frames lost before they were recorded or logged, not in the file "
+            "(%d by the kernel: receive buffer full; %d by the service's queue)",
+            lost.total(),
+            lost["kernel_dropped"],
+            lost["rx_dropped"],
+        )
     if pipeline.bad:
         logger.warning(
             "%d frames, %d of them not used (%s)",
@@ -165,13 +185,15 @@ def recording_results(
     machine: Machine,
     pipeline: Pipeline | None = None,
     channel: str | None = None,
+    lost: Counter[str] | None = None,
 ) -> Iterator[FrameResult]:
     """What one fresh pipeline (or ``pipeline``, whose counters the caller reads after)
     makes of every frame of ``files``: CAN logs chained in the order given (of
-    ``channel`` only, when given), or the MCAP files of one run in its order."""
+    ``channel`` only, when given; the frames their logger lost added up in ``lost``,
+    as :func:`results` does), or the MCAP files of one run in its order."""
     if is_can_log(files[0]):
         frames = chained_log_frames(files, channel)
-        return results(pipeline or Pipeline.from_config(*machine), frames)
+        return results(pipeline or Pipeline.from_config(*machine), frames, lost)
     no_channel_of_recordings(channel)
     return run_results(files, machine, pipeline)
 
@@ -191,15 +213,20 @@ def is_can_log(path: Path) -> bool:
     return bool(suffixes) and suffixes[-1] in MESSAGE_READERS
 
 
-def chained_log_frames(paths: Sequence[Path], channel: str | None = None) -> Iterator[RawFrame]:
-    """The frames of CAN logs, one log after the other in the order given (the median
-    and contact carry over, as across a logger's file rotation); a log that begins
-    before the one before it ended is logged: given out of order, two loggers of one
-    bus, or times counted from 0 in each."""
+def chained_log_frames(
+    paths: Sequence[Path], channel: str | None = None
+) -> Iterator[RawFrame | BusEvent]:
+    """The frames of CAN logs (and their loggers' losses), one log after the other in
+    the order given (the median and contact carry over, as across a logger's file
+    rotation); a log that begins before the one before it ended is logged: given out of
+    order, two loggers of one bus, or times counted from 0 in each."""
     previous: tuple[Path, float] | None = None
     for path in paths:
         t_s: float | None = None
         for frame in can_log_frames(path, channel):
+            if isinstance(frame, BusEvent):
+                yield frame
+                continue
             if t_s is None and previous is not None and frame.t_s < previous[1]:
                 logger.warning(
                     "%s begins %.3f s before %s ends: logs out of order or overlapping? "
@@ -214,7 +241,7 @@ def chained_log_frames(paths: Sequence[Path], channel: str | None = None) -> Ite
             previous = (path, t_s)
 
 
-def can_log_frames(path: Path, channel: str | None = None) -> Iterator[RawFrame]:
+def can_log_frames(path: Path, channel: str | None = None) -> Iterator[RawFrame | BusEvent]:
     """The frames of a python-can log (candump .log, .asc, .blf, .csv, ...); with
     ``channel``, those of that channel only (as python-can names it: ``can0`` in a
     candump log, the number from 0 in ASC and BLF), else all, with a warning when they
@@ -222,7 +249,9 @@ def can_log_frames(path: Path, channel: str | None = None) -> Iterator[RawFrame]
     gives none to a candump error frame) is kept whatever ``channel`` is. The times of an
     ASC log with ``timestamps relative`` (each the step since the event before) are
     summed from its start. A log cut short is read up to its last whole line
-    (:class:`LogLines`) or BLF object (:func:`blf_cut`), with a warning."""
+    (:class:`LogLines`) or BLF object (:func:`blf_cut`), with a warning. The frames
+    ``candump -d`` says the kernel dropped (its ``DROPCOUNT`` lines) come as a
+    :class:`~daq.frames.BusEvent` of that loss before the next frame, as live."""
     if not path.is_file():  # python-can's SQLite reader would create it
         what = "not a file" if path.exists() else "no such file"
         raise RecordingError(path, f"cannot read it as a CAN log: {what}")
@@ -236,10 +265,15 @@ def can_log_frames(path: Path, channel: str | None = None) -> Iterator[RawFrame]
     channels: set[str] = set()
     elapsed_s = 0.0
     cut = None
+    dropped = 0
+    t_s = math.nan
     with reader:
         try:
             for message in reader:
                 count += 1
+                if isinstance(reader, CandumpReader) and reader.dropped_frames != dropped:
+                    yield _loss(message.timestamp, reader.dropped_frames - dropped)
+                    dropped = reader.dropped_frames
                 if isinstance(reader, can.ASCReader) and reader.timestamps_format == "relative":
                     elapsed_s += message.timestamp
                     message.timestamp = elapsed_s
@@ -255,12 +289,15 @@ def can_log_frames(path: Path, channel: str | None = None) -> Iterator[RawFrame]
                         )
                 if channel is None or name in (None, channel):
                     yield from_can_message(message)
+                t_s = message.timestamp
         except _READER_ERRORS as exc:
             cut = blf_cut(path, reader)
             if cut is None:
                 hint = _LINE_FORMATS.get(path.suffix.lower(), "")
                 reason = f"{str(exc) or type(exc).__name__}{hint}"  # BLFParseError(): nothing
                 raise RecordingError(path, f"unreadable after frame {count}: {reason}") from exc
+    if isinstance(reader, CandumpReader) and reader.dropped_frames != dropped:  # at the end
+        yield _loss(t_s, reader.dropped_frames - dropped)
     cut = cut or (lines.cut if lines is not None else blf_cut(path, reader))
     if cut is not None:
         logger.warning("%s is cut short (%s): read up to frame %d", path, cut, count)
@@ -268,6 +305,12 @@ def can_log_frames(path: Path, channel: str | None = None) -> Iterator[RawFrame]
         raise RecordingError(
             path, f"no frame on channel {channel!r}; its channels: {', '.join(sorted(channels))}"
         )
+
+
+def _loss(t_s: float, kernel_dropped: int) -> BusEvent:
+    """The event of frames the kernel dropped before candump read them, as the service's
+    reader makes one (the bus state is not known: up, as the logger was reading it)."""
+    return BusEvent(t_s, BUS_UP, "candump DROPCOUNT", kernel_dropped=kernel_dropped)
 
 
 def _log_reader(path: Path) -> tuple[MessageReader, "LogLines | None"]:
@@ -430,7 +473,10 @@ def _items(record: RecordedMessage, path: Path) -> Iterable[RawFrame | BusEvent]
             raise RecordingError(path, f"a {RAW_TOPIC} message is unreadable: {exc}") from exc
     if record.topic == BUS_TOPIC:
         event = json.loads(record.data)
-        return (BusEvent(event["t"], event["state"], event["reason"], event["reset_counters"]),)
+        lost = {key: int(event.get(key, 0)) for key in ("kernel_dropped", "rx_dropped")}
+        return (
+            BusEvent(event["t"], event["state"], event["reason"], event["reset_counters"], **lost),
+        )
     return ()
 
 

@@ -23,7 +23,7 @@ from pathlib import Path
 import zenoh
 
 from daq.stop_signal import StopSignal
-from daq.subcommand import PROG, Subcommand, fail, setup_logging
+from daq.subcommand import PROG, Subcommand, add_log_level_option, fail, setup_logging
 from daq.zenoh_session import one_line, open_config_session
 from dbc.errors import ConfigError, PortalDaqError
 
@@ -69,7 +69,7 @@ def router_main(args: Sequence[str]) -> int:
         default=DEFAULT_CONFIG,
         help=f"Zenoh JSON5 file [the packaged one: {DEFAULT_CONFIG}]",
     )
-    parser.add_argument("--log-level", default="WARNING", help="DEBUG, INFO, WARNING, ERROR")
+    add_log_level_option(parser, "WARNING")
     options = parser.parse_args(args)
     setup_logging(options.log_level)
     try:

@@ -14,7 +14,7 @@ from daq.interpreter import tuned_interpreter
 from daq.runner import run_service
 from daq.service_config import load_service_config
 from daq.stop_signal import StopSignal
-from daq.subcommand import PROG, Subcommand, fail, setup_logging
+from daq.subcommand import PROG, Subcommand, add_log_level_option, fail, setup_logging
 from dbc.errors import ConfigError, DbcError, PortalDaqError
 
 
@@ -25,7 +25,7 @@ def run_main(args: Sequence[str]) -> int:
         "on Zenoh and recorded to MCAP, until SIGTERM or SIGINT.",
     )
     parser.add_argument("--config", type=Path, required=True, help="service + machine TOML")
-    parser.add_argument("--log-level", default="INFO", help="DEBUG, INFO, WARNING, ERROR")
+    add_log_level_option(parser, "INFO")
     options = parser.parse_args(args)
     setup_logging(options.log_level)
     try:

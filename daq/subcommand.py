@@ -37,6 +37,23 @@ def setup_logging(level: str) -> None:
     )
 
 
+#: What ``--log-level`` takes (any case).
+LOG_LEVELS = ("DEBUG", "INFO", "WARNING", "ERROR")
+
+
+def add_log_level_option(parser: argparse.ArgumentParser, default: str) -> None:
+    """``--log-level``, checked by argparse: ``LOUD`` was a ``ValueError`` traceback
+    from :func:`logging.basicConfig`."""
+    parser.add_argument(
+        "--log-level",
+        type=str.upper,
+        choices=LOG_LEVELS,
+        default=default,
+        metavar="LEVEL",
+        help=f"{', '.join(LOG_LEVELS)} (any case) [{default}]",
+    )
+
+
 def fail(exc: BaseException | str, status: int) -> int:
     """One line on stderr, ``portal-daq: REASON``; returns ``status``."""
     sys.stderr.write(f"{PROG}: {exc}\n")

@@ -67,7 +67,7 @@ def zenoh_config(settings: ZenohSettings, source: str = "") -> zenoh.Config:
         try:
             config.insert_json5(key, json.dumps(value))
         except zenoh.ZError as exc:
-            raise ConfigError(source, f"zenoh.{key.split('/')[0]}", str(exc)) from exc
+            raise ConfigError(source, f"zenoh.{key.split('/')[0]}", one_line(str(exc))) from exc
     return config
 
 
@@ -99,11 +99,20 @@ def one_line(message: str) -> str:
     'bad --> 1:8 = expected array'
     >>> one_line('Error { message: "unclosed table", input: Some("[m\\\\n\\\\"x\\\\""), span: 8 }')
     'Error { message: "unclosed table", span: 8 }'
+
+    A bad value put into a config is its message alone (was wrapped in
+    ``Json5Err(Message { msg: ..., location: ... })``):
+
+    >>> one_line('Json5Err(Message { msg: "Endpoints must be ...: x at /e.rs:615.", '
+    ...          'location: Some(Location { line: 1, column: 2 }) }) at /c.rs:86.')
+    'Endpoints must be ...: x'
     """
     lines = [line.strip() for line in message.strip().splitlines()]
     text = " ".join(line for line in lines if line and line != "|")
     text = re.sub(r'input: Some\("(?:[^"\\]|\\.)*"\), ', "", text)
-    return re.sub(r"\s+at \S+\.rs:\d+\.?", "", text)
+    text = re.sub(r"\s+at \S+\.rs:\d+\.?", "", text)
+    json5 = re.fullmatch(r'Json5Err\(Message \{ msg: "((?:[^"\\]|\\.)*)".*', text)
+    return json5.group(1) if json5 else text
 
 
 def config_value(config: zenoh.Config, key: str) -> Any:

@@ -1,5 +1,8 @@
 """``portal-daq calibrate RECORDING... [--config FILE] [--out calibration.toml] [--channel CH]``.
 
+A RECORDING is a service recording (MCAP files or directories: every run of the service
+among them one recording) or a CAN log (with ``--config``).
+
 Fits each leg's ``force_gain`` and ``force_offset_N`` to the weight balance at the
 quasi-static instants of the recordings (:mod:`estimator.calibration`), writes the TOML
 snippet (``--out``, default ``calibration.toml``) and, beside it, ``calibration.html``
@@ -32,7 +35,8 @@ def calibrate_main(args: Sequence[str]) -> int:
         "recording",
         type=Path,
         nargs="+",
-        help="service recordings (.mcap), or CAN logs (candump .log, .asc, .blf, ...: need "
+        help="service recordings (.mcap files or directories: each run one recording, a "
+        "rotated run's files chained), or CAN logs (candump .log, .asc, .blf, ...: need "
         "--config)",
     )
     parser.add_argument("--config", type=Path, help="machine config (default: the embedded one)")

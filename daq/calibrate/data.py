@@ -8,10 +8,12 @@ file), exactly as live; the leg estimates are sampled every :data:`PERIOD_S` lik
 recording made without ``[recording] signals``). A CAN log of another tool (candump
 ``.log``, ``.asc``, ``.blf``, ...) is replayed the same way and needs ``--config``.
 Several recordings are read one after the other, each with a fresh pipeline, and their
-instants pooled.
+instants pooled: each CAN log, and each run of the service among the MCAP files and
+directories given (a rotated run's files chained in the order of the run, as replay and
+report read them).
 """
 
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -21,6 +23,7 @@ import numpy.typing as npt
 from daq.errors import RecordingError
 from daq.mcap_reading import RecordedAttachment, RecordingStream
 from daq.payloads import signals as signals_payload
+from daq.recording_run import expand, runs
 from daq.replay import Machine, embedded_machine, is_can_log, recording_results
 from daq.report.tracks import StateRow, StateSignals, StateTrack
 from dbc.errors import ConfigError
@@ -54,10 +57,11 @@ class Instants:
 
 
 def machine_for(paths: Sequence[Path], config_path: Path | None) -> Machine:
-    """``config_path``'s machine, else the one embedded in the first recording."""
+    """``config_path``'s machine, else the one embedded in the first recording (of a
+    directory, its first file)."""
     if config_path is not None:
         return load_machine_config(config_path)
-    first = paths[0]
+    first = expand(paths[:1])[0]
     if is_can_log(first):
         raise ConfigError(first, "", "calibrating from a CAN log needs --config")
     try:
@@ -78,16 +82,15 @@ def read_instants(paths: Sequence[Path], machine: Machine, channel: str | None =
     legs = tuple(machine[0].legs)
     parts: list[Snapshots] = []
     total = 0
-    for path in paths:
-        rows, states = _replayed(path, machine, channel)
-        if not rows:
-            raise RecordingError(path, "no leg estimates: no leg frames to replay")
-        config = machine[0]
-        # A leg is stale as in the service: after stale_after_cycles of its cycle times.
-        stale_s = config.estimator.stale_after_cycles * max(
-            leg.cycle_time_s for leg in config.legs.values()
-        )
-        snaps = snapshots(rows, legs, PERIOD_S, stale_s)
+    config = machine[0]
+    # A leg is stale as in the service: after stale_after_cycles of its cycle times.
+    stale_s = config.estimator.stale_after_cycles * max(
+        leg.cycle_time_s for leg in config.legs.values()
+    )
+    for files in recordings(paths):
+        snaps, states = _replayed(files, machine, channel, stale_s)
+        if not len(snaps.t_s):
+            raise RecordingError(files[0], "no leg estimates: no leg frames to replay")
         still = _still(states, snaps.t_s)
         keep = quasi_static(snaps, WINDOW, MAX_CHANGE_N) & still
         total += len(snaps.t_s)
@@ -105,22 +108,34 @@ def read_instants(paths: Sequence[Path], machine: Machine, channel: str | None =
     )
 
 
+def recordings(paths: Sequence[Path]) -> list[list[Path]]:
+    """The recordings ``paths`` name, each as the files one pipeline replays: a CAN log
+    alone; the MCAP files of each run of the service among the files and directories
+    given, in the order of the run (a directory was "cannot read it: Is a directory")."""
+    logs = [path for path in paths if not path.is_dir() and is_can_log(path)]
+    others = [path for path in paths if path not in logs]
+    return [[log] for log in logs] + ([files for _, files in runs(others)] if others else [])
+
+
 def _replayed(
-    path: Path, machine: Machine, channel: str | None
-) -> tuple[list[LegEstimate], list[StateRow]]:
-    """The leg estimates and machine states (of the machine state's frames whose
-    CRC was fine) of one recording or CAN log, replayed."""
-    rows: list[LegEstimate] = []
+    files: Sequence[Path], machine: Machine, channel: str | None, stale_s: float
+) -> tuple[Snapshots, list[StateRow]]:
+    """The leg estimates of one recording (a CAN log, or the files of one run), replayed,
+    sampled every :data:`PERIOD_S` as they come (an hour of estimates kept took ~0.5 GB),
+    and the machine states (of the machine state's frames whose CRC was fine)."""
     states: list[StateRow] = []
     names = StateSignals.of(machine[0])
-    for result in recording_results([path], machine, channel=channel):
-        rows.extend(result.estimates)
-        decoded = result.decoded
-        if decoded is not None and names is not None and decoded.message == names.message:
-            state = StateTrack.row(signals_payload(decoded), names)
-            if state is not None:
-                states.append(state)
-    return rows, states
+
+    def estimates() -> Iterator[LegEstimate]:
+        for result in recording_results(files, machine, channel=channel):
+            yield from result.estimates
+            decoded = result.decoded
+            if decoded is not None and names is not None and decoded.message == names.message:
+                state = StateTrack.row(signals_payload(decoded), names)
+                if state is not None:
+                    states.append(state)
+
+    return snapshots(estimates(), tuple(machine[0].legs), PERIOD_S, stale_s), states
 
 
 def _still(rows: Sequence[StateRow], t_s: npt.NDArray[np.float64]) -> npt.NDArray[np.bool_]:

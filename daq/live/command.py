@@ -18,6 +18,7 @@ from daq.live.fleet import DEFAULT_ROOT, FleetSettings
 from daq.live.session import viewer_zenoh_config
 from daq.live.viewer import ViewerConfig, viewer_config
 from daq.service_config import ZenohSettings, load_service_config
+from daq.subcommand import add_log_level_option
 from dbc.errors import ConfigError
 
 PROG = "portal-daq"
@@ -54,7 +55,7 @@ def add_viewer_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--duration", type=_positive, metavar="S", help="stop after S seconds (default: run)"
     )
-    parser.add_argument("--log-level", default="WARNING", help="DEBUG, INFO, WARNING, ERROR")
+    add_log_level_option(parser, "WARNING")
     group = parser.add_argument_group(
         "Zenoh", "default: the config's [zenoh], connecting to where the service listens"
     )

@@ -23,7 +23,13 @@ from typing import Any
 import zenoh
 
 from daq.service_config import ZenohSettings
-from daq.zenoh_session import config_value, endpoints, open_config_session, zenoh_config
+from daq.zenoh_session import (
+    config_value,
+    endpoints,
+    one_line,
+    open_config_session,
+    zenoh_config,
+)
 from dbc.errors import ConfigError
 
 #: The viewer's own listener when none is given.
@@ -77,11 +83,19 @@ def viewer_zenoh_config(
     }
     if config_value(config, "connect/retry") is None:
         overrides["connect/retry"] = CONNECT_RETRY
+    # An endpoint refused is named by the option that gave it, else by the config's key.
+    options = {
+        "connect/endpoints": "--connect" if connect else "",
+        "listen/endpoints": "--listen" if listen else "",
+    }
     for key, value in overrides.items():
         try:
             config.insert_json5(key, json.dumps(value))
         except zenoh.ZError as exc:
-            raise ConfigError(source, f"zenoh.{key.split('/')[0]}", str(exc)) from exc
+            reason = one_line(str(exc))
+            if options.get(key):
+                raise ConfigError(options[key], "", reason) from exc
+            raise ConfigError(source, f"zenoh.{key.split('/')[0]}", reason) from exc
     return config
 
 

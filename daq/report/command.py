@@ -23,6 +23,7 @@ from daq.subcommand import Subcommand, add_channel_option
 from dbc.errors import ConfigError, DbcError, PortalDaqError
 
 PROG = "portal-daq"
+logger = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True, slots=True)
@@ -115,6 +116,18 @@ def report(options: ReportOptions) -> list[Path]:
     from daq.report.output import write_report
 
     recording = load_recording(options.recording, options.config_path, options.channel)
+    counts = recording.counts
+    if counts.estimates == 0:
+        # The frames are there but none is a leg's (another machine's config, say): the
+        # page is written, and this says why its pictures are empty.
+        unused = ", ".join(f"{kind} {n}" for kind, n in sorted(counts.bad.items()))
+        logger.warning(
+            "%s: no leg estimate in it (%d frames%s): the pictures are empty; is the "
+            "machine config (--config, or the one embedded) this machine's?",
+            recording.name,
+            counts.frames,
+            f"; not used: {unused}" if unused else "",
+        )
     return write_report(analyse(recording), options.directory)
 
 

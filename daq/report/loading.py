@@ -26,6 +26,7 @@ CAN logs of other tools (candump ``.log``, ``.asc``, ``.blf``, ...: anything not
 
 import logging
 import re
+from collections import Counter
 from collections.abc import Sequence
 from pathlib import Path
 from typing import IO
@@ -170,10 +171,12 @@ def _log_recording(
     config = machine[0]
     collector = RecordingCollector(StateSignals.of(config))
     pipeline = Pipeline.from_config(*machine)
-    for result in recording_results(files, machine, pipeline, channel):
+    lost: Counter[str] = Counter()
+    for result in recording_results(files, machine, pipeline, channel, lost):
         collector.add_frames((result.frame,))
         collector.derive(result, bad=True, signals=True, estimates=True)
     collector.count_bad(UNMAPPED_SOURCE, pipeline.bad[UNMAPPED_SOURCE])
+    collector.count_lost(lost)
     if collector.frames == 0:
         raise EmptyRecordingError(files[0], "holds no CAN frames: nothing to report")
     return collector.recording(_name(files), config, machine_id=config.machine_id, recomputed=True)

@@ -372,6 +372,11 @@ class RecordingCollector:
         if count:
             self._bad[kind] += count
 
+    def count_lost(self, lost: Counter[str]) -> None:
+        """Frames lost before a CAN log was written, by ``kernel_dropped`` and
+        ``rx_dropped`` (:func:`daq.replay.results`), as a recording's loss events."""
+        self._dropped.update(lost)
+
     def add(self, topic: str, data: bytes) -> None:
         """One recorded JSON message; topics a report does not use are skipped (and
         ``/can/raw`` batches go to :meth:`add_frames`)."""

@@ -287,3 +287,57 @@ def test_calibrate_refuses_an_output_that_names_a_recording(
         stderr == f"portal-daq: {recorded}: --out names {recorded}, which this reads; "
         "give --out another file\n"
     )
+
+
+def test_the_estimates_are_sampled_as_they_come_not_kept(tmp_path: Path) -> None:
+    """Every leg estimate of a recording was kept until the end (~290 bytes each: an
+    hour of six legs at 100 Hz ~0.6 GB); the 0.1 s snapshots are what is kept now."""
+    import tracemalloc
+
+    from tests.daq.test_foreign_logs import sim_log
+
+    seconds = 20
+    log = sim_log(tmp_path, seconds=seconds)
+    machine = load_machine_config(EXAMPLE_CONFIG)
+    tracemalloc.start()
+    try:
+        instants = read_instants([log], machine)
+        _, peak_bytes = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert instants.total == seconds * 10
+    assert peak_bytes / (6 * 100 * seconds) < 100  # per estimate; 285 when kept
+
+
+def test_a_directory_is_read_as_the_runs_in_it(walk: Recorded, tmp_path: Path) -> None:
+    """``portal-daq calibrate /var/lib/portal-daq/recordings/`` was "cannot read it: Is
+    a directory" (replay, report and export take a run's directory); the files of a
+    rotated run are chained through one pipeline, as replay and report chain them."""
+    from daq.calibrate.data import machine_for, recordings
+    from daq.recording_run import run_metadata
+
+    folder = tmp_path / "recordings"
+    folder.mkdir()
+    shutil.copy(walk.path, folder / "walk.mcap")
+    for index in (1, 0):
+        with (
+            open(folder / f"rotated_{index}.mcap", "wb") as stream,
+            McapFile(stream, load_machine_config(EXAMPLE_CONFIG)[1]) as mcap,
+        ):
+            mcap.start(run=run_metadata("m", "r", index))
+    log = tmp_path / "bus.log"
+    log.write_text("")
+    assert recordings([folder, log]) == [
+        [log],
+        [folder / "rotated_0.mcap", folder / "rotated_1.mcap"],
+        [folder / "walk.mcap"],
+    ]
+    alone = tmp_path / "alone"
+    alone.mkdir()
+    shutil.copy(walk.path, alone / "walk.mcap")
+    machine = machine_for([alone], None)  # the config embedded in its first file
+    assert machine[0].source == f"{alone / 'walk.mcap'}:portal-daq.toml"
+    from_folder = read_instants([alone], machine)
+    from_file = read_instants([walk.path], machine)
+    assert from_folder.total == from_file.total > 0
+    assert np.array_equal(from_folder.force_N, from_file.force_N)

@@ -2,6 +2,7 @@
 log is: python-can read only ``-L`` lines, so such a trace stopped at its first line."""
 
 import io
+import logging
 import re
 from datetime import datetime
 from pathlib import Path
@@ -117,3 +118,31 @@ def test_a_trace_that_cannot_be_replayed_is_one_line(
     assert replay_main([str(trace), "--config", str(EXAMPLE_CONFIG)]) == 1
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith(f"portal-daq: {trace}: ") and reason in err[0], err
+
+
+def test_error_frames_of_every_class_are_counted_as_error_frames(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """python-can's reader took an error frame of a class other than bus error (0x080)
+    for a data frame of the class's ID (bus-off 0x040: unknown_id), and stopped at the
+    lines ``candump -e`` describes an error frame in (exit 1)."""
+    log = sim_log(tmp_path, seconds=0.3)
+    lines = log.read_text().splitlines()
+    stamp, interface = lines[10].split()[:2]
+    errors = ("20000040#0000000000000000", "20000004#0004000000000060", "20000080#00")
+    lines[10:10] = [f"{stamp} {interface} {frame}" for frame in errors]
+    log.write_text("\n".join(lines) + "\n")
+    trace = tmp_path / "trace.log"
+    readable_lines = readable(log).splitlines()
+    # -e's lines after the second and the first error frame
+    readable_lines[12:12] = [
+        "\tcontroller-problem{rx-error-warning}",
+        "\terror-counter-tx-rx{{0}{96}}",
+    ]
+    readable_lines[11:11] = ["\tbus-off"]
+    trace.write_text("\n".join(readable_lines) + "\n")
+    for path in (log, trace):
+        caplog.clear()
+        with caplog.at_level(logging.WARNING):
+            assert replay(path, io.StringIO(), EXAMPLE_CONFIG) == 6 * 30
+        assert f"{len(lines)} frames, 3 of them not used (error_frame 3)" in caplog.text

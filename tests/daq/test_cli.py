@@ -54,6 +54,15 @@ def test_bad_config_exits_2_with_one_line(tmp_path: Path) -> None:
     assert_one_line_error(run_cli("--config", str(path)), 2, f"{path}: bus.bitrate: unknown key")
 
 
+def test_a_bad_endpoint_is_one_line_naming_file_and_key(tmp_path: Path) -> None:
+    """It was Zenoh's ``Json5Err(Message { msg: "..." at /root/.cargo/...rs:615. ...})``."""
+    path = write_service_config(tmp_path, port=free_port())
+    path.write_text(path.read_text().replace("listen = [", 'connect = ["nonsense"]\nlisten = ['))
+    result = run_cli("run", "--config", str(path), "--log-level", "warning")
+    assert_one_line_error(result, 2, f"{path}: zenoh.connect: Endpoints must be of the form ")
+    assert result.stderr.rstrip().endswith("[#<config>]: nonsense"), result.stderr
+
+
 def test_bad_machine_value_exits_2_naming_file_and_key(tmp_path: Path) -> None:
     path = tmp_path / "bad.toml"
     path.write_text(EXAMPLE_CONFIG.read_text().replace("median_window = 11", "median_window = 4"))

@@ -538,3 +538,29 @@ def test_an_empty_log_replays_to_a_header_with_a_warning(
     assert replay(log, out, EXAMPLE_CONFIG) == 0
     assert out.getvalue().count("\n") == 1
     assert f"{log}: no CAN frame in it: the CSV has its header only" in caplog.text
+
+
+def test_candumps_dropcount_lines_are_counted_as_frames_the_kernel_dropped(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """``candump -d`` writes a line into its log when the kernel dropped frames before it
+    read them (the socket's receive buffer was full); python-can stopped at it (exit 1).
+    The loss is counted where the service counts its own: replay's warning line and the
+    report's "frames lost before processing"."""
+    from daq.report.loading import load_recording
+
+    log = sim_log(tmp_path, seconds=0.3)
+    lines = log.read_text().splitlines()
+    del lines[100:137]  # the 37 frames the kernel dropped
+    lines.insert(100, "DROPCOUNT: dropped 37 CAN frames on 'vcan0' socket (total drops 37)")
+    lines.append("DROPCOUNT: dropped 1 CAN frame on 'vcan0' socket (total drops 38)")
+    log.write_text("\n".join(lines) + "\n")
+    with caplog.at_level(logging.WARNING):
+        replay(log, io.StringIO(), EXAMPLE_CONFIG)
+    assert (
+        "38 frames lost before they were recorded or logged, not in the file (38 by the kernel"
+        in caplog.text
+    )
+    assert f"{len(lines) - 2} frames, " in caplog.text  # the frames' count line
+    counts = load_recording(log, EXAMPLE_CONFIG).counts
+    assert (counts.frames, counts.kernel_dropped, counts.rx_dropped) == (len(lines) - 2, 38, 0)

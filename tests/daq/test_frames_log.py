@@ -170,3 +170,20 @@ def test_a_log_of_two_buses_is_replayed_one_channel_at_a_time(
         RecordingError, match=r"no frame on channel 'can2'; its channels: can0, can1"
     ):
         replay(log, io.StringIO(), EXAMPLE_CONFIG, channel="can2")
+
+
+def test_a_channel_asked_of_a_service_recording_is_refused(tmp_path: Path) -> None:
+    """``replay REC.mcap --channel can1`` replayed every frame of the one bus the service
+    read (can0, say), exit 0; report and calibrate refused it already."""
+    from daq.frames import RawFrame
+    from daq.mcap_file import McapFile, RecordBatch
+    from dbc.errors import ConfigError
+    from tests.helpers import example_machine
+
+    path = tmp_path / "rec.mcap"
+    with open(path, "wb") as stream, McapFile(stream, example_machine()[1]) as mcap:
+        mcap.start()
+        mcap.write_batch(RecordBatch([RawFrame(1.0, 0x100, False, bytes(8))], []))
+    with pytest.raises(ConfigError, match="--channel: picks a CAN log's bus; a service"):
+        replay(path, io.StringIO(), EXAMPLE_CONFIG, channel="can1")
+    assert replay(path, io.StringIO(), EXAMPLE_CONFIG) == 1  # without --channel, its frame

@@ -240,3 +240,23 @@ def test_an_empty_or_cut_file_is_warned_about_once_by_replay(
     (empty_warning,), (cut_warning,) = warnings
     assert f"{empty} holds no MCAP record (" in empty_warning
     assert f"{cut} ends without its summary (" in cut_warning
+
+
+def test_replay_of_a_recording_counts_the_frames_lost_before_it(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The service's loss events (/daq/bus: kernel_dropped, rx_dropped) were read for the
+    counters' resets only: a replay of a recording that lost frames said nothing of it."""
+    from daq.cli import main
+
+    path = tmp_path / "lossy.mcap"
+    with open(path, "wb") as raw, McapFile(CountingFile(raw), example_machine()[1]) as mcap:
+        mcap.start({})
+        for i, result in enumerate(results(20)):
+            if i in (5, 12):
+                mcap.write_event(BusEvent(1000.0 + i / 100, "up", "loss", False, 40, i))
+            mcap.write_result(result)
+    assert main(["replay", str(path), "--config", str(EXAMPLE_CONFIG)]) == 0
+    err = capsys.readouterr().err
+    assert "97 frames lost before they were recorded or logged, not in the file (80 by the " in err
+    assert "kernel: receive buffer full; 17 by the service's queue)" in err

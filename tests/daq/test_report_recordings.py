@@ -287,6 +287,26 @@ def test_an_out_that_is_a_file_is_one_line_before_reading(
     assert path.read_bytes() == b"not read"
 
 
+def test_a_log_of_another_machine_says_why_the_pictures_are_empty(tmp_path: Path) -> None:
+    """The default machine's frames reported with the J1939 machine's config: exit 0 and
+    not a word, while every picture was empty (replay says what it did not use)."""
+    log = tmp_path / "cycle.log"
+    log.write_text(
+        "(1750000000.000000) can0 100#461208070000001C\n"
+        "(1750000000.010000) can0 100#4612080701000093\n"
+    )
+    j1939 = ROOT / "deploy" / "examples" / "j1939" / "portal-daq.toml"
+    done = run_cli(str(log), "--config", str(j1939), "--out", str(tmp_path / "out"))
+    assert done.returncode == 0, done.stderr
+    assert done.stderr.splitlines() == [
+        "WARNING daq.report.command: cycle.log: no leg estimate in it (2 frames; not used: "
+        "unknown_id 2): the pictures are empty; is the machine config (--config, or the one "
+        "embedded) this machine's?"
+    ]
+    right = run_cli(str(log), "--config", str(EXAMPLE_CONFIG), "--out", str(tmp_path / "out"))
+    assert right.returncode == 0 and right.stderr == "", right.stderr
+
+
 def test_input_without_frames_or_estimates_exits_1_with_one_line(tmp_path: Path) -> None:
     """A TOML file, or an MCAP file with only the simulator's truth: nothing to report."""
     toml = run_cli(str(EXAMPLE_CONFIG), "--out", str(tmp_path / "toml"))

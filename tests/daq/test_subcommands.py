@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 
 import can
+import pytest
 
 from daq.cli import SUBCOMMAND_MODULES, subcommands
 from dbc.encoding import FrameEncoder
@@ -88,3 +89,19 @@ def test_replay_into_a_closed_pipe_ends_quietly(tmp_path: Path) -> None:
         stderr = process.stderr.read()
     assert process.wait(timeout=120) == 141, stderr
     assert stderr == ""
+
+
+@pytest.mark.parametrize("name", ["run", "monitor", "dashboard", "router"])
+def test_a_log_level_that_is_none_is_a_usage_error(
+    name: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--log-level LOUD`` was a ValueError traceback from logging.basicConfig; a level
+    in lower case is taken (``debug``), so the option is parsed, not passed on."""
+    command = subcommands()[name]
+    with pytest.raises(SystemExit) as exited:
+        command.main(["--log-level", "LOUD"])
+    assert exited.value.code == 2
+    assert "--log-level: invalid choice: 'LOUD'" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as helped:
+        command.main(["--log-level", "debug", "--help"])
+    assert helped.value.code == 0

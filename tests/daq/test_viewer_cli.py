@@ -39,6 +39,24 @@ def test_bad_config_exits_2_with_one_line(command: str, tmp_path: Path) -> None:
     assert f"{path}: zenoh.mode: must be one of" in line
 
 
+ENDPOINT_FORM = "Endpoints must be of the form <protocol>/<address>[?<metadata>][#<config>]"
+
+
+@pytest.mark.parametrize("command", COMMANDS)
+def test_a_bad_endpoint_is_named_by_the_option_or_key_that_gave_it(
+    command: str, tmp_path: Path
+) -> None:
+    """``--connect nonsense`` was blamed on the config's ``zenoh.connect``, in Zenoh's
+    ``Json5Err(Message { msg: ... at /root/.cargo/...rs:615. ...})``."""
+    path = write_service_config(tmp_path, port=free_port())
+    prefix = f"portal-daq {command}: "
+    line = assert_one_line(run(command, "--config", str(path), "--connect", "nonsense"), 2, prefix)
+    assert line == f"{prefix}--connect: {ENDPOINT_FORM}: nonsense"
+    path.write_text(path.read_text().replace("listen = [", 'connect = ["tcp:x"]\nlisten = ['))
+    line = assert_one_line(run(command, "--config", str(path)), 2, prefix)
+    assert line == f"{prefix}{path}: zenoh.connect: {ENDPOINT_FORM}: tcp:x"
+
+
 @pytest.mark.parametrize("command", COMMANDS)
 def test_missing_config_exits_2(command: str) -> None:
     line = assert_one_line(
