@@ -28,6 +28,8 @@ their gains trades against that sum: a foot in the air (it carries nothing: ``k 
 are reported with the reason; the others are fitted with those held fixed.
 """
 
+import math
+from array import array
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
@@ -75,41 +77,52 @@ def snapshots(
     estimates: Iterable[LegEstimate], legs: Sequence[str], period_s: float, stale_s: float
 ) -> Snapshots:
     """Sample a stream of leg estimates (in frame order) every ``period_s``: each leg's
-    latest estimate, invalid once older than ``stale_s``."""
+    latest estimate, invalid once older than ``stale_s``.
+
+    A silence longer than the stale time (a gap, or the clock stepped forward: set from
+    1970, say) is one snapshot with every leg stale, not one every ``period_s`` across
+    it (56 years of them filled the memory); a step back of the clock by more than the
+    stale time starts the sampling again at the new time, every leg stale until heard
+    (before, nothing was sampled until the frame times caught up).
+    """
     index = {leg: i for i, leg in enumerate(legs)}
     n = len(legs)
     latest_t = np.full(n, -np.inf)
     force = np.full(n, np.nan)
     valid = np.zeros(n, dtype=bool)
     contact = np.zeros(n, dtype=bool)
-    rows_t: list[float] = []
-    rows: list[tuple[FloatArray, BoolArray, BoolArray]] = []
+    # Kept flat (8 bytes a force, 1 a flag): hours of snapshots stay a few MB.
+    rows_t = array("d")
+    rows_force = array("d")
+    rows_flags = bytearray()  # per row: valid then contact, one byte per leg each
     next_t = None
     for estimate in estimates:
         i = index.get(estimate.leg)
         if i is None:
             continue
         t = estimate.t_s
-        if next_t is None:
+        if next_t is None or t < next_t - period_s - stale_s:  # the first, or a step back
+            latest_t[:] = -np.inf  # heard after the new time
             next_t = t
         while t >= next_t:
             fresh = next_t - latest_t <= stale_s
             rows_t.append(next_t)
-            rows.append((force.copy(), valid & fresh, contact.copy()))
+            rows_force.extend(force)
+            rows_flags.extend((valid & fresh).tobytes() + contact.tobytes())
             next_t += period_s
+            if not fresh.any() and t - next_t > period_s:  # silent: on to the next frame
+                next_t += period_s * math.floor((t - next_t) / period_s)
         latest_t[i] = t
         force[i] = estimate.force_N
         valid[i] = estimate.valid
         contact[i] = estimate.contact
-    if not rows:
-        empty = np.zeros((0, n))
-        return Snapshots(tuple(legs), np.zeros(0), empty, empty.astype(bool), empty.astype(bool))
+    flags = np.frombuffer(bytes(rows_flags), dtype=bool).reshape(len(rows_t), 2, n)
     return Snapshots(
         legs=tuple(legs),
         t_s=np.array(rows_t),
-        force_N=np.array([r[0] for r in rows]),
-        valid=np.array([r[1] for r in rows]),
-        contact=np.array([r[2] for r in rows]),
+        force_N=np.array(rows_force).reshape(len(rows_t), n),
+        valid=flags[:, 0].copy(),
+        contact=flags[:, 1].copy(),
     )
 
 

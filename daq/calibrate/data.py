@@ -13,7 +13,7 @@ directories given (a rotated run's files chained in the order of the run, as rep
 report read them).
 """
 
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -82,16 +82,15 @@ def read_instants(paths: Sequence[Path], machine: Machine, channel: str | None =
     legs = tuple(machine[0].legs)
     parts: list[Snapshots] = []
     total = 0
+    config = machine[0]
+    # A leg is stale as in the service: after stale_after_cycles of its cycle times.
+    stale_s = config.estimator.stale_after_cycles * max(
+        leg.cycle_time_s for leg in config.legs.values()
+    )
     for files in recordings(paths):
-        rows, states = _replayed(files, machine, channel)
-        if not rows:
+        snaps, states = _replayed(files, machine, channel, stale_s)
+        if not len(snaps.t_s):
             raise RecordingError(files[0], "no leg estimates: no leg frames to replay")
-        config = machine[0]
-        # A leg is stale as in the service: after stale_after_cycles of its cycle times.
-        stale_s = config.estimator.stale_after_cycles * max(
-            leg.cycle_time_s for leg in config.legs.values()
-        )
-        snaps = snapshots(rows, legs, PERIOD_S, stale_s)
         still = _still(states, snaps.t_s)
         keep = quasi_static(snaps, WINDOW, MAX_CHANGE_N) & still
         total += len(snaps.t_s)
@@ -119,21 +118,24 @@ def recordings(paths: Sequence[Path]) -> list[list[Path]]:
 
 
 def _replayed(
-    files: Sequence[Path], machine: Machine, channel: str | None
-) -> tuple[list[LegEstimate], list[StateRow]]:
-    """The leg estimates and machine states (of the machine state's frames whose
-    CRC was fine) of one recording (a CAN log, or the files of one run), replayed."""
-    rows: list[LegEstimate] = []
+    files: Sequence[Path], machine: Machine, channel: str | None, stale_s: float
+) -> tuple[Snapshots, list[StateRow]]:
+    """The leg estimates of one recording (a CAN log, or the files of one run), replayed,
+    sampled every :data:`PERIOD_S` as they come (an hour of estimates kept took ~0.5 GB),
+    and the machine states (of the machine state's frames whose CRC was fine)."""
     states: list[StateRow] = []
     names = StateSignals.of(machine[0])
-    for result in recording_results(files, machine, channel=channel):
-        rows.extend(result.estimates)
-        decoded = result.decoded
-        if decoded is not None and names is not None and decoded.message == names.message:
-            state = StateTrack.row(signals_payload(decoded), names)
-            if state is not None:
-                states.append(state)
-    return rows, states
+
+    def estimates() -> Iterator[LegEstimate]:
+        for result in recording_results(files, machine, channel=channel):
+            yield from result.estimates
+            decoded = result.decoded
+            if decoded is not None and names is not None and decoded.message == names.message:
+                state = StateTrack.row(signals_payload(decoded), names)
+                if state is not None:
+                    states.append(state)
+
+    return snapshots(estimates(), tuple(machine[0].legs), PERIOD_S, stale_s), states
 
 
 def _still(rows: Sequence[StateRow], t_s: npt.NDArray[np.float64]) -> npt.NDArray[np.bool_]:

@@ -289,6 +289,26 @@ def test_calibrate_refuses_an_output_that_names_a_recording(
     )
 
 
+def test_the_estimates_are_sampled_as_they_come_not_kept(tmp_path: Path) -> None:
+    """Every leg estimate of a recording was kept until the end (~290 bytes each: an
+    hour of six legs at 100 Hz ~0.6 GB); the 0.1 s snapshots are what is kept now."""
+    import tracemalloc
+
+    from tests.daq.test_foreign_logs import sim_log
+
+    seconds = 20
+    log = sim_log(tmp_path, seconds=seconds)
+    machine = load_machine_config(EXAMPLE_CONFIG)
+    tracemalloc.start()
+    try:
+        instants = read_instants([log], machine)
+        _, peak_bytes = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert instants.total == seconds * 10
+    assert peak_bytes / (6 * 100 * seconds) < 100  # per estimate; 285 when kept
+
+
 def test_a_directory_is_read_as_the_runs_in_it(walk: Recorded, tmp_path: Path) -> None:
     """``portal-daq calibrate /var/lib/portal-daq/recordings/`` was "cannot read it: Is
     a directory" (replay, report and export take a run's directory); the files of a

@@ -238,6 +238,33 @@ def test_a_clock_that_steps_gives_the_rows_of_a_steady_one(
         assert rows[-1].peak_t_s == pytest.approx(steady[-1].peak_t_s, abs=1e-6)
 
 
+def test_frames_out_of_order_by_milliseconds_are_no_clock_steps(tmp_path: Path) -> None:
+    """Frames of one log out of order by a few ms (two buses merged, a logger's buffers)
+    were each joined as a clock step back: a 5 s run was reported as 1,000 steps and
+    several times its length, its cycles cut apart."""
+    from daq.export import write_frames
+    from daq.frames import RawFrame
+    from tests.helpers import EXAMPLE_CONFIG, recorded_raw_frames
+
+    recording = record(tmp_path / "steady.mcap", seconds=5.0)
+    steady = campaign_rows(load_recording(recording))
+    frames = recorded_raw_frames(recording)
+    jittered = [  # each frame 2 ms late or early by turns: out of order by up to 4 ms
+        RawFrame(f.t_s + (0.002 if i % 2 else -0.002), f.arbitration_id, f.is_extended_id, f.data)
+        for i, f in enumerate(frames)
+    ]
+    log = tmp_path / "jittered.log"
+    write_frames(jittered, log, "candump")
+    loaded = load_recording(log, EXAMPLE_CONFIG)
+    assert loaded.counts.clock_steps == 0
+    rows = campaign_rows(loaded)
+    assert [(r.cycle, r.leg, r.estimates) for r in rows] == [
+        (r.cycle, r.leg, r.estimates) for r in steady
+    ]
+    for row, expected in zip(rows, steady, strict=True):
+        assert row.cycle_duration_s == pytest.approx(expected.cycle_duration_s, abs=0.005)
+
+
 def test_a_recording_that_holds_nothing_is_left_out_of_the_campaign(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], caplog: pytest.LogCaptureFixture
 ) -> None:

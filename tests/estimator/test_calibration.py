@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from estimator.calibration import Snapshots, fit_calibration, quasi_static
+from estimator.calibration import Snapshots, fit_calibration, quasi_static, snapshots
+from estimator.leg import LegEstimate
 
 LEGS = ("SB1_F1", "SB1_F2", "SB1_F3", "SB2_F1", "SB2_F2", "SB2_F3")
 WEIGHT_N = 184_365.0
@@ -111,3 +112,33 @@ def test_eq4_applies_the_leg_s_gain_and_offset() -> None:
     assert foot_force_N(9e6, 1e6, calibrated) == pytest.approx(
         1.1 * lever_N + leg.weight_term_N + 500.0
     )
+
+
+def _estimates(times_s: list[float]) -> list[LegEstimate]:
+    """Two legs, each on the ground with 50 kN at every time of ``times_s``."""
+    return [
+        LegEstimate(leg, t, 5e4, 5e4, 1e5, 1e7, 1e6, True, True, ())
+        for t in times_s
+        for leg in ("A", "B")
+    ]
+
+
+def test_a_clock_set_from_1970_is_one_stale_snapshot_not_decades_of_them() -> None:
+    """Sampled every 0.1 s across the step, 56 years of snapshots filled the memory
+    (``calibrate`` of such a log: MemoryError)."""
+    before = [12.0 + 0.01 * k for k in range(100)]  # 1 s of a clock not set yet
+    after = [1.79e9 + 0.01 * k for k in range(100)]  # then set by NTP
+    snaps = snapshots(_estimates(before + after), ("A", "B"), 0.1, 0.03)
+    # none heard yet at the first; the step is one snapshot of every leg stale, so no
+    # window of steady instants spans it
+    assert snaps.valid.all(axis=1).tolist() == [False] + [True] * 10 + [False] + [True] * 10
+    assert snaps.t_s[12] == pytest.approx(1.79e9, abs=0.1)
+
+
+def test_a_clock_stepping_back_starts_the_sampling_again() -> None:
+    """Nothing was sampled until the frame times caught up with the time before the step."""
+    times = [100.0 + 0.01 * k for k in range(100)] + [50.0 + 0.01 * k for k in range(100)]
+    snaps = snapshots(_estimates(times), ("A", "B"), 0.1, 0.03)
+    assert len(snaps.t_s) == 20
+    assert snaps.t_s[10] == 50.0 and not snaps.valid[10].any()  # stale until heard again
+    assert snaps.valid[11:].all()
