@@ -61,7 +61,7 @@ def load_database(path: str | Path) -> Database:
 def load_database_string(text: str, source: str) -> Database:
     """Load a DBC from its text (e.g. one embedded in a recording); ``source`` names it."""
     try:
-        database = cantools.database.load_string(text, database_format="dbc", strict=True)
+        database = _load(text, source, strict=True)
     except (UnsupportedDatabaseFormatError, ValueError, KeyError) as exc:
         database = _without_layout_checks(text, source, exc)
     if not isinstance(database, Database) or not database.messages:
@@ -91,7 +91,7 @@ def _without_layout_checks(text: str, source: str, refused: Exception) -> Databa
     overlap or do not fit (CANdb++ warns and saves it) that no leg uses. The machine
     config refuses such a message where it uses one (:func:`unsound`)."""
     try:
-        database = cantools.database.load_string(text, database_format="dbc", strict=False)
+        database = _load(text, source, strict=False)
     except (UnsupportedDatabaseFormatError, ValueError, KeyError):
         reason = _first_line(refused)
         raise DbcError(source, f"not a valid DBC: {reason}{_hint(reason)}") from refused
@@ -104,6 +104,36 @@ def _without_layout_checks(text: str, source: str, refused: Exception) -> Databa
         "; ".join(problems or [_first_line(refused)]),
     )
     return database
+
+
+#: cantools' refusal of a value table or float type naming a signal the DBC does not
+#: have, one ``VAL_ <frame id> <signal>`` line each after the first.
+_ORPHANS = re.compile(r"unused (?:VAL_|SIG_VALTYPE_) entries in DBC:")
+_ORPHAN = re.compile(r"^\s*(VAL_|SIG_VALTYPE_) (\d+) (\w+)", re.M)
+
+
+def _load(text: str, source: str, strict: bool) -> object:
+    """cantools' :func:`~cantools.database.load_string`, leaving out, with one warning,
+    the value tables (``VAL_``) and float types (``SIG_VALTYPE_``) of signals the DBC
+    does not have: cantools refuses the whole DBC for one (a table left behind when a
+    signal was deleted or renamed by hand), which says nothing about the rest."""
+    while True:
+        try:
+            return cantools.database.load_string(text, database_format="dbc", strict=strict)
+        except (UnsupportedDatabaseFormatError, ValueError) as exc:
+            orphans = _ORPHAN.findall(str(exc)) if _ORPHANS.search(str(exc)) else []
+            left = text
+            for kind, frame_id, signal in orphans:
+                statement = rf"^[ \t]*{kind}[ \t]+{frame_id}[ \t]+{signal}\b[^;]*;"
+                left = re.sub(statement, "", left, flags=re.M)
+            if left == text:  # no such entries, or not found as written: never loop
+                raise
+            logger.warning(
+                "%s: left out, naming no signal of the DBC: %s",
+                source,
+                ", ".join(" ".join(orphan) for orphan in orphans),
+            )
+            text = left
 
 
 def unsound(message: Message) -> str | None:

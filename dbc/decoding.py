@@ -101,6 +101,22 @@ CLASSIC_MAX_BYTES = 8
 J1939_FRAME_BYTES = 8
 
 
+#: The data lengths a CAN FD frame may have beyond 8 bytes (DLC 9..15).
+FD_LENGTHS = (12, 16, 20, 24, 32, 48, 64)
+
+
+def frame_length(message: Message) -> int:
+    """How many bytes a frame of ``message`` carries on the bus: its DBC length, but a
+    CAN FD message's of a length no FD frame has (a DBC's 30 bytes) the next FD length
+    (32: the controller pads), a J1939 parameter group's shorter than 8 bytes 8
+    (J1939-21 pads with 0xFF). The frames of either length are ``message``'s."""
+    if is_j1939(message) and message.length < J1939_FRAME_BYTES:
+        return J1939_FRAME_BYTES
+    if message.length > CLASSIC_MAX_BYTES and is_fd_message(message):
+        return next((n for n in FD_LENGTHS if n >= message.length), message.length)
+    return message.length
+
+
 def is_fd_message(message: Message) -> bool:
     """``message`` is sent as CAN FD frames: the DBC says so (``VFrameFormat``
     ``StandardCAN_FD``/``ExtendedCAN_FD``), or it is longer than a classic frame can be
@@ -128,13 +144,9 @@ class _MessageCodec:
         self.name: str = message.name
         self.length: int = message.length
         self.is_fd = is_fd_message(message)
-        # J1939 sends a parameter group shorter than 8 bytes padded to 8 (J1939-21; the
-        # padding is 0xFF): such a frame is the DBC's bytes and the padding.
-        self.padded_length = (
-            J1939_FRAME_BYTES
-            if is_j1939(message) and message.length < J1939_FRAME_BYTES
-            else message.length
-        )
+        # A frame padded to what the bus carries (a short J1939 parameter group to 8
+        # bytes, an FD message of 30 bytes to 32) is the DBC's bytes and the padding.
+        self.padded_length = frame_length(message)
         self.to_si = dict(to_si)
         self.compiled = CompiledMessage.compile(message, to_si) if compiled else None
         self.protection = protection

@@ -11,7 +11,14 @@ from dataclasses import dataclass
 
 from cantools.database.can import Database, Message
 
-from dbc.decoding import SenderUnitFactors, SignalValue, UnitFactors, is_fd_message, is_j1939
+from dbc.decoding import (
+    SenderUnitFactors,
+    SignalValue,
+    UnitFactors,
+    frame_length,
+    is_fd_message,
+    is_j1939,
+)
 from dbc.machine import MachineConfig
 from dbc.protection import CrcCheck, Protection, counter_modulo
 
@@ -112,6 +119,8 @@ class FrameEncoder:
             if not is_j1939(message):
                 raise ValueError(f"{message_name} is not a J1939 message: no source address")
             frame_id = (frame_id & ~0xFF) | source_address
+        if is_fd_message(message):  # as the controller pads it: 30 bytes go out as 32
+            data += bytes(frame_length(message) - len(data))
         return EncodedFrame(
             frame_id, bool(message.is_extended_frame), bytes(data), is_fd_message(message)
         )

@@ -72,3 +72,34 @@ def test_an_unsound_message_a_leg_uses_stops_the_config(tmp_path: Path) -> None:
 def test_a_dbc_that_is_no_dbc_is_still_refused() -> None:
     with pytest.raises(DbcError, match="x.dbc: not a valid DBC: "):
         load_database_bytes(b"BO_ nonsense {", "x.dbc")
+
+
+def test_value_tables_and_float_types_of_signals_the_dbc_lacks_are_left_out(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """A value table and a float type left behind by a signal deleted or renamed by hand
+    (FL_Status was once in HUB_FRONT; a message 0x700 is gone): cantools refused the whole
+    DBC ("unused VAL_ entries in DBC:", and the error showed that first line only)."""
+    stale = (
+        'VAL_ 2164195329 FL_Status 0 "ok" 1 "fault" ;\n'
+        'VAL_ 1792 Gone 0 "no" 1 "yes" ;\n'
+        "SIG_VALTYPE_ 2164195329 FL_pOld : 1;\n"
+    )
+    dbc = _dbc("") + stale
+    with caplog.at_level(logging.WARNING, logger="dbc.database"):
+        config, database = load_machine_config(_machine(tmp_path, dbc))
+    assert [r.getMessage() for r in caplog.records] == [
+        f"{tmp_path / 'motorola_psi.dbc'}: left out, naming no signal of the DBC: " + entries
+        for entries in (
+            "VAL_ 2164195329 FL_Status, VAL_ 1792 Gone",
+            "SIG_VALTYPE_ 2164195329 FL_pOld",
+        )
+    ]
+    alive = database.get_message_by_name("HUB_FRONT").get_signal_by_name("FL_Alive")
+    assert alive.choices == {15: "NotAvailable"}  # the DBC's other value tables are kept
+    (estimate,) = (
+        Pipeline.from_config(config, database)
+        .process(RawFrame(1.0, HUB_FRONT_ID, True, _hub_frame(0, 15000, 1000)))
+        .estimates
+    )
+    assert estimate.valid

@@ -7,6 +7,7 @@ from pathlib import Path
 import can
 import pytest
 
+from daq.frames import RawFrame
 from daq.pipeline import Pipeline
 from daq.replay import can_log_frames
 from dbc.encoding import FrameEncoder
@@ -70,3 +71,26 @@ def test_fd_frames_sent_and_logged_replay_into_eq4(tmp_path: Path, suffix: str) 
         p_rod_Pa = round(result.p_rod_Pa[row, column] / 1e3) * 1e3
         expected_N = foot_force_N(p_piston_Pa, p_rod_Pa, config.legs[estimate.leg].geometry)
         assert estimate.valid and estimate.force_raw_N == pytest.approx(expected_N, rel=1e-12)
+
+
+def test_an_fd_message_of_a_length_no_fd_frame_has_goes_out_padded_and_is_read(
+    tmp_path: Path,
+) -> None:
+    """A hand-written DBC's 30-byte FD message (FD frames carry 24 or 32): a controller
+    sends it as 32 bytes, and every such frame was ``wrong_dlc`` (the legs never had a
+    sample); the bridge sent 30, which only a virtual bus carries."""
+    (tmp_path / "fd.dbc").write_text(DBC.replace("ALL_LEGS: 32 Hub", "ALL_LEGS: 30 Hub"))
+    (tmp_path / "machine.toml").write_text(CONFIG)
+    config, database = load_machine_config(tmp_path / "machine.toml")
+    message = database.get_message_by_name("ALL_LEGS")
+    assert message.length == 30
+    sent = {signal.name: 1e6 for signal in message.signals}
+    frame = FrameEncoder.from_config(config, database).encode("ALL_LEGS", sent)
+    assert frame.is_fd and len(frame.data) == 32 and frame.data[30:] == bytes(2)
+    pipeline = Pipeline.from_config(config, database)
+    for data in (frame.data, frame.data[:30]):
+        estimates = pipeline.process(RawFrame(1.0, 768, False, data)).estimates
+        assert len(estimates) == 6 and all(e.valid for e in estimates)
+        assert {e.p_piston_Pa for e in estimates} == {1e6}
+    assert pipeline.process(RawFrame(1.0, 768, False, frame.data + bytes(16))).decoded is None
+    assert pipeline.bad == {"wrong_dlc": 1}
