@@ -152,7 +152,8 @@ def replay(
     if all(path.suffix.lower() == MCAP_SUFFIX for path in files):
         no_channel_of_recordings(channel)  # was ignored: every frame of the one bus
         source = run_source(run_files(files), machine)
-        if source is None:
+        if source is None:  # only truth, say, or nothing: as for an empty log, say so
+            logger.warning("%s: no CAN frame in it: the CSV has its header only", files[0])
             return write_csv((), out)
         pipeline, items = source
         rows = write_csv(estimates(pipeline, items, lost), out)

@@ -88,6 +88,22 @@ def test_an_empty_log_of_any_format_is_a_header_and_a_warning(tmp_path: Path, su
     assert "no CAN frame in it" in result.stderr
 
 
+def test_a_recording_without_frames_is_a_header_and_a_warning(tmp_path: Path) -> None:
+    """A service recording of no frame (the recorder had just opened it; or a truth file
+    of ``portal-sim --truth-mcap``) gave the header alone and not a word, where a CAN log
+    of none says so."""
+    from daq.mcap_file import McapFile
+    from tests.helpers import example_machine
+
+    path = tmp_path / "opened.mcap"
+    with open(path, "wb") as stream, McapFile(stream, example_machine()[1]) as mcap:
+        mcap.start()
+    result = run_cli("replay", str(path))
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.startswith("leg,t,force_N,") and len(result.stdout.splitlines()) == 1
+    assert f"{path}: no CAN frame in it: the CSV has its header only" in result.stderr
+
+
 def test_a_named_pipe_is_written_to_not_replaced(tmp_path: Path) -> None:
     """``--out /dev/null`` had /dev/null replaced by a regular file (the CSV written beside
     it, then renamed onto it): a device or pipe is written as it is. A named pipe stands
