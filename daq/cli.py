@@ -5,7 +5,9 @@ NAME ARGS`` hands ``ARGS`` to that subcommand's ``main`` (see :mod:`daq.subcomma
 The bare ``portal-daq --config FILE`` of earlier releases still runs the service
 (``portal-daq run --config FILE``). An unknown name exits 2 with argparse's list of
 the valid ones. When whoever reads standard output goes away (``portal-daq replay X |
-head``), the command ends quietly with status 141, as a Unix tool killed by SIGPIPE.
+head``), the command ends quietly with status 141, as a Unix tool killed by SIGPIPE;
+Ctrl-C in a command that does not handle SIGINT itself (replay, report, calibrate, ...)
+ends it with one line and status 130.
 """
 
 import argparse
@@ -32,6 +34,8 @@ SUBCOMMAND_MODULES = (
 
 #: What a shell reports for a process killed by SIGPIPE (128 + 13).
 BROKEN_PIPE_STATUS = 141
+#: What a shell reports for a process ended by SIGINT, Ctrl-C (128 + 2).
+INTERRUPTED_STATUS = 130
 
 
 def subcommands() -> dict[str, Subcommand]:
@@ -71,6 +75,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         name, rest = build_parser(commands).parse_args(args[:1]).command, args[1:]
     try:
         return commands[name].main(rest)
+    except KeyboardInterrupt:
+        # Ctrl-C in replay, report, calibrate, ...: what they write beside an output is
+        # removed on the way out; the traceback of wherever it landed told nothing.
+        sys.stderr.write(f"{PROG}: interrupted\n")
+        return INTERRUPTED_STATUS
     except BrokenPipeError:
         # Python would report the flush at exit as an error too: point stdout at nothing.
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())

@@ -47,7 +47,8 @@ def write_example(name: str, directory: Path, *, force: bool = False) -> list[Pa
     targets = [directory / entry.name for entry in files]
     existing = [str(target) for target in targets if target.exists()]
     if existing and not force:
-        raise FileExistsError(f"{', '.join(existing)} exist; --force overwrites them")
+        exist, them = ("exists", "it") if len(existing) == 1 else ("exist", "them")
+        raise FileExistsError(f"{', '.join(existing)} {exist}; --force overwrites {them}")
     directory.mkdir(parents=True, exist_ok=True)
     for entry, target in zip(files, targets, strict=True):
         target.write_bytes(entry.read_bytes())

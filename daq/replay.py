@@ -423,12 +423,17 @@ def _open(path: Path) -> IO[bytes]:
 
 
 def run_results(
-    files: Sequence[Path], machine: Machine | None, pipeline: Pipeline | None = None
+    files: Sequence[Path],
+    machine: Machine | None,
+    pipeline: Pipeline | None = None,
+    *,
+    warn: bool = True,
 ) -> Iterator[FrameResult]:
     """What the pipeline (a fresh one unless given) makes of every frame of MCAP
-    ``files`` (one run, in order)."""
+    ``files`` (one run, in order); ``warn`` False: a file cut short or damaged is not
+    logged again (a second pass over files already read)."""
     if pipeline is not None:
-        yield from results(pipeline, run_items(files))
+        yield from results(pipeline, run_items(files, warn=warn))
         return
     source = run_source(files, machine)
     if source is not None:
@@ -451,13 +456,14 @@ def run_source(
 
 
 def run_items(
-    files: Sequence[Path], attachments: dict[str, bytes] | None = None
+    files: Sequence[Path], attachments: dict[str, bytes] | None = None, *, warn: bool = True
 ) -> Iterator[RawFrame | BusEvent]:
     """The frames and bus events of MCAP ``files`` (one run, in order); the first file's
-    attachments are put into ``attachments`` as they are read (before its messages)."""
+    attachments are put into ``attachments`` as they are read (before its messages).
+    ``warn``: log a file cut short or a damaged chunk (:class:`RecordingStream`)."""
     for path in files:
         with _open(path) as stream:
-            for record in RecordingStream(stream, str(path)):
+            for record in RecordingStream(stream, str(path), warn=warn):
                 if isinstance(record, RecordedAttachment):
                     if attachments is not None:
                         attachments.setdefault(record.name, record.data)

@@ -68,7 +68,7 @@ def machine_for(paths: Sequence[Path], config_path: Path | None) -> Machine:
         with open(first, "rb") as stream:
             attachments = {
                 record.name: record.data
-                for record in RecordingStream(stream, str(first))
+                for record in RecordingStream(stream, str(first), warn=False)  # read again
                 if isinstance(record, RecordedAttachment)
             }
     except OSError as exc:

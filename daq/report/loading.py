@@ -139,7 +139,8 @@ def load_recording(
             raise ConfigError(first, "", f"no {what} them needs --config")
         logger.info("%s: deriving what was not recorded from /can/raw", first)
         pipeline = Pipeline.from_config(*machine)
-        for result in run_results(files, machine, pipeline):
+        # The files were read above, and what was cut or damaged said so there.
+        for result in run_results(files, machine, pipeline, warn=False):
             collector.derive(result, bad=batches, signals=derive_signals, estimates=recomputed)
         if batches:
             collector.count_bad(UNMAPPED_SOURCE, pipeline.bad[UNMAPPED_SOURCE])

@@ -341,3 +341,15 @@ def test_a_directory_is_read_as_the_runs_in_it(walk: Recorded, tmp_path: Path) -
     from_file = read_instants([walk.path], machine)
     assert from_folder.total == from_file.total > 0
     assert np.array_equal(from_folder.force_N, from_file.force_N)
+
+
+def test_a_cut_recording_is_said_once(
+    recording: Recorded, tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """The embedded config was looked up by reading the whole file, which said "ends
+    without its summary" a first time before the replay said it again."""
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(recording.path.read_bytes()[: recording.path.stat().st_size // 2])
+    calibrate_main([str(cut), "--out", str(tmp_path / "c.toml")])
+    said = [r for r in caplog.records if "ends without its summary" in r.getMessage()]
+    assert len(said) == 1, [r.getMessage() for r in said]

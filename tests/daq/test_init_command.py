@@ -10,6 +10,7 @@ import pytest
 from daq.cli import main
 from daq.init_command import example_names
 from daq.service_config import load_service_config
+from dbc import DEFAULT_DBC_PATH
 from tests.helpers import ROOT
 
 
@@ -40,6 +41,21 @@ def test_an_example_is_written_and_loads_from_where_it_was_written(
     assert f"portal-daq run --config {config_path}" in err
 
 
+def test_the_default_machine_gets_a_copy_of_the_packaged_dbc(tmp_path: Path) -> None:
+    """A user with the wheel alone had no way to see the signal names the config names,
+    and the example's commented ``dbc = "portal_sensors.dbc"``, uncommented, was "no such
+    file". Left commented, the packaged DBC is read; uncommented, the copy."""
+    assert main(["init", str(tmp_path)]) == 0
+    copy = tmp_path / "portal_sensors.dbc"
+    assert copy.read_bytes() == DEFAULT_DBC_PATH.read_bytes()
+    config = tmp_path / "portal-daq.toml"
+    assert load_service_config(config).machine.dbc_path == DEFAULT_DBC_PATH
+    text = config.read_text()
+    assert text.count('# dbc = "portal_sensors.dbc"\n') == 1
+    config.write_text(text.replace('# dbc = "portal_sensors.dbc"', 'dbc = "portal_sensors.dbc"'))
+    assert load_service_config(config).machine.dbc_path == copy
+
+
 def test_the_machine_with_its_own_dbc_gets_that_dbc(tmp_path: Path) -> None:
     assert main(["init", str(tmp_path), "--example", "j1939"]) == 0
     config = load_service_config(tmp_path / "portal-daq.toml")
@@ -54,10 +70,11 @@ def test_existing_files_are_kept_unless_forced(
     mine = tmp_path / "portal-daq.toml"
     mine.write_text("# my machine\n")
     (tmp_path / "zenoh.json5").unlink()
+    (tmp_path / "portal_sensors.dbc").unlink()
     capsys.readouterr()
     assert main(["init", str(tmp_path)]) == 2
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and f"{mine} exist" in err and "--force" in err
+    assert err == f"portal-daq: {mine} exists; --force overwrites it\n"
     # nothing written, not even the file that was missing
     assert mine.read_text() == "# my machine\n"
     assert not (tmp_path / "zenoh.json5").exists()

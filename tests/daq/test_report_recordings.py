@@ -307,6 +307,17 @@ def test_a_log_of_another_machine_says_why_the_pictures_are_empty(tmp_path: Path
     assert right.returncode == 0 and right.stderr == "", right.stderr
 
 
+def test_a_cut_recording_is_said_once(tmp_path: Path) -> None:
+    """Report read the cut file twice (its records, then its frames again to derive the
+    signals) and said "ends without its summary" twice, as if two files were cut."""
+    path = record(tmp_path / "run.mcap", seconds=2.0, chunk_size=16 * 1024)
+    with open(path, "r+b") as file:
+        file.truncate(path.stat().st_size * 2 // 3)
+    done = run_cli(str(path), "--out", str(tmp_path / "out"))
+    assert done.returncode == 0, done.stderr
+    assert done.stderr.count("ends without its summary") == 1, done.stderr
+
+
 def test_input_without_frames_or_estimates_exits_1_with_one_line(tmp_path: Path) -> None:
     """A TOML file, or an MCAP file with only the simulator's truth: nothing to report."""
     toml = run_cli(str(EXAMPLE_CONFIG), "--out", str(tmp_path / "toml"))

@@ -4,6 +4,7 @@ a useful error, ``run --config`` and the bare ``--config`` form both run the ser
 
 from __future__ import annotations
 
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -89,6 +90,31 @@ def test_replay_into_a_closed_pipe_ends_quietly(tmp_path: Path) -> None:
         stderr = process.stderr.read()
     assert process.wait(timeout=120) == 141, stderr
     assert stderr == ""
+
+
+def test_ctrl_c_ends_a_command_in_one_line(tmp_path: Path) -> None:
+    """Ctrl-C in replay (report, calibrate: any command that does not handle SIGINT
+    itself) was a KeyboardInterrupt traceback of some 30 lines; now one line, status 130
+    as a shell reports it. The replay is held writing into a full pipe when it comes."""
+    config, database = example_machine()
+    log = tmp_path / "long.log"
+    with can.Logger(str(log)) as logger:  # ~1 MB of CSV: far more than a pipe's buffer
+        for message in leg_messages(FrameEncoder(database, config.protection), 2000, 1.7e9):
+            message.channel = "can0"
+            logger.on_message_received(message)
+    process = subprocess.Popen(
+        [sys.executable, "-m", "daq", "replay", str(log), "--config", str(EXAMPLE_CONFIG)],
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    assert process.stdout is not None
+    assert process.stdout.readline().startswith("leg,t,")
+    process.send_signal(signal.SIGINT)
+    _, stderr = process.communicate(timeout=120)
+    assert process.returncode == 130, stderr
+    assert stderr == "portal-daq: interrupted\n"
 
 
 @pytest.mark.parametrize("name", ["run", "monitor", "dashboard", "router"])

@@ -65,6 +65,10 @@ def test_the_wheel_ships_the_example_config_as_the_simulators_default(venv: Path
     router = installed_default_config(venv, elsewhere, "daq.router")
     assert router.is_file() and router.is_relative_to(venv), router
     assert "tcp/0.0.0.0:7447" in router.read_text()
+    # every package is typed for the programs that import it (mypy strict on all four)
+    site = next(venv.glob("lib/python*/site-packages"))
+    for package in ("daq", "dbc", "estimator", "sim_bridge"):
+        assert (site / package / "py.typed").is_file(), package
     # license = "MIT" in pyproject.toml, and its text ships with the wheel
     (license_file,) = venv.glob("lib/python*/site-packages/portal_daq-*.dist-info/licenses/LICENSE")
     assert license_file.read_text().startswith("MIT License")
