@@ -27,11 +27,10 @@ import math
 import sqlite3
 import struct
 import tomllib
-import zlib
 from collections import Counter
 from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
-from typing import IO, Any, TextIO, cast
+from typing import IO, TextIO, cast
 
 import can
 from can.io.blf import BLFParseError
@@ -47,6 +46,7 @@ from daq.mcap_file import BUS_TOPIC, CONFIG_ATTACHMENT, DBC_ATTACHMENT, RAW_TOPI
 from daq.mcap_reading import RecordedAttachment, RecordedMessage, RecordingStream
 from daq.pipeline import FrameResult, Pipeline
 from daq.recording_run import MCAP_SUFFIX, expand, run_files
+from daq.text_log import AscReader, CsvReader, LogLines
 from daq.trc_log import TrcReader
 from dbc.database import load_database_bytes
 from dbc.errors import ConfigError
@@ -72,9 +72,6 @@ Machine = tuple[MachineConfig, Database]
 
 #: What python-can's log parsers raise for a file they cannot read (SQLite's for ``.db``).
 _READER_ERRORS = (ValueError, IndexError, KeyError, struct.error, sqlite3.Error, BLFParseError)
-
-#: EDL in the flags of an ASC ``CANFD`` line (and of a BLF CAN FD message): an FD frame.
-_EDL = 1 << 12
 
 #: What a line of a text log must look like, for an error whose reason python-can words
 #: as its code sees it (``not enough values to unpack``).
@@ -329,7 +326,7 @@ def _loss(t_s: float, kernel_dropped: int) -> BusEvent:
     return BusEvent(t_s, BUS_UP, "candump DROPCOUNT", kernel_dropped=kernel_dropped)
 
 
-def _log_reader(path: Path) -> tuple[MessageReader, "LogLines | None"]:
+def _log_reader(path: Path) -> tuple[MessageReader, LogLines | None]:
     """python-can's reader of ``path`` by its suffix (also gzipped); a text log's lines
     come through :class:`LogLines`."""
     suffixes = [suffix.lower() for suffix in path.suffixes[-2:]]
@@ -365,67 +362,10 @@ def blf_cut(path: Path, reader: MessageReader) -> str | None:
     return f"its header gives {reader.file_size} bytes, the file has {size}: not closed"
 
 
-class LogLines:
-    """The lines of a text CAN log, as python-can's readers take a file, up to a cut.
-
-    A logger killed while writing (a power cut) leaves a last line without its line end:
-    it is left out, as its data may end inside a byte (``1C`` cut to ``1`` would read as
-    0x01), and :attr:`cut` says so; a gzipped log cut short ends the same way.
-    """
-
-    def __init__(self, file: IO[str]) -> None:
-        self._file = file
-        #: Why reading stopped before the end of the file (None: it did not).
-        self.cut: str | None = None
-        self._started = False
-
-    def __iter__(self) -> "LogLines":
-        return self
-
-    def __next__(self) -> str:
-        if self.cut is not None:
-            raise StopIteration
-        try:
-            line = next(self._file)
-        except (EOFError, zlib.error, gzip.BadGzipFile) as exc:  # a gzipped log cut short
-            if not self._started:  # none at all: not gzip ("Not a gzipped file")
-                raise ValueError(str(exc)) from exc
-            self.cut = str(exc)
-            raise StopIteration from exc
-        self._started = True
-        if not line.endswith("\n"):
-            self.cut = f"its last line has no line end: {line.strip()[:60]!r}, left out"
-            raise StopIteration
-        return line
-
-    def close(self) -> None:
-        self._file.close()
-
-
-class AscReader(can.ASCReader):
-    """python-can's ASC reader, except that a ``CANFD`` line is an FD frame only when its
-    flags have EDL (bit 12) set, as python-can's BLF reader has it: Vector's tools log
-    the classic frames of a CAN FD channel as ``CANFD`` lines too, which python-can made
-    FD frames (refused as ``fd_frame``)."""
-
-    def _process_fd_can_frame(self, line: str, msg_kwargs: dict[str, Any]) -> can.Message:
-        message = super()._process_fd_can_frame(line, msg_kwargs)
-        if message.is_error_frame:
-            return message
-        # CHANNEL DIR ID [NAME] BRS ESI DLC LENGTH DATA... DURATION BITS FLAGS ...
-        fields = line.split()
-        length_at = 6 if fields[3].isdigit() else 7
-        try:
-            flags = int(fields[length_at + int(fields[length_at]) + 3], 16)
-        except (IndexError, ValueError):  # a line of an older format: python-can's way
-            return message
-        message.is_fd = bool(flags & _EDL)
-        return message
-
-
 #: Our readers where python-can's read a suffix wrongly.
 _OWN_READERS: dict[str, type[TextIOMessageReader]] = {
     ".asc": AscReader,
+    ".csv": CsvReader,
     ".trc": TrcReader,
     ".log": CandumpReader,
 }

@@ -350,6 +350,7 @@ def parse_machine_config(
         for name, table in root.table("protection", required=False).subtables()
     }
     _across_legs.check_senders(legs_table, legs, database)
+    _across_legs.check_not_protection(legs_table, legs, protection)
     unit_factors, sender_unit_factors, decoded_units = _across_legs.unit_factors(
         legs_table, legs, database
     )
@@ -492,6 +493,12 @@ def _chamber(
     message, signal_name = _split_ref(chamber, signal_key, chamber.string("signal"), database)
     source_address = _source_address(chamber, message, database)
     signal = message.get_signal_by_name(signal_name)
+    if signal.is_multiplexer:  # with a unit it was taken, and the bridge crashed on it
+        raise chamber.error(
+            signal_key,
+            f"signal {message.name}.{signal_name} is the message's multiplexer (which page "
+            "a frame is), not a pressure",
+        )
     unit = chamber.string("unit") if "unit" in chamber else (signal.unit or "")
     in_Pa = chamber_unit(unit)
     if in_Pa is None:

@@ -564,3 +564,42 @@ def test_candumps_dropcount_lines_are_counted_as_frames_the_kernel_dropped(
     assert f"{len(lines) - 2} frames, " in caplog.text  # the frames' count line
     counts = load_recording(log, EXAMPLE_CONFIG).counts
     assert (counts.frames, counts.kernel_dropped, counts.rx_dropped) == (len(lines) - 2, 38, 0)
+
+
+@pytest.mark.parametrize(
+    "header",
+    [
+        "",  # frame lines only (a tool that writes no header)
+        "date Wed Dec 02 08:17:26.477 2026\n",
+        "date Wed Dec 02 08:17:26.477 2026\nbase hex  timestamps absolute\n",  # CANalyzer 5
+        "date Wed Dec 02 08:17:26.477 2026\nbase hex  timestamps absolute\n"
+        "no internal events logged\n",
+    ],
+    ids=["none", "date", "date_base", "whole"],
+)
+def test_an_asc_header_without_its_events_line_costs_no_frame(tmp_path: Path, header: str) -> None:
+    """python-can's header reading stops one line past a header that lacks its last line
+    (``internal events logged``) and dropped that line: the log's first frame, uncounted."""
+    log = tmp_path / "old.asc"
+    frames = "".join(
+        f"   0.0{i}0000 1  10{i}             Rx   d 8 00 00 00 00 00 00 00 0{i}\n" for i in (1, 2)
+    )
+    log.write_text(header + frames)
+    assert [(f.arbitration_id, f.t_s) for f in can_log_frames(log)] == [
+        (0x101, 0.01),
+        (0x102, 0.02),
+    ]
+
+
+@pytest.mark.parametrize(
+    "header", ["timestamp,arbitration_id,extended,remote,error,dlc,data\n", ""]
+)
+def test_a_csv_log_without_its_header_line_costs_no_frame(tmp_path: Path, header: str) -> None:
+    """python-can's CSV reader skips the first line as the header: of a CSV written
+    without one, the first frame was lost uncounted."""
+    log = tmp_path / "frames.csv"
+    log.write_text(header + "1.0,0x101,0,0,0,1,AQ==\n2.0,0x102,0,0,0,1,Ag==\n")
+    assert [(f.arbitration_id, f.data) for f in can_log_frames(log)] == [
+        (0x101, b"\1"),
+        (0x102, b"\2"),
+    ]

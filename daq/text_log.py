@@ -1,0 +1,114 @@
+"""Text CAN logs as python-can's readers take them: the lines of the file up to a cut
+(:class:`LogLines`), and Vector's ASC read as Vector writes it (:class:`AscReader`)."""
+
+import gzip
+import re
+import zlib
+from collections.abc import Generator
+from typing import IO, Any
+
+import can
+
+#: EDL in the flags of an ASC ``CANFD`` line (and of a BLF CAN FD message): an FD frame.
+_EDL = 1 << 12
+
+#: The header line of python-can's CSV log.
+_CSV_HEADER = "timestamp,arbitration_id,extended,remote,error,dlc,data\n"
+
+#: The header's last line in an ASC log (python-can's pattern).
+_EVENTS_LINE = re.compile(r"(no)?\s*internal\s+events\s+logged", re.IGNORECASE)
+
+
+class LogLines:
+    """The lines of a text CAN log, as python-can's readers take a file, up to a cut.
+
+    A logger killed while writing (a power cut) leaves a last line without its line end:
+    it is left out, as its data may end inside a byte (``1C`` cut to ``1`` would read as
+    0x01), and :attr:`cut` says so; a gzipped log cut short ends the same way.
+    """
+
+    def __init__(self, file: IO[str]) -> None:
+        self._file = file
+        #: Why reading stopped before the end of the file (None: it did not).
+        self.cut: str | None = None
+        #: The line read last (None before the first).
+        self.last: str | None = None
+        self._again: list[str] = []
+        self._started = False
+
+    def __iter__(self) -> "LogLines":
+        return self
+
+    def read_again(self, line: str | None = None) -> None:
+        """The next line is ``line``, by default the one read last once more (a header
+        reader that read a line too far)."""
+        line = self.last if line is None else line
+        if line is not None:
+            self._again.append(line)
+
+    def __next__(self) -> str:
+        if self._again:
+            return self._again.pop()
+        if self.cut is not None:
+            raise StopIteration
+        try:
+            line = next(self._file)
+        except (EOFError, zlib.error, gzip.BadGzipFile) as exc:  # a gzipped log cut short
+            if not self._started:  # none at all: not gzip ("Not a gzipped file")
+                raise ValueError(str(exc)) from exc
+            self.cut = str(exc)
+            raise StopIteration from exc
+        self._started = True
+        if not line.endswith("\n"):
+            self.cut = f"its last line has no line end: {line.strip()[:60]!r}, left out"
+            raise StopIteration
+        self.last = line
+        return line
+
+    def close(self) -> None:
+        self._file.close()
+
+
+class AscReader(can.ASCReader):
+    """python-can's ASC reader, except that a ``CANFD`` line is an FD frame only when its
+    flags have EDL (bit 12) set, as python-can's BLF reader has it: Vector's tools log
+    the classic frames of a CAN FD channel as ``CANFD`` lines too, which python-can made
+    FD frames (refused as ``fd_frame``); and that a header without its last line,
+    ``internal events logged`` (older CANalyzers, other tools), does not cost the log's
+    first line: python-can's header reading took it and dropped it, a frame lost
+    uncounted where a frame came next (of a :class:`LogLines` file)."""
+
+    def _extract_header(self) -> None:
+        super()._extract_header()  # reads up to the events line, or one line past the header
+        lines: object = self.file
+        if isinstance(lines, LogLines) and not _EVENTS_LINE.match((lines.last or "").strip()):
+            lines.read_again()
+
+    def _process_fd_can_frame(self, line: str, msg_kwargs: dict[str, Any]) -> can.Message:
+        message = super()._process_fd_can_frame(line, msg_kwargs)
+        if message.is_error_frame:
+            return message
+        # CHANNEL DIR ID [NAME] BRS ESI DLC LENGTH DATA... DURATION BITS FLAGS ...
+        fields = line.split()
+        length_at = 6 if fields[3].isdigit() else 7
+        try:
+            flags = int(fields[length_at + int(fields[length_at]) + 3], 16)
+        except (IndexError, ValueError):  # a line of an older format: python-can's way
+            return message
+        message.is_fd = bool(flags & _EDL)
+        return message
+
+
+class CsvReader(can.CSVReader):
+    """python-can's CSV reader, except that a file without the header line (the columns
+    written by another program) costs no frame: python-can skipped its first line as the
+    header, a frame lost uncounted (of a :class:`LogLines` file)."""
+
+    def __iter__(self) -> Generator[can.Message, None, None]:
+        lines: object = self.file
+        if isinstance(lines, LogLines):
+            first = next(lines, None)
+            lines.read_again()
+            if first is not None and not first.lstrip().lower().startswith("timestamp"):
+                lines.read_again(_CSV_HEADER)  # for python-can to skip
+        yield from super().__iter__()
