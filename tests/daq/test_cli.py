@@ -101,6 +101,21 @@ def test_zenoh_config_not_utf8_exits_2_naming_the_file(tmp_path: Path) -> None:
     assert "UTF-8" in last and ".rs:" not in last and "Traceback" not in result.stderr
 
 
+def test_a_misspelt_zenoh_key_is_zenohs_reason_and_where(tmp_path: Path) -> None:
+    """It was ``JSON error: Message { msg: "unknown field ...", location: Some(Location {
+    line: 2, column: 3 }) }``."""
+    zenoh_file = tmp_path / "zenoh.json5"
+    zenoh_file.write_text('{\n  modee: "peer" }\n')
+    path = write_service_config(tmp_path, port=free_port())
+    path.write_text(path.read_text().replace("[zenoh]\n", '[zenoh]\nconfig_file = "zenoh.json5"\n'))
+    result = run_cli("run", "--config", str(path), "--log-level", "warning")
+    assert_one_line_error(
+        result, 2, f"{zenoh_file}: not a valid Zenoh config: unknown field `modee`, expected"
+    )
+    assert result.stderr.endswith("` (line 2, column 3)\n"), result.stderr
+    assert "Message {" not in result.stderr
+
+
 def test_unreadable_config_exits_2_naming_the_file(tmp_path: Path) -> None:
     # A directory: unreadable as a file even for root (chmod 000 is not, for root).
     assert_one_line_error(run_cli("--config", str(tmp_path)), 2, f"{tmp_path}: cannot read it")
