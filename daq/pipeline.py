@@ -5,6 +5,7 @@ offline replay both feed frames through the same :class:`Pipeline`, so live and
 replayed estimates of one recording are identical.
 """
 
+import logging
 from collections import Counter, defaultdict
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -23,6 +24,8 @@ from estimator.leg import LegEstimate
 from estimator.machine import MachineEstimator, MachineSnapshot
 from estimator.metrics import SoilMetrics
 from estimator.records import fast_init
+
+logger = logging.getLogger(__name__)
 
 #: Frames of a leg message from a J1939 source address no chamber is mapped to.
 UNMAPPED_SOURCE = "unmapped_source"
@@ -75,6 +78,8 @@ class Pipeline:
         self.leg_faults: defaultdict[str, Counter[str]] = defaultdict(Counter)
         #: Frames lost on the way, as the rolling counters of the frames after them tell.
         self.frames_lost = 0
+        # The unmapped senders seen (message, source address): each is logged once.
+        self._unmapped: set[tuple[str, int | None]] = set()
 
     @classmethod
     def from_config(cls, machine: MachineConfig, database: Database) -> "Pipeline":
@@ -124,6 +129,7 @@ class Pipeline:
         if not samples:  # a frame of no leg's message (None: of none of its senders)
             if samples is None:
                 self.bad[UNMAPPED_SOURCE] += 1
+                self._log_unmapped(decoded)
             return FrameResult(frame, decoded, None)
         update = self.estimator.update
         estimates = tuple([update(leg, sample) for leg, sample in samples])
@@ -131,6 +137,23 @@ class Pipeline:
             if estimate.reasons:
                 self.leg_faults[estimate.leg].update(estimate.reasons)
         return FrameResult(frame, decoded, None, estimates)
+
+    def _log_unmapped(self, decoded: DecodedFrame) -> None:
+        """One line for the first frame of each unmapped sender: the count alone does not
+        say which address a transducer sends from (one set to another address than its
+        chamber's ``source_address`` leaves that leg stale)."""
+        sender = (decoded.message, decoded.source_address)
+        if sender in self._unmapped:
+            return
+        self._unmapped.add(sender)
+        address = "none" if decoded.source_address is None else f"0x{decoded.source_address:02X}"
+        logger.warning(
+            "%s from source address %s: no chamber has this source_address; its frames "
+            "are counted %s and not used",
+            decoded.message,
+            address,
+            UNMAPPED_SOURCE,
+        )
 
     def reset_counters(self) -> None:
         """After a gap in reception (bus down, reopened): forget the rolling counters so

@@ -149,11 +149,13 @@ def replay(
     """
     machine = load_machine_config(config_path) if config_path is not None else None
     files = expand([paths] if isinstance(paths, Path) else paths)
+    of_one_kind(files)
     lost: Counter[str] = Counter()
     if all(path.suffix.lower() == MCAP_SUFFIX for path in files):
         no_channel_of_recordings(channel)  # was ignored: every frame of the one bus
         source = run_source(run_files(files), machine)
-        if source is None:
+        if source is None:  # only truth, say, or nothing: as for an empty log, say so
+            logger.warning("%s: no CAN frame in it: the CSV has its header only", files[0])
             return write_csv((), out)
         pipeline, items = source
         rows = write_csv(estimates(pipeline, items, lost), out)
@@ -207,6 +209,20 @@ def no_channel_of_recordings(channel: str | None) -> None:
         raise ConfigError("--channel", "", "picks a CAN log's bus; a service recording has one")
 
 
+def of_one_kind(files: Sequence[Path]) -> None:
+    """Raises :class:`~daq.errors.RecordingError` when ``files`` mix service recordings
+    (``.mcap``) with CAN logs: the two are never one run, and each kind was read as the
+    other (``REC.mcap: cannot read it as a CAN log``, after the log's rows)."""
+    recordings = [path for path in files if path.suffix.lower() == MCAP_SUFFIX]
+    if recordings and len(recordings) < len(files):
+        log = next(path for path in files if path.suffix.lower() != MCAP_SUFFIX)
+        raise RecordingError(
+            log,
+            f"a CAN log given with service recordings ({recordings[0]}): they are not one "
+            "run; give one kind at a time",
+        )
+
+
 def is_can_log(path: Path) -> bool:
     """``path``'s suffix is one of python-can's log readers (also gzipped: ``.log.gz``)."""
     suffixes = [suffix.lower() for suffix in path.suffixes[-2:]]
@@ -257,6 +273,13 @@ def can_log_frames(path: Path, channel: str | None = None) -> Iterator[RawFrame 
     if not path.is_file():  # python-can's SQLite reader would create it
         what = "not a file" if path.exists() else "no such file"
         raise RecordingError(path, f"cannot read it as a CAN log: {what}")
+    if not is_can_log(path):  # python-can: 'No read support for unknown log format ".txt"'
+        known = ", ".join(sorted(MESSAGE_READERS))
+        raise RecordingError(
+            path,
+            f"cannot read it as a CAN log: no log format for its suffix; replay reads {known} "
+            "(each also .gz) and service recordings (.mcap)",
+        )
     if path.stat().st_size == 0:  # a logger stopped at once (python-can: a BLF "unpack" error)
         return
     try:

@@ -100,19 +100,39 @@ def one_line(message: str) -> str:
     >>> one_line('Error { message: "unclosed table", input: Some("[m\\\\n\\\\"x\\\\""), span: 8 }')
     'Error { message: "unclosed table", span: 8 }'
 
-    A bad value put into a config is its message alone (was wrapped in
-    ``Json5Err(Message { msg: ..., location: ... })``):
+    A bad value put into a config is its message alone, a file's with where in the file
+    (both were wrapped in ``Message { msg: ..., location: ... }``):
 
     >>> one_line('Json5Err(Message { msg: "Endpoints must be ...: x at /e.rs:615.", '
     ...          'location: Some(Location { line: 1, column: 2 }) }) at /c.rs:86.')
     'Endpoints must be ...: x'
+    >>> one_line('JSON error: Message { msg: "unknown field `modee`, expected one of `id`", '
+    ...          'location: Some(Location { line: 3, column: 5 }) }')
+    'unknown field `modee`, expected one of `id` (line 3, column 5)'
+
+    A TOML file's (Zenoh reads ``.toml`` as TOML: the service's config given as Zenoh's):
+
+    >>> one_line('TOML deserization error: Error { message: "unknown field `bus`", '
+    ...          'input: Some("[bus]\\n"), keys: [], span: Some(1..4) }')
+    'TOML: unknown field `bus`'
     """
     lines = [line.strip() for line in message.strip().splitlines()]
     text = " ".join(line for line in lines if line and line != "|")
     text = re.sub(r'input: Some\("(?:[^"\\]|\\.)*"\), ', "", text)
     text = re.sub(r"\s+at \S+\.rs:\d+\.?", "", text)
-    json5 = re.fullmatch(r'Json5Err\(Message \{ msg: "((?:[^"\\]|\\.)*)".*', text)
-    return json5.group(1) if json5 else text
+    found = re.fullmatch(
+        r'(Json5Err\(|JSON error: )Message \{ msg: "((?:[^"\\]|\\.)*)"'
+        r"(?:, location: Some\(Location \{ line: (\d+), column: (\d+) \}\))?.*",
+        text,
+    )
+    toml = re.fullmatch(r'TOML \w+ error: Error \{ message: "((?:[^"\\]|\\.)*)".*', text)
+    if toml is not None:
+        return f"TOML: {toml[1]}"
+    if found is None:
+        return text
+    # A value inserted (Json5Err) is located in the JSON made of it: no help to anyone.
+    inserted = found[1] == "Json5Err(" or found[3] is None
+    return found[2] + ("" if inserted else f" (line {found[3]}, column {found[4]})")
 
 
 def config_value(config: zenoh.Config, key: str) -> Any:

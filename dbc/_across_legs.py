@@ -17,6 +17,7 @@ from dbc.units import chamber_unit, pressure_factor_to_Pa
 
 if TYPE_CHECKING:
     from dbc.machine import ChamberSignal, LegConfig
+    from dbc.protection import Protection
 
 
 def _chambers(leg: "LegConfig") -> Iterator[tuple[str, "ChamberSignal"]]:
@@ -54,6 +55,24 @@ def check_own_chambers(legs_table: TomlTable, legs: Mapping[str, "LegConfig"]) -
                 "each leg needs its own",
             )
         taken[chambers] = name
+
+
+def check_not_protection(
+    legs_table: TomlTable, legs: Mapping[str, "LegConfig"], protection: Mapping[str, "Protection"]
+) -> None:
+    """No chamber reads its message's rolling counter or CRC (a copied signal name, given
+    a unit): the counter's 0..15 read as a valid pressure, and the bridge wrote the
+    counter over the simulated one."""
+    for leg in legs.values():
+        for key, chamber in _chambers(leg):
+            guard = protection.get(chamber.message)
+            for role in ("counter", "crc"):
+                if guard is not None and getattr(guard, role) == chamber.signal:
+                    raise legs_table.table(leg.name).error(
+                        key,
+                        f"{chamber.message}.{chamber.signal} is [protection."
+                        f"{chamber.message}] {role}, not a pressure",
+                    )
 
 
 def sender_cycle_times_ms(

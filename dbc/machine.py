@@ -284,14 +284,23 @@ def read_toml(path: str | Path) -> dict[str, Any]:
     except OSError as exc:
         raise ConfigError(source, "", f"cannot read it: {exc.strerror or exc}") from exc
     except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(source, "", f"not valid TOML: {exc}") from exc
+        raise ConfigError(source, "", f"not valid TOML: {exc}{_no_config(path)}") from exc
     except UnicodeDecodeError as exc:  # TOML is UTF-8; e.g. a Latin-1 comment "46 °C"
         raise ConfigError(
             source,
             "",
-            f"not UTF-8 (byte 0x{exc.object[exc.start]:02x} at offset {exc.start}); "
-            "save the file as UTF-8",
+            f"not UTF-8 (byte 0x{exc.object[exc.start]:02x} at offset {exc.start})"
+            + (_no_config(path) or "; save the file as UTF-8"),
         ) from exc
+
+
+def _no_config(path: str | Path) -> str:
+    """What to do where another kind of file was given as the config (the DBC, the Zenoh
+    file, a recording: "save the file as UTF-8" was the advice for an MCAP file)."""
+    suffix = Path(path).suffix.lower()
+    if suffix in ("", ".toml"):
+        return ""
+    return f"; a {suffix} file is no config: give the TOML file (e.g. portal-daq.toml)"
 
 
 def _dbc_path(root: TomlTable, config_dir: Path) -> Path:
@@ -350,6 +359,7 @@ def parse_machine_config(
         for name, table in root.table("protection", required=False).subtables()
     }
     _across_legs.check_senders(legs_table, legs, database)
+    _across_legs.check_not_protection(legs_table, legs, protection)
     unit_factors, sender_unit_factors, decoded_units = _across_legs.unit_factors(
         legs_table, legs, database
     )
@@ -492,6 +502,12 @@ def _chamber(
     message, signal_name = _split_ref(chamber, signal_key, chamber.string("signal"), database)
     source_address = _source_address(chamber, message, database)
     signal = message.get_signal_by_name(signal_name)
+    if signal.is_multiplexer:  # with a unit it was taken, and the bridge crashed on it
+        raise chamber.error(
+            signal_key,
+            f"signal {message.name}.{signal_name} is the message's multiplexer (which page "
+            "a frame is), not a pressure",
+        )
     unit = chamber.string("unit") if "unit" in chamber else (signal.unit or "")
     in_Pa = chamber_unit(unit)
     if in_Pa is None:

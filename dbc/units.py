@@ -53,6 +53,9 @@ PRESSURE_UNITS_TO_PA: dict[str, float] = {
     # 1 kgf / cm2 = 9.80665 N / 1e-4 m2 (standard gravity; "kg/cm2" on older gauges).
     "kgf/cm2": 98066.5,
     "kg/cm2": 98066.5,
+    "kp/cm2": 98066.5,  # kilopond, German for kgf
+    "n/cm2": 1.0e4,
+    "dan/cm2": 1.0e5,  # decanewton: the bar of French and older European gauges
     # The same units spelled out in base units, as some DBC editors write them.
     "n/m2": 1.0,
     "kn/m2": 1.0e3,
@@ -61,12 +64,25 @@ PRESSURE_UNITS_TO_PA: dict[str, float] = {
 }
 
 #: The accepted units as a person writes them, for error messages.
-ACCEPTED_PRESSURE_UNITS = "Pa, kPa, MPa, bar, mbar, psi, hPa, N/mm2, kgf/cm2"
+ACCEPTED_PRESSURE_UNITS = "Pa, kPa, MPa, bar, mbar, psi, hPa, N/mm2, N/cm2, daN/cm2, kgf/cm2"
 
 
 #: Marks of a gauge unit after the unit's name (longest first), e.g. "psig", "bar(g)",
-#: "bar rel", "bar(ü)" (German *Überdruck*, as Windows-1252 writes it).
-GAUGE_MARKS = ("(gauge)", "gauge", "(rel)", "rel", "(\u00fc)", "\u00fc", "(g)", "g")
+#: "bar rel", "bar rel.", "bar (relative)", "bar(ü)" (German *Überdruck*, as Windows-1252
+#: writes it).
+GAUGE_MARKS = (
+    "(relative)",
+    "relative",
+    "(gauge)",
+    "gauge",
+    "(rel)",
+    "rel.",
+    "rel",
+    "(\u00fc)",
+    "\u00fc",
+    "(g)",
+    "g",
+)
 #: Marks of an absolute unit after the unit's name (longest first), e.g. "psia", "kPa abs".
 ABSOLUTE_MARKS = ("(absolute)", "absolute", "(abs)", "abs", "(a)", "a")
 

@@ -43,6 +43,7 @@ from daq.replay import (
     embedded_machine,
     is_can_log,
     no_channel_of_recordings,
+    of_one_kind,
     recording_results,
     run_results,
 )
@@ -85,6 +86,7 @@ def load_recording(
     """
     given = [paths] if isinstance(paths, Path) else paths
     logs = expand(given)
+    of_one_kind(logs)
     if any(is_can_log(path) for path in logs):
         return _log_recording(logs, config_path, channel)
     no_channel_of_recordings(channel)

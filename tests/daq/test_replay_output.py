@@ -88,6 +88,22 @@ def test_an_empty_log_of_any_format_is_a_header_and_a_warning(tmp_path: Path, su
     assert "no CAN frame in it" in result.stderr
 
 
+def test_a_recording_without_frames_is_a_header_and_a_warning(tmp_path: Path) -> None:
+    """A service recording of no frame (the recorder had just opened it; or a truth file
+    of ``portal-sim --truth-mcap``) gave the header alone and not a word, where a CAN log
+    of none says so."""
+    from daq.mcap_file import McapFile
+    from tests.helpers import example_machine
+
+    path = tmp_path / "opened.mcap"
+    with open(path, "wb") as stream, McapFile(stream, example_machine()[1]) as mcap:
+        mcap.start()
+    result = run_cli("replay", str(path))
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.startswith("leg,t,force_N,") and len(result.stdout.splitlines()) == 1
+    assert f"{path}: no CAN frame in it: the CSV has its header only" in result.stderr
+
+
 def test_a_named_pipe_is_written_to_not_replaced(tmp_path: Path) -> None:
     """``--out /dev/null`` had /dev/null replaced by a regular file (the CSV written beside
     it, then renamed onto it): a device or pipe is written as it is. A named pipe stands
@@ -143,3 +159,23 @@ def test_an_output_that_names_the_log_replayed_is_refused(tmp_path: Path, name: 
     assert_one_line_error(result, 1, f"{name}: --out names {log}, which this reads")
     assert log.read_text() == LOG
     assert sorted(p.name for p in tmp_path.iterdir() if p.name.endswith(".part")) == []
+
+
+@pytest.mark.parametrize("command", ["replay", "report"])
+def test_a_log_mixed_with_a_service_recording_is_one_line(tmp_path: Path, command: str) -> None:
+    """``replay cycle.log REC.mcap`` wrote the log's rows, then stopped at
+    ``REC.mcap: cannot read it as a CAN log`` (exit 1); ``report REC.mcap cycle.log``
+    said ``cycle.log: not an MCAP file``, while report takes CAN logs. Now one line
+    before anything is read or written."""
+    from tests.daq.test_export import recording
+
+    (tmp_path / "cycle.log").write_text(LOG)
+    rec = recording(tmp_path / "rec.mcap")
+    for order in ((tmp_path / "cycle.log", rec), (rec, tmp_path / "cycle.log")):
+        result = run_cli(command, *map(str, order), "--config", str(EXAMPLE_CONFIG),
+                         "--out", str(tmp_path / "out"))  # fmt: skip
+        assert_one_line_error(
+            result, 1, f"cycle.log: a CAN log given with service recordings ({rec}): they "
+            "are not one run; give one kind at a time"
+        )  # fmt: skip
+        assert result.stdout == "" and not (tmp_path / "out").exists()

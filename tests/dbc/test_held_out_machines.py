@@ -134,6 +134,8 @@ def test_units_marked_gauge_are_pressure_units_and_come_out_in_pa() -> None:
     [("psig", PSI_PA), ("bar(g)", 1e5), ("barg", 1e5), ("kPa gauge", 1e3), ("MPa (g)", 1e6)]
     + [("N/mm\u00b2", 1e6), ("n/mm2", 1e6), ("hPa", 100.0), ("kgf/cm\u00b2", 98066.5)]
     + [("KG/CM2 (g)", 9.80665 / 1e-4)]
+    + [("N/cm\u00b2", 1e4), ("daN/cm2", 1e5), ("kp/cm\u00b2", 98066.5)]
+    + [("bar rel.", 1e5), ("Bar (Relative)", 1e5), ("kPa relative", 1e3)]
     + [("bara", None), ("psia", None), ("kg", None), ("g", None)],
 )
 def test_gauge_marks_and_absolute_units(unit: str, pa: float | None) -> None:

@@ -12,6 +12,7 @@ DBC signal of the simulation's (the truth's), each foot force within what that a
 - ``eight_legs_mux``: eight legs, four per base, on two multiplexed hubs.
 """
 
+import logging
 from collections import defaultdict
 from pathlib import Path
 
@@ -123,3 +124,21 @@ def test_a_transducer_that_never_speaks_makes_its_legs_samples_invalid() -> None
     assert {e.reasons for e, _ in estimates["B3"]} == {("rod_stale", "range")}
     assert all(e.valid for leg in ("A1", "A2", "A3", "B1", "B2") for e, _ in estimates[leg])
     assert pipeline.bad == {}
+
+
+def test_a_transducer_at_an_address_no_chamber_has_is_named_once(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    """B3's rod transducer set to 0x56 instead of the config's 0x55: its frames were
+    counted ``unmapped_source`` with nothing saying which address sent them."""
+    config, database = load_machine_config(STRANGER / "xdcr_two_rates.toml")
+    pipeline = Pipeline.from_config(config, database)
+    data = bytes([0x10, 0x27]) + bytes(6)
+    with caplog.at_level(logging.WARNING, logger="daq.pipeline"):
+        for i in range(3):
+            pipeline.process(RawFrame(1.0 + 0.1 * i, 0x18FF3256, True, data))
+    assert pipeline.bad == {"unmapped_source": 3}
+    assert [r.getMessage() for r in caplog.records] == [
+        "XDCR_ROD from source address 0x56: no chamber has this source_address; its frames "
+        "are counted unmapped_source and not used"
+    ]
