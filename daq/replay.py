@@ -268,6 +268,13 @@ def can_log_frames(path: Path, channel: str | None = None) -> Iterator[RawFrame 
     if not path.is_file():  # python-can's SQLite reader would create it
         what = "not a file" if path.exists() else "no such file"
         raise RecordingError(path, f"cannot read it as a CAN log: {what}")
+    if not is_can_log(path):  # python-can: 'No read support for unknown log format ".txt"'
+        known = ", ".join(sorted(MESSAGE_READERS))
+        raise RecordingError(
+            path,
+            f"cannot read it as a CAN log: no log format for its suffix; replay reads {known} "
+            "(each also .gz) and service recordings (.mcap)",
+        )
     if path.stat().st_size == 0:  # a logger stopped at once (python-can: a BLF "unpack" error)
         return
     try:

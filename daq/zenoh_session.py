@@ -109,6 +109,12 @@ def one_line(message: str) -> str:
     >>> one_line('JSON error: Message { msg: "unknown field `modee`, expected one of `id`", '
     ...          'location: Some(Location { line: 3, column: 5 }) }')
     'unknown field `modee`, expected one of `id` (line 3, column 5)'
+
+    A TOML file's (Zenoh reads ``.toml`` as TOML: the service's config given as Zenoh's):
+
+    >>> one_line('TOML deserization error: Error { message: "unknown field `bus`", '
+    ...          'input: Some("[bus]\\n"), keys: [], span: Some(1..4) }')
+    'TOML: unknown field `bus`'
     """
     lines = [line.strip() for line in message.strip().splitlines()]
     text = " ".join(line for line in lines if line and line != "|")
@@ -119,6 +125,9 @@ def one_line(message: str) -> str:
         r"(?:, location: Some\(Location \{ line: (\d+), column: (\d+) \}\))?.*",
         text,
     )
+    toml = re.fullmatch(r'TOML \w+ error: Error \{ message: "((?:[^"\\]|\\.)*)".*', text)
+    if toml is not None:
+        return f"TOML: {toml[1]}"
     if found is None:
         return text
     # A value inserted (Json5Err) is located in the JSON made of it: no help to anyone.

@@ -284,14 +284,23 @@ def read_toml(path: str | Path) -> dict[str, Any]:
     except OSError as exc:
         raise ConfigError(source, "", f"cannot read it: {exc.strerror or exc}") from exc
     except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(source, "", f"not valid TOML: {exc}") from exc
+        raise ConfigError(source, "", f"not valid TOML: {exc}{_no_config(path)}") from exc
     except UnicodeDecodeError as exc:  # TOML is UTF-8; e.g. a Latin-1 comment "46 °C"
         raise ConfigError(
             source,
             "",
-            f"not UTF-8 (byte 0x{exc.object[exc.start]:02x} at offset {exc.start}); "
-            "save the file as UTF-8",
+            f"not UTF-8 (byte 0x{exc.object[exc.start]:02x} at offset {exc.start})"
+            + (_no_config(path) or "; save the file as UTF-8"),
         ) from exc
+
+
+def _no_config(path: str | Path) -> str:
+    """What to do where another kind of file was given as the config (the DBC, the Zenoh
+    file, a recording: "save the file as UTF-8" was the advice for an MCAP file)."""
+    suffix = Path(path).suffix.lower()
+    if suffix in ("", ".toml"):
+        return ""
+    return f"; a {suffix} file is no config: give the TOML file (e.g. portal-daq.toml)"
 
 
 def _dbc_path(root: TomlTable, config_dir: Path) -> Path:

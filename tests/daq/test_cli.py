@@ -16,6 +16,7 @@ import pytest
 import zenoh
 from mcap.reader import make_reader
 
+from dbc import DEFAULT_DBC_PATH
 from dbc.encoding import FrameEncoder
 from tests.daq.service_support import (
     WAIT_S,
@@ -87,6 +88,30 @@ def test_config_not_utf8_exits_2_naming_the_file(tmp_path: Path) -> None:
     text = "# Hydraulik\u00f6l 46 \u00b0C\n" + EXAMPLE_CONFIG.read_text()
     path.write_bytes(text.encode("latin-1", errors="replace"))
     assert_one_line_error(run_cli("--config", str(path)), 2, f"{path}: not UTF-8 (byte 0xf6")
+
+
+@pytest.mark.parametrize(
+    ("name", "content", "reason"),
+    [
+        ("portal_sensors.dbc", DEFAULT_DBC_PATH.read_bytes(), "not valid TOML: Expected '='"),
+        ("zenoh.json5", b'{ mode: "peer" }\n', "not valid TOML: Invalid statement"),
+        ("run.mcap", b"\x89MCAP0\r\n", "not UTF-8 (byte 0x89 at offset 0)"),
+    ],
+)
+def test_a_file_of_another_kind_as_config_says_what_to_give(
+    tmp_path: Path, name: str, content: bytes, reason: str
+) -> None:
+    """The DBC, the Zenoh file or a recording given as ``--config`` got the TOML parser's
+    complaint alone; a recording was told "save the file as UTF-8"."""
+    path = tmp_path / name
+    path.write_bytes(content)
+    result = run_cli("replay", str(path), "--config", str(path))
+    suffix = path.suffix
+    assert_one_line_error(result, 2, f"{path}: {reason}")
+    assert result.stderr.endswith(
+        f"; a {suffix} file is no config: give the TOML file (e.g. portal-daq.toml)\n"
+    )
+    assert "save the file as UTF-8" not in result.stderr
 
 
 def test_zenoh_config_not_utf8_exits_2_naming_the_file(tmp_path: Path) -> None:

@@ -96,7 +96,13 @@ def test_candump_error_frames_keep_to_the_channel_asked_and_are_counted(
         ),
         ("garbage.db", b"garbage\n" * 100, "unreadable after frame 0: file is not a database"),
         ("missing.db", None, "cannot read it as a CAN log"),
-        ("cycle.txt", b"(1.0) can0 100#00\n", 'unknown log format ".txt"'),
+        (  # python-can's 'No read support for unknown log format ".txt"' named no other
+            "cycle.txt",
+            b"(1.0) can0 100#00\n",
+            "cannot read it as a CAN log: no log format for its suffix; replay reads .asc, "
+            ".blf, .csv, .db, .log, .mf4, .trc (each also .gz) and service recordings (.mcap)",
+        ),
+        ("empty.txt", b"", "no log format for its suffix"),  # was a header and exit 0
         ("plain.log.gz", b"(1.0) can0 100#00\n", "unreadable after frame 0: Not a gzipped file"),
         (  # a CSV of other columns (our own replay's, say)
             "estimates.csv",
