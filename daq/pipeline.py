@@ -89,6 +89,7 @@ class Pipeline:
                 machine.protection,
                 machine.unit_factors,
                 sender_to_si=machine.sender_unit_factors,
+                senders=machine.pinned_senders,
             ),
             LegSampler(machine.legs),
             MachineEstimator(

@@ -17,7 +17,7 @@ which also serves the messages the compiler leaves out (multiplexed, container,
 float signals). The tests decode random frames both ways and compare.
 """
 
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -263,8 +263,10 @@ class FrameDecoder:
     of the signals to convert (by message, then signal); ``sender_to_si`` those of a
     J1939 message's frames from one source address, where that transducer sends in
     its own unit (each such sender gets a codec of its own, compiled with its factors:
-    no per-frame cost). ``compiled=False`` decodes every message with cantools (the
-    reference path).
+    no per-frame cost). ``senders``: the (message, source address) the config pins
+    (:attr:`~dbc.machine.MachineConfig.pinned_senders`): their frames are that message's,
+    where another DBC message of its PGN would take them. ``compiled=False`` decodes
+    every message with cantools (the reference path).
 
     >>> decoder = FrameDecoder(database, config.protection)  # doctest: +SKIP
     >>> decoder.decode(0x100, frame_bytes, t_s=1.5).signals["SB1_F1_pPiston"]  # doctest: +SKIP
@@ -279,6 +281,7 @@ class FrameDecoder:
         *,
         compiled: bool = True,
         sender_to_si: SenderUnitFactors | None = None,
+        senders: Iterable[tuple[str, int]] = (),
     ) -> None:
         self._codecs: dict[tuple[int, bool], _MessageCodec] = {}
         #: The multiplexer signals of each multiplexed message, by message name: a frame's
@@ -294,6 +297,7 @@ class FrameDecoder:
         # messages that only their destination tells apart (a controller's proprietary A
         # to the DAQ and to a valve block); a frame to another destination is unknown.
         self._by_destination: dict[tuple[int, int], dict[int | None, _MessageCodec]] = {}
+        j1939: dict[str, _MessageCodec] = {}
         for message in database.messages:
             codec = _MessageCodec(
                 message,
@@ -302,6 +306,7 @@ class FrameDecoder:
                 compiled,
             )
             if is_j1939(message):
+                j1939[message.name] = codec
                 pgn, address = j1939_pgn(message.frame_id), message.frame_id & 0xFF
                 by_address = self._by_pgn.setdefault(pgn, {})
                 other = by_address.get(address)
@@ -317,6 +322,12 @@ class FrameDecoder:
             # One message of a PGN takes it from any source address (transducers sharing a
             # PGN); several (one per sender) each take their own, others go to the first.
             by_address[None] = next(iter(by_address.values()))
+        for name, address in senders:
+            # A sender the config pins on a message is that message's, where another DBC
+            # message of its PGN came first (OIL_TEMP from 0x30, HYD_PRESS from 0x21, 0x22).
+            if name in j1939:
+                by_address = self._by_pgn[j1939_pgn(j1939[name].message.frame_id)]
+                by_address.setdefault(address, j1939[name])
         for (name, address), factors in (sender_to_si or {}).items():
             message = database.get_message_by_name(name)
             by_address = self._by_pgn[j1939_pgn(message.frame_id)]

@@ -248,6 +248,18 @@ class MachineConfig:
     def weight_N(self) -> float:
         return self.mass_kg * G_M_S2
 
+    @property
+    def pinned_senders(self) -> frozenset[tuple[str, int]]:
+        """(message, source address) of every chamber that pins its J1939 transducer: the
+        decoder reads that sender's frames of the message's PGN as that message, where
+        another DBC message of the PGN would take them."""
+        return frozenset(
+            (chamber.message, chamber.source_address)
+            for leg in self.legs.values()
+            for chamber in (leg.piston, leg.rod)
+            if chamber.source_address is not None
+        )
+
     def cycle_time_ms(self, message: str, source_address: int | None = None) -> float | None:
         """How often ``message`` is sent (by the J1939 sender ``source_address``), ms;
         None: neither the DBC nor the config says (the message is not periodic)."""
@@ -589,6 +601,15 @@ def _source_address(table: TomlTable, message: Message, database: Database) -> i
     if not 0 <= address <= 253:
         raise table.error("source_address", f"must be a J1939 address 0..253, got {address}")
     message.protocol = "j1939"
+    pgn = j1939_pgn(message.frame_id)
+    for other in database.messages:
+        if other is not message and is_j1939(other) and j1939_pgn(other.frame_id) == pgn:
+            if other.frame_id & 0xFF == address:
+                raise table.error(
+                    "source_address",
+                    f"0x{address:02X} sends {other.name} in the DBC (0x{other.frame_id:X}, the "
+                    f"PGN of {message.name}): its frames are that message's",
+                )
     return address
 
 

@@ -22,7 +22,7 @@ from cantools.database.can import Database
 from daq.frames import RawFrame
 from daq.pipeline import Pipeline
 from dbc.decoding import FrameDecoder
-from dbc.errors import UnknownFrameError
+from dbc.errors import ConfigError, UnknownFrameError
 from dbc.machine import ChamberSignal, MachineConfig, load_machine_config
 from dbc.units import chamber_unit
 from estimator import foot_force_N
@@ -31,7 +31,7 @@ from sim_bridge.faults import FaultConfig
 from sim_bridge.leg_map import leg_map
 from sim_bridge.schedule import instants, schedule
 from tests.helpers import FILES
-from tests.sim_bridge.synthetic import make_playout, make_result, sent_by_the_command
+from tests.sim_bridge.synthetic import make_playout, make_result, sent_by_the_command, small_machine
 
 STRANGER = FILES / "stranger"
 PAIRS = ("zyl4_mbar12", "xdcr_two_rates", "fd_be_float", "eight_legs_mux")
@@ -165,3 +165,54 @@ def test_peer_to_peer_messages_are_told_apart_by_their_destination(compiled: boo
     with pytest.raises(UnknownFrameError):
         decoder.decode(0x18EF8227, data, 1.0, True)
     assert decoder.decode(0x18EF8027, data, 1.1, True).message == "MCU_TO_DAQ"  # cached
+
+
+#: A vendor's proprietary PGN 0xFF1F for all its transducers: an oil temperature one at
+#: 0x30 (first in the DBC), pressure ones whose DBC ID says 0xFE.
+SHARED_PGN = """
+BO_ 2566856496 OIL_TEMP: 8 Xdcr
+ SG_ Temperature : 0|16@1+ (0.03125,-273) [-273|1735] "degC" DAQ
+
+BO_ 2566856702 HYD_PRESS: 8 Xdcr
+ SG_ Pressure : 0|16@1+ (0.01,-10) [-10|632.55] "bar" DAQ
+"""
+SHARED_PGN_ATTRIBUTES = "".join(
+    f'BA_ "GenMsgCycleTime" BO_ {frame_id} {ms};\nBA_ "VFrameFormat" BO_ {frame_id} 3;\n'
+    for frame_id, ms in ((2566856496, 100), (2566856702, 10))
+)
+
+
+def test_transducers_pinned_on_a_message_are_its_where_another_of_its_pgn_comes_first(
+    tmp_path: Path,
+) -> None:
+    """Frames of PGN 0xFF1F from 0x21 and 0x22 (the chambers' transducers) were read as
+    OIL_TEMP, the DBC's first message of the PGN: the leg never had a sample."""
+    legs = (
+        '[legs.SB1_F1]\npiston = { signal = "HYD_PRESS.Pressure", source_address = 0x21 }\n'
+        'rod = { signal = "HYD_PRESS.Pressure", source_address = 0x22 }\n'
+    )
+    config, database = small_machine(tmp_path, SHARED_PGN, SHARED_PGN_ATTRIBUTES, legs)
+    assert config.pinned_senders == {("HYD_PRESS", 0x21), ("HYD_PRESS", 0x22)}
+    result = make_result()
+    playout = make_playout(result, config=config, database=database)
+    pipeline = Pipeline.from_config(config, database)
+    estimates = []
+    for instant in instants(schedule(playout.cycles, end_sim_ns=100_000_000)):
+        position, outgoing = playout.frames(instant)
+        for item in outgoing:
+            frame = item.frame
+            raw = RawFrame(instant.sim_t_ns / 1e9, frame.arbitration_id, True, frame.data)
+            estimates += [(e, position.row) for e in pipeline.process(raw).estimates]
+    assert len(estimates) == 10 and pipeline.bad == {}
+    for estimate, row in estimates:
+        assert estimate.valid
+        assert estimate.p_piston_Pa == pytest.approx(result.p_piston_Pa[row, 0], abs=500)
+    temperature = pipeline.process(RawFrame(1.0, 0x18FF1F30, True, bytes(8))).decoded
+    assert temperature is not None and temperature.message == "OIL_TEMP"  # 0x30 still is
+    with pytest.raises(ConfigError) as refused:
+        small_machine(tmp_path, SHARED_PGN, SHARED_PGN_ATTRIBUTES, legs.replace("0x22", "0x30"))
+    assert (refused.value.key, refused.value.reason) == (
+        "legs.SB1_F1.rod.source_address",
+        "0x30 sends OIL_TEMP in the DBC (0x18FF1F30, the PGN of HYD_PRESS): its frames are "
+        "that message's",
+    )
