@@ -45,6 +45,16 @@ def test_every_subcommand_has_its_own_help() -> None:
         assert result.stdout.startswith(f"usage: portal-daq {name}"), result.stdout
 
 
+def test_version_is_the_installed_one() -> None:
+    """``portal-daq --version`` was taken for the bare ``--config`` form: "portal-daq run:
+    error: the following arguments are required: --config"."""
+    from importlib import metadata
+
+    result = run_cli("--version")
+    assert result.returncode == 0, result.stderr
+    assert result.stdout == f"portal-daq {metadata.version('portal-daq')}\n"
+
+
 def test_an_unknown_subcommand_names_the_valid_ones() -> None:
     result = run_cli("bogus")
     assert result.returncode == 2
