@@ -73,6 +73,11 @@ Machine = tuple[MachineConfig, Database]
 #: What python-can's log parsers raise for a file they cannot read (SQLite's for ``.db``).
 _READER_ERRORS = (ValueError, IndexError, KeyError, struct.error, sqlite3.Error, BLFParseError)
 
+#: No frame of a log is stamped this late (2100-01-01, Unix s): a time beyond it (inf,
+#: 1e300: a corrupted line) is no time; at 1e300, adding a second changes nothing, and
+#: the estimator's and the report's windows never ended.
+LATEST_S = 4_102_444_800.0
+
 #: What a line of a text log must look like, for an error whose reason python-can words
 #: as its code sees it (``not enough values to unpack``).
 _LINE_FORMATS = {
@@ -290,13 +295,18 @@ def can_log_frames(path: Path, channel: str | None = None) -> Iterator[RawFrame 
     with reader:
         try:
             for message in reader:
+                if isinstance(reader, can.ASCReader) and reader.timestamps_format == "relative":
+                    elapsed_s += message.timestamp
+                    message.timestamp = elapsed_s
+                if not abs(message.timestamp) < LATEST_S:  # also NaN
+                    raise ValueError(
+                        f"frame time {message.timestamp!r} is no time (Unix seconds, or a log's "
+                        "own from its start)"
+                    )
                 count += 1
                 if isinstance(reader, CandumpReader) and reader.dropped_frames != dropped:
                     yield _loss(message.timestamp, reader.dropped_frames - dropped)
                     dropped = reader.dropped_frames
-                if isinstance(reader, can.ASCReader) and reader.timestamps_format == "relative":
-                    elapsed_s += message.timestamp
-                    message.timestamp = elapsed_s
                 name = None if message.channel is None else str(message.channel)
                 if name is not None and name not in channels:
                     channels.add(name)

@@ -129,6 +129,13 @@ def j1939_pgn(frame_id: int) -> int:
     return int(pgn_from_frame_id(frame_id))  # type: ignore[no-untyped-call]
 
 
+def j1939_destination(frame_id: int) -> int | None:
+    """The destination address of a 29-bit J1939 frame ID: PDU1 (PDU format below 240,
+    peer to peer, e.g. proprietary A 0xEF00) has one in its PDU specific byte; PDU2
+    (broadcast) none."""
+    return (frame_id >> 8) & 0xFF if (frame_id >> 16) & 0xFF < 240 else None
+
+
 class _MessageCodec:
     """Decoding and protection of one DBC message (precompiled unless ``compiled`` is off)."""
 
@@ -283,6 +290,10 @@ class FrameDecoder:
         }
         # PGN -> source address -> codec; None: any address (one message of the PGN).
         self._by_pgn: dict[int, dict[int | None, _MessageCodec]] = {}
+        # (PGN, source address) -> destination address -> codec, for the peer-to-peer
+        # messages that only their destination tells apart (a controller's proprietary A
+        # to the DAQ and to a valve block); a frame to another destination is unknown.
+        self._by_destination: dict[tuple[int, int], dict[int | None, _MessageCodec]] = {}
         for message in database.messages:
             codec = _MessageCodec(
                 message,
@@ -291,9 +302,15 @@ class FrameDecoder:
                 compiled,
             )
             if is_j1939(message):
-                self._by_pgn.setdefault(j1939_pgn(message.frame_id), {})[
-                    message.frame_id & 0xFF
-                ] = codec
+                pgn, address = j1939_pgn(message.frame_id), message.frame_id & 0xFF
+                by_address = self._by_pgn.setdefault(pgn, {})
+                other = by_address.get(address)
+                destination = j1939_destination(message.frame_id)
+                if other is not None and j1939_destination(other.message.frame_id) != destination:
+                    self._by_destination.setdefault(
+                        (pgn, address), {j1939_destination(other.message.frame_id): other}
+                    )[destination] = codec
+                by_address[address] = codec
             else:
                 self._codecs[(message.frame_id, bool(message.is_extended_frame))] = codec
         for by_address in self._by_pgn.values():
@@ -306,9 +323,11 @@ class FrameDecoder:
             taken = by_address.get(address)
             # A sender another DBC message of the PGN is for (one message per sender) keeps it.
             if taken is None or taken.message is message:
-                by_address[address] = _MessageCodec(
-                    message, protection.get(name), factors, compiled
-                )
+                codec = _MessageCodec(message, protection.get(name), factors, compiled)
+                by_address[address] = codec
+                destinations = self._by_destination.get((j1939_pgn(message.frame_id), address))
+                if destinations is not None:
+                    destinations[j1939_destination(message.frame_id)] = codec
         # 29-bit IDs of J1939 frames seen, with their message: bounded by the known PGNs
         # times priorities, source (and destination) addresses, so it cannot grow forever.
         self._j1939_ids: dict[int, _MessageCodec] = {}
@@ -345,9 +364,8 @@ class FrameDecoder:
         if codec is None and is_extended_id and self._by_pgn:
             codec = self._j1939_ids.get(arbitration_id)
             if codec is None:
-                by_address = self._by_pgn.get(j1939_pgn(arbitration_id))
-                if by_address is not None:
-                    codec = by_address.get(arbitration_id & 0xFF, by_address[None])
+                codec = self._j1939_codec(arbitration_id)
+                if codec is not None:
                     self._j1939_ids[arbitration_id] = codec
             source_address = arbitration_id & 0xFF if codec is not None else None
         if is_fd and (codec is None or not codec.is_fd):
@@ -356,8 +374,22 @@ class FrameDecoder:
             raise UnknownFrameError(arbitration_id, "ID not in the DBC")
         return codec.decode(arbitration_id, bytes(data), t_s, source_address)
 
+    def _j1939_codec(self, frame_id: int) -> _MessageCodec | None:
+        """The codec of a 29-bit frame ID by its PGN, source and (where only that tells
+        the DBC's messages apart) destination address; None: none of the DBC's."""
+        pgn = j1939_pgn(frame_id)
+        by_address = self._by_pgn.get(pgn)
+        if by_address is None:
+            return None
+        destinations = self._by_destination.get((pgn, frame_id & 0xFF))
+        if destinations is not None:
+            return destinations.get(j1939_destination(frame_id))
+        return by_address.get(frame_id & 0xFF, by_address[None])
+
     def reset_counters(self) -> None:
         """Forget the last counters, e.g. after the bus was down: no false counter faults."""
         j1939 = {id(c): c for by_address in self._by_pgn.values() for c in by_address.values()}
+        for destinations in self._by_destination.values():
+            j1939 |= {id(c): c for c in destinations.values()}
         for codec in (*self._codecs.values(), *j1939.values()):
             codec.reset_counters()

@@ -23,7 +23,7 @@ from cantools.database.can import Database, Message
 
 from dbc import DEFAULT_DBC_PATH, _across_legs
 from dbc.database import load_database, unsound
-from dbc.decoding import is_j1939, j1939_pgn
+from dbc.decoding import is_j1939, j1939_destination, j1939_pgn
 from dbc.errors import ConfigError
 from dbc.machine_signals import NO_SIGNALS, MachineSignals, parse_signals
 from dbc.protection import CRC_ALGORITHMS, DEFAULT_CRC_ALGORITHM, Protection, counter_modulo
@@ -770,7 +770,13 @@ def _message(table: TomlTable, key: str, name: str, database: Database) -> Messa
         if other.name == name:
             raise table.error(key, f"the DBC has two messages named {name}: rename one")
         if _wire(other) == wire:
-            what = "PGN and source address" if is_j1939(message) else "frame ID"
+            what = (
+                "frame ID"
+                if not is_j1939(message)
+                else "PGN and source address"
+                if wire[-1] is None
+                else "PGN, source and destination address"
+            )
             raise table.error(
                 key,
                 f"{name} has the {what} of {other.name} too in the DBC (0x{message.frame_id:X}, "
@@ -779,10 +785,12 @@ def _message(table: TomlTable, key: str, name: str, database: Database) -> Messa
     return message
 
 
-def _wire(message: Message) -> tuple[int, ...]:
-    """What tells a message's frames on the bus: its ID, or a J1939 PGN and sender."""
+def _wire(message: Message) -> tuple[int | None, ...]:
+    """What tells a message's frames on the bus: its ID, or a J1939 PGN, sender and (peer
+    to peer) destination."""
     if is_j1939(message):
-        return (1, j1939_pgn(message.frame_id), message.frame_id & 0xFF)
+        frame_id = message.frame_id
+        return (1, j1939_pgn(frame_id), frame_id & 0xFF, j1939_destination(frame_id))
     return (0, message.frame_id, int(bool(message.is_extended_frame)))
 
 

@@ -101,7 +101,7 @@ class SoilMetricsTracker:
         window.append(self._previous)
         window_sum_Pa = self._window_sum_Pa + pressure_Pa
         oldest_kept_t_s = t_s - self.window_s
-        while window[0][0] <= oldest_kept_t_s:
+        while window and window[0][0] <= oldest_kept_t_s:  # empty: a time of 1e300, inf
             window_sum_Pa -= window.popleft()[1]
         self._window_sum_Pa = window_sum_Pa
         if t_s - self._run_start_t_s >= self.window_s:

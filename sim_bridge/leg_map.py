@@ -9,6 +9,9 @@ estimates and the truth line up. The rules, in this order:
 1. **Stated**: ``simulated_leg = "SB1_F1"`` in the leg's ``[legs.<LEG>]`` table (checked
    when the config is loaded: a simulated leg, none twice).
 2. **By name**: a leg named like a simulated leg (and not stated by another) is that one.
+   In a machine of more than six legs, the legs left over (``SB1_F4`` beside
+   ``SB1_F1`` .. ``SB2_F3``) take the simulated legs no leg plays, then the six again, in
+   their order in the config.
 3. **Derived**, only when neither rule maps any leg:
 
    - from ``[stability.bases.*]``: the first base (it stands first, as SB1 does) is SB1,
@@ -84,12 +87,21 @@ def leg_map(config: MachineConfig) -> LegMap:
         if name in LEGS and name not in stated and name not in taken
     }
     left = [name for name in config.legs if name not in stated and name not in named]
+    rules = [what for what, used in (("simulated_leg", stated), ("leg names", named)) if used]
     if not left:
-        rules = [what for what, used in (("simulated_leg", stated), ("leg names", named)) if used]
         simulated = {name: stated.get(name) or named[name] for name in config.legs}
         return LegMap(simulated, " and ".join(rules))
+    free = [leg for leg in LEGS if leg not in taken and leg not in named.values()]
+    if (stated or named) and len(config.legs) > len(LEGS):
+        # More legs than the simulation's (SB1_F4, SB2_F4 beside the six): the others
+        # take the free simulated legs, then the six over again.
+        again = free + [leg for leg in LEGS if leg not in free]
+        extra = {name: again[i % len(again)] for i, name in enumerate(left)}
+        simulated = {
+            name: stated.get(name) or named.get(name) or extra[name] for name in config.legs
+        }
+        return LegMap(simulated, " and ".join([*rules, "the other legs' order"]))
     if stated or named:
-        free = [leg for leg in LEGS if leg not in taken and leg not in named.values()]
         name = left[0]
         why = (
             f"{name} is legs.{_stater(stated, name)}'s simulated_leg"

@@ -609,3 +609,22 @@ def test_a_csv_log_without_its_header_line_costs_no_frame(tmp_path: Path, header
         (0x101, b"\1"),
         (0x102, b"\2"),
     ]
+
+
+@pytest.mark.parametrize("stamp", ["inf", "nan", "1e300"])
+def test_a_frame_time_that_is_no_time_is_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], stamp: str
+) -> None:
+    """A corrupted time (1e300, inf) raised an IndexError out of the estimator (replay,
+    report), and calibrate sampled towards it forever."""
+    from daq.cli import main
+
+    log = tmp_path / "cycle.log"
+    log.write_text(
+        f"(1.0) can0 7FF#00\n(2.0) can0 7FF#00\n({stamp}) can0 7FF#00\n(3.0) can0 7FF#00\n"
+    )
+    for command in ("replay", "report", "calibrate"):
+        assert main([command, str(log), "--config", str(EXAMPLE_CONFIG)]) == 1
+        err = capsys.readouterr().err.strip().splitlines()
+        assert err[-1].startswith(f"portal-daq: {log}: unreadable after frame 2: frame time ")
+        assert "is no time" in err[-1] and "Traceback" not in "\n".join(err)

@@ -370,7 +370,8 @@ def test_two_j1939_messages_of_one_pgn_and_sender_stop_the_config(tmp_path: Path
     with pytest.raises(ConfigError) as refused:
         load_machine_config(tmp_path / "machine.toml")
     assert refused.value.reason == (
-        "PRESS_A has the PGN and source address of PRESS_A_P3 too in the DBC (0x18EDFFFE, "
+        "PRESS_A has the PGN, source and destination address of PRESS_A_P3 too in the DBC "
+        "(0x18EDFFFE, "
         "0xCEDFFFE): their frames cannot be told apart"
     )
 

@@ -116,3 +116,13 @@ def test_after_a_gap_one_sample_is_not_a_near_constant_mean() -> None:
     steady(tracker, end_s + 10.01, 4.0, 330e3)  # 4 s of the new run: still under 5 s
     assert tracker.metrics.near_constant_pressure_Pa == 120e3
     assert tracker.metrics.peak_pressure_Pa == 330e3
+
+
+def test_a_time_too_large_for_its_window_raises_nothing() -> None:
+    """At 1e300 (a corrupted frame time) the window's start is the time itself: the
+    window was emptied and read, an IndexError out of the estimator."""
+    tracker = SoilMetricsTracker(LIMIT_PA, WINDOW_S, MAX_GAP_S)
+    end_s = steady(tracker, 1000.0, 1.0, 250e3)
+    for t_s in (1e300, math.inf, end_s):
+        tracker.add(t_s, 300e3)
+    assert tracker.metrics.peak_pressure_Pa == 300e3

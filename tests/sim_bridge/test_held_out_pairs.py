@@ -21,6 +21,8 @@ from cantools.database.can import Database
 
 from daq.frames import RawFrame
 from daq.pipeline import Pipeline
+from dbc.decoding import FrameDecoder
+from dbc.errors import UnknownFrameError
 from dbc.machine import ChamberSignal, MachineConfig, load_machine_config
 from dbc.units import chamber_unit
 from estimator import foot_force_N
@@ -142,3 +144,24 @@ def test_a_transducer_at_an_address_no_chamber_has_is_named_once(
         "XDCR_ROD from source address 0x56: no chamber has this source_address; its frames "
         "are counted unmapped_source and not used"
     ]
+
+
+@pytest.mark.parametrize("compiled", [True, False], ids=["compiled", "reference"])
+def test_peer_to_peer_messages_are_told_apart_by_their_destination(compiled: bool) -> None:
+    """The controller (0x27) sends proprietary A 0xEF00 to the DAQ (0x80: the machine
+    state) and to the valve block (0x81): the config naming MCU_TO_DAQ was refused ("their
+    frames cannot be told apart"), and frames to the valves were read as the machine
+    state. A frame to a destination neither message has is no message of the DBC."""
+    config, database = load_machine_config(STRANGER / "xdcr_two_rates.toml")
+    decoder = FrameDecoder(database, config.protection, compiled=compiled)
+    data = bytes([2, 7, 0, 0, 0, 0, 0, 0])
+    to_daq = decoder.decode(0x18EF8027, data, 1.0, True)
+    assert (to_daq.message, to_daq.signals["Phase"], to_daq.source_address) == (
+        "MCU_TO_DAQ",
+        "fold",
+        0x27,
+    )
+    assert decoder.decode(0x0CEF8127, data, 1.0, True).message == "MCU_TO_VALVES"
+    with pytest.raises(UnknownFrameError):
+        decoder.decode(0x18EF8227, data, 1.0, True)
+    assert decoder.decode(0x18EF8027, data, 1.1, True).message == "MCU_TO_DAQ"  # cached

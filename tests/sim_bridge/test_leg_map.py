@@ -230,3 +230,26 @@ def test_bases_of_two_or_four_feet_play_their_simulated_bases_legs_in_feet_order
         legs = leg_map(config)
         assert [legs.simulated[leg] for leg in front + rear] == played
         assert legs.rule == "[stability.bases] (front's feet by order, rear's feet by order)"
+
+
+def test_legs_beyond_the_six_named_ones_play_the_free_then_the_six_again() -> None:
+    """A machine of four legs per base named SB1_F1 .. SB1_F4, SB2_F1 .. SB2_F4: SB1_F4
+    and SB2_F4 were refused ("the simulation has no leg 'SB1_F4'; remove the leg")."""
+    names = [f"SB{b}_F{f}" for b in (1, 2) for f in (1, 2, 3, 4)]
+    config = Leg(source="m.toml", stability=None, legs={n: Leg(simulated_leg=None) for n in names})
+    legs = leg_map(config)
+    assert {n: legs.simulated[n] for n in ("SB1_F4", "SB2_F4")} == {
+        "SB1_F4": "SB1_F1",
+        "SB2_F4": "SB1_F2",
+    }
+    assert all(legs.simulated[n] == n for n in names if n in LEGS)
+    assert legs.rule == "leg names and the other legs' order"
+    # without a leg SB2_F3, its simulated leg is free: the first left over plays it
+    legs_table = {n: Leg(simulated_leg=None) for n in names if n != "SB2_F3"}
+    legs_table["rear"] = Leg(simulated_leg=None)
+    legs = leg_map(Leg(source="m.toml", stability=None, legs=legs_table))
+    assert [legs.simulated[n] for n in ("SB1_F4", "SB2_F4", "rear")] == [
+        "SB2_F3",
+        "SB1_F1",
+        "SB1_F2",
+    ]
