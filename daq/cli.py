@@ -3,11 +3,12 @@
 ``portal-daq --help`` lists every subcommand of ``SUBCOMMAND_MODULES``; ``portal-daq
 NAME ARGS`` hands ``ARGS`` to that subcommand's ``main`` (see :mod:`daq.subcommand`).
 The bare ``portal-daq --config FILE`` of earlier releases still runs the service
-(``portal-daq run --config FILE``). An unknown name exits 2 with argparse's list of
-the valid ones. When whoever reads standard output goes away (``portal-daq replay X |
-head``), the command ends quietly with status 141, as a Unix tool killed by SIGPIPE;
-Ctrl-C in a command that does not handle SIGINT itself (replay, report, calibrate, ...)
-ends it with one line and status 130.
+(``portal-daq run --config FILE``); ``portal-daq --version`` prints the installed version
+(it was taken for the bare form: "run: --config is required"). An unknown name exits 2
+with argparse's list of the valid ones. When whoever reads standard output goes away
+(``portal-daq replay X | head``), the command ends quietly with status 141, as a Unix
+tool killed by SIGPIPE; Ctrl-C in a command that does not handle SIGINT itself (replay,
+report, calibrate, ...) ends it with one line and status 130.
 """
 
 import argparse
@@ -15,6 +16,7 @@ import importlib
 import os
 import sys
 from collections.abc import Sequence
+from importlib import metadata
 
 from daq.subcommand import PROG, Subcommand
 
@@ -63,13 +65,22 @@ def build_parser(commands: dict[str, Subcommand]) -> argparse.ArgumentParser:
     )
     for command in commands.values():
         names.add_parser(command.name, add_help=False)
+    parser.add_argument("--version", action="version", version=f"{PROG} {installed_version()}")
     return parser
+
+
+def installed_version() -> str:
+    """The installed distribution's version (``unknown`` when run from a bare source tree)."""
+    try:
+        return metadata.version("portal-daq")
+    except metadata.PackageNotFoundError:
+        return "unknown"
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = list(sys.argv[1:] if argv is None else argv)
     commands = subcommands()
-    if args[:1] and args[0].startswith("-") and args[0] not in ("-h", "--help"):
+    if args[:1] and args[0].startswith("-") and args[0] not in ("-h", "--help", "--version"):
         name, rest = "run", args  # the bare service form: portal-daq --config FILE
     else:
         name, rest = build_parser(commands).parse_args(args[:1]).command, args[1:]

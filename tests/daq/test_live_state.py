@@ -148,8 +148,11 @@ def test_viewer_overrides_win() -> None:
 
 
 def test_bad_endpoint_is_a_config_error() -> None:
-    with pytest.raises(ConfigError, match="zenoh.connect"):
+    """Named by the option that gave it (``--connect``), by the config's key otherwise."""
+    with pytest.raises(ConfigError, match=r"^--connect: Endpoints must be .*: not an endpoint$"):
         viewer_zenoh_config(ZenohSettings(), connect=["not an endpoint"], source="x.toml")
+    with pytest.raises(ConfigError, match=r"^x\.toml: zenoh\.connect: Endpoints must be "):
+        viewer_zenoh_config(ZenohSettings(connect=("not an endpoint",)), source="x.toml")
 
 
 def test_viewer_config_from_the_service_config(tmp_path: Path) -> None:

@@ -45,6 +45,16 @@ def test_every_subcommand_has_its_own_help() -> None:
         assert result.stdout.startswith(f"usage: portal-daq {name}"), result.stdout
 
 
+def test_version_is_the_installed_one() -> None:
+    """``portal-daq --version`` was taken for the bare ``--config`` form: "portal-daq run:
+    error: the following arguments are required: --config"."""
+    from importlib import metadata
+
+    result = run_cli("--version")
+    assert result.returncode == 0, result.stderr
+    assert result.stdout == f"portal-daq {metadata.version('portal-daq')}\n"
+
+
 def test_an_unknown_subcommand_names_the_valid_ones() -> None:
     result = run_cli("bogus")
     assert result.returncode == 2
@@ -68,37 +78,12 @@ def test_run_and_the_bare_form_both_read_the_config(tmp_path: Path) -> None:
         assert line.startswith(f"portal-daq: {path}: estimator.median_window"), line
 
 
-def test_replay_into_a_closed_pipe_ends_quietly(tmp_path: Path) -> None:
-    """``portal-daq replay X | head -1``: no "Broken pipe" message, status 141 like ``cat``."""
+def replaying_a_long_log(tmp_path: Path) -> subprocess.Popen[str]:
+    """``portal-daq replay`` of a log whose CSV (~1 MB) is far more than a pipe's buffer
+    into a pipe, once it has written its header: it then waits on the pipe."""
     config, database = example_machine()
     log = tmp_path / "long.log"
-    with can.Logger(str(log)) as logger:  # ~1 MB of CSV: far more than a pipe's buffer
-        for message in leg_messages(FrameEncoder(database, config.protection), 2000, 1.7e9):
-            message.channel = "can0"
-            logger.on_message_received(message)
-    process = subprocess.Popen(
-        [sys.executable, "-m", "daq", "replay", str(log), "--config", str(EXAMPLE_CONFIG)],
-        cwd=ROOT,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
-    assert process.stdout is not None and process.stderr is not None
-    assert process.stdout.readline().startswith("leg,t,")
-    process.stdout.close()
-    with process.stderr:
-        stderr = process.stderr.read()
-    assert process.wait(timeout=120) == 141, stderr
-    assert stderr == ""
-
-
-def test_ctrl_c_ends_a_command_in_one_line(tmp_path: Path) -> None:
-    """Ctrl-C in replay (report, calibrate: any command that does not handle SIGINT
-    itself) was a KeyboardInterrupt traceback of some 30 lines; now one line, status 130
-    as a shell reports it. The replay is held writing into a full pipe when it comes."""
-    config, database = example_machine()
-    log = tmp_path / "long.log"
-    with can.Logger(str(log)) as logger:  # ~1 MB of CSV: far more than a pipe's buffer
+    with can.Logger(str(log)) as logger:
         for message in leg_messages(FrameEncoder(database, config.protection), 2000, 1.7e9):
             message.channel = "can0"
             logger.on_message_received(message)
@@ -111,6 +96,25 @@ def test_ctrl_c_ends_a_command_in_one_line(tmp_path: Path) -> None:
     )
     assert process.stdout is not None
     assert process.stdout.readline().startswith("leg,t,")
+    return process
+
+
+def test_replay_into_a_closed_pipe_ends_quietly(tmp_path: Path) -> None:
+    """``portal-daq replay X | head -1``: no "Broken pipe" message, status 141 like ``cat``."""
+    process = replaying_a_long_log(tmp_path)
+    assert process.stdout is not None and process.stderr is not None
+    process.stdout.close()
+    with process.stderr:
+        stderr = process.stderr.read()
+    assert process.wait(timeout=120) == 141, stderr
+    assert stderr == ""
+
+
+def test_ctrl_c_ends_a_command_in_one_line(tmp_path: Path) -> None:
+    """Ctrl-C in replay (report, calibrate: any command that does not handle SIGINT
+    itself) was a KeyboardInterrupt traceback of some 30 lines; now one line, status 130
+    as a shell reports it. The replay is held writing into a full pipe when it comes."""
+    process = replaying_a_long_log(tmp_path)
     process.send_signal(signal.SIGINT)
     _, stderr = process.communicate(timeout=120)
     assert process.returncode == 130, stderr
