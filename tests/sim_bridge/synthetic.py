@@ -7,6 +7,7 @@ the pressures, so the truth and the frames agree.
 
 import math
 import uuid
+from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -14,10 +15,13 @@ import can
 import numpy as np
 from cantools.database.can import Database
 
+from daq.frames import RawFrame
+from daq.pipeline import Pipeline
 from dbc.decoding import DecodedFrame, FrameDecoder
 from dbc.encoding import FrameEncoder
 from dbc.machine import MachineConfig, load_machine_config
 from estimator import foot_force_N
+from estimator.leg import LegEstimate
 from sim_bridge.__main__ import cli
 from sim_bridge.faults import FaultConfig, FaultInjector
 from sim_bridge.frames import FrameBuilder
@@ -135,6 +139,32 @@ def sent_by_the_command(
         while (message := rx.recv(timeout=0)) is not None:
             sent.append(message)
     return sent
+
+
+def estimates_of(pipeline: Pipeline, messages: Iterable[can.Message]) -> list[LegEstimate]:
+    """The leg estimates ``pipeline`` makes of ``messages`` (e.g. what the bridge sent)."""
+    return [
+        estimate
+        for m in messages
+        for estimate in pipeline.process(
+            RawFrame(m.timestamp, m.arbitration_id, m.is_extended_id, bytes(m.data), is_fd=m.is_fd)
+        ).estimates
+    ]
+
+
+def played_estimates(
+    playout: Playout, pipeline: Pipeline, end_sim_ns: int, *, extended: bool = False
+) -> list[tuple[LegEstimate, int]]:
+    """Each leg estimate ``pipeline`` makes of the frames ``playout`` sends until
+    ``end_sim_ns`` (at their simulation times), with the result's row they were sent from."""
+    estimates = []
+    for instant in instants(schedule(playout.cycles, end_sim_ns=end_sim_ns)):
+        position, outgoing = playout.frames(instant)
+        for item in outgoing:
+            frame = item.frame
+            raw = RawFrame(instant.sim_t_ns / 1e9, frame.arbitration_id, extended, frame.data)
+            estimates += [(e, position.row) for e in pipeline.process(raw).estimates]
+    return estimates
 
 
 def small_machine(

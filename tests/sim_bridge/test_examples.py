@@ -24,7 +24,7 @@ from sim_bridge.frames import FrameBuilder
 from sim_bridge.result import LEGS
 from sim_bridge.schedule import instants, schedule
 from tests.examples_support import EXAMPLE_CONFIGS, ROOT, SentFrames, example_id
-from tests.sim_bridge.synthetic import make_playout, make_result, sent_by_the_command
+from tests.sim_bridge.synthetic import estimates_of, make_playout, make_result, sent_by_the_command
 
 PLAYED_S = 1.0
 J1939 = ROOT / "daq" / "examples" / "j1939" / "portal-daq.toml"
@@ -48,13 +48,7 @@ def test_each_example_loads_as_a_service_config_with_its_dbc_beside_it(config_pa
 def test_the_bridge_command_plays_each_example(config_path: Path, tmp_path: Path) -> None:
     messages = sent_by_the_command(config_path, tmp_path, make_result(duration_s=0.5))
     pipeline = Pipeline.from_config(*load_machine_config(config_path))
-    estimates = [
-        estimate
-        for m in messages
-        for estimate in pipeline.process(
-            RawFrame(m.timestamp, m.arbitration_id, m.is_extended_id, bytes(m.data))
-        ).estimates
-    ]
+    estimates = estimates_of(pipeline, messages)
     assert pipeline.bad == {} and pipeline.frames_lost == 0
     assert len(estimates) == 6 * 50 and all(estimate.valid for estimate in estimates)
 

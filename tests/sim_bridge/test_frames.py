@@ -25,6 +25,7 @@ from tests.sim_bridge.synthetic import (
     make_playout,
     make_result,
     play,
+    played_estimates,
     small_machine,
 )
 
@@ -321,13 +322,7 @@ BO_ 769 ROD: 2 Hub
     playout = make_playout(result, config=config, database=database)
     assert [cycle.message for cycle in playout.cycles] == ["ROD", "CAP"]
     pipeline = Pipeline.from_config(config, database)
-    estimates = []
-    for instant in instants(schedule(playout.cycles, end_sim_ns=200_000_000)):
-        position, outgoing = playout.frames(instant)
-        for item in outgoing:
-            frame = item.frame
-            raw = RawFrame(instant.sim_t_ns / 1e9, frame.arbitration_id, False, frame.data)
-            estimates += [(e, position.row) for e in pipeline.process(raw).estimates]
+    estimates = played_estimates(playout, pipeline, 200_000_000)
     assert len(estimates) == 20 and all(e.valid for e, _ in estimates)
     assert [e.p_rod_Pa for e, _ in estimates] == [
         pytest.approx(result.p_rod_Pa[row - row % 5, 0], abs=500) for _, row in estimates
@@ -396,13 +391,7 @@ BO_ 768 HYD: 4 Hub
     result.p_piston_Pa[5:10, 0] = top_Pa + 10e5
     playout = make_playout(result, config=config, database=database)
     pipeline = Pipeline.from_config(config, database)
-    estimates = []
-    for instant in instants(schedule(playout.cycles, end_sim_ns=200_000_000)):
-        position, outgoing = playout.frames(instant)
-        for item in outgoing:
-            frame = item.frame
-            raw = RawFrame(instant.sim_t_ns / 1e9, frame.arbitration_id, False, frame.data)
-            estimates += [(e, position.row) for e in pipeline.process(raw).estimates]
+    estimates = played_estimates(playout, pipeline, 200_000_000)
     assert [e.reasons for e, _ in estimates] == [()] * 5 + [("range",)] * 5 + [()] * 10
     for estimate, row in estimates:
         if estimate.valid:

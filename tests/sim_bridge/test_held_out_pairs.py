@@ -31,7 +31,14 @@ from sim_bridge.faults import FaultConfig
 from sim_bridge.leg_map import leg_map
 from sim_bridge.schedule import instants, schedule
 from tests.helpers import FILES
-from tests.sim_bridge.synthetic import make_playout, make_result, sent_by_the_command, small_machine
+from tests.sim_bridge.synthetic import (
+    estimates_of,
+    make_playout,
+    make_result,
+    played_estimates,
+    sent_by_the_command,
+    small_machine,
+)
 
 STRANGER = FILES / "stranger"
 PAIRS = ("zyl4_mbar12", "xdcr_two_rates", "fd_be_float", "eight_legs_mux")
@@ -108,13 +115,7 @@ def test_the_bridge_command_plays_each_pair(name: str, tmp_path: Path) -> None:
     fd = any(message.is_fd for message in database.messages)
     sent = sent_by_the_command(config_path, tmp_path, make_result(duration_s=0.3), fd=fd)
     pipeline = Pipeline.from_config(config, database)
-    estimates = [
-        estimate
-        for m in sent
-        for estimate in pipeline.process(
-            RawFrame(m.timestamp, m.arbitration_id, m.is_extended_id, bytes(m.data))
-        ).estimates
-    ]
+    estimates = estimates_of(pipeline, sent)
     assert pipeline.bad == {} and pipeline.frames_lost == 0
     assert {e.leg for e in estimates} == set(config.legs) and all(e.valid for e in estimates)
 
@@ -196,13 +197,7 @@ def test_transducers_pinned_on_a_message_are_its_where_another_of_its_pgn_comes_
     result = make_result()
     playout = make_playout(result, config=config, database=database)
     pipeline = Pipeline.from_config(config, database)
-    estimates = []
-    for instant in instants(schedule(playout.cycles, end_sim_ns=100_000_000)):
-        position, outgoing = playout.frames(instant)
-        for item in outgoing:
-            frame = item.frame
-            raw = RawFrame(instant.sim_t_ns / 1e9, frame.arbitration_id, True, frame.data)
-            estimates += [(e, position.row) for e in pipeline.process(raw).estimates]
+    estimates = played_estimates(playout, pipeline, 100_000_000, extended=True)
     assert len(estimates) == 10 and pipeline.bad == {}
     for estimate, row in estimates:
         assert estimate.valid

@@ -32,7 +32,7 @@ from tests.dbc.test_held_out_machines import STRANGER, eq4_N
 from tests.dbc.test_multiplexed_legs import CONFIG as HUB_CONFIG
 from tests.dbc.test_multiplexed_legs import DBC as HUB_DBC
 from tests.helpers import dbc_text
-from tests.sim_bridge.synthetic import make_playout, make_result, sent_by_the_command
+from tests.sim_bridge.synthetic import estimates_of, make_playout, make_result, sent_by_the_command
 
 MUX_PAGES = STRANGER / "mux_pages.toml"
 FD_FLOAT = STRANGER / "fd_float.toml"
@@ -194,13 +194,7 @@ def test_the_bridge_command_plays_a_can_fd_hub(tmp_path: Path) -> None:
     assert [m.data[0] for m in messages] == [0, 1] * 50  # the page, in value order
     config, database = load_machine_config(FD_FLOAT)
     pipeline = Pipeline.from_config(config, database)
-    estimates = [
-        estimate
-        for m in messages
-        for estimate in pipeline.process(
-            RawFrame(m.timestamp, m.arbitration_id, False, bytes(m.data), is_fd=True)
-        ).estimates
-    ]
+    estimates = estimates_of(pipeline, messages)
     assert [e.leg for e in estimates] == ["A", "B"] * 50 and all(e.valid for e in estimates)
     assert pipeline.bad == {} and pipeline.frames_lost == 0
 
