@@ -78,9 +78,14 @@ def test_run_and_the_bare_form_both_read_the_config(tmp_path: Path) -> None:
         assert line.startswith(f"portal-daq: {path}: estimator.median_window"), line
 
 
-def replaying_a_long_log(tmp_path: Path) -> subprocess.Popen[str]:
+def replaying_a_long_log(
+    tmp_path: Path, sigint: signal.Handlers | None = None
+) -> subprocess.Popen[str]:
     """``portal-daq replay`` of a log whose CSV (~1 MB) is far more than a pipe's buffer
-    into a pipe, once it has written its header: it then waits on the pipe."""
+    into a pipe, once it has written its header: it then waits on the pipe.
+
+    ``sigint``: the replay's SIGINT disposition as it starts (a test run in the
+    background of a script inherits SIGINT ignored, and so would the replay)."""
     config, database = example_machine()
     log = tmp_path / "long.log"
     with can.Logger(str(log)) as logger:
@@ -93,6 +98,7 @@ def replaying_a_long_log(tmp_path: Path) -> subprocess.Popen[str]:
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
+        preexec_fn=None if sigint is None else lambda: signal.signal(signal.SIGINT, sigint),
     )
     assert process.stdout is not None
     assert process.stdout.readline().startswith("leg,t,")
@@ -114,7 +120,7 @@ def test_ctrl_c_ends_a_command_in_one_line(tmp_path: Path) -> None:
     """Ctrl-C in replay (report, calibrate: any command that does not handle SIGINT
     itself) was a KeyboardInterrupt traceback of some 30 lines; now one line, status 130
     as a shell reports it. The replay is held writing into a full pipe when it comes."""
-    process = replaying_a_long_log(tmp_path)
+    process = replaying_a_long_log(tmp_path, sigint=signal.SIG_DFL)
     process.send_signal(signal.SIGINT)
     _, stderr = process.communicate(timeout=120)
     assert process.returncode == 130, stderr
