@@ -3,11 +3,13 @@
 from collections.abc import Mapping
 from pathlib import Path
 
+from cantools.database.can import Database
+
 from daq.can_batch import recorded_frames
 from daq.frames import RawFrame
 from daq.mcap_file import RAW_TOPIC
 from daq.mcap_reading import RecordedMessage, RecordingStream
-from dbc.machine import load_machine_config
+from dbc.machine import MachineConfig, load_machine_config
 
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLE_CONFIG = ROOT / "deploy" / "machine.example.toml"
@@ -43,6 +45,18 @@ def with_leg_keys(config_text: str, keys: Mapping[str, Mapping[str, float]]) -> 
         body = "".join(f"{key} = {value!r}\n" for key, value in values.items())
         config_text = config_text.replace(header, header + body)
     return config_text
+
+
+def machine_on(
+    directory: Path, dbc: str, legs: str, tables: str = ""
+) -> tuple[MachineConfig, Database]:
+    """A machine of ``legs`` (TOML of ``[legs.*]`` tables, after the defaults, and other
+    ``tables`` before them) on the DBC text ``dbc``, written into ``directory`` and loaded."""
+    (directory / "m.dbc").write_text(dbc)
+    (directory / "m.toml").write_text(
+        '[machine]\nid = "m"\nmass_kg = 1000.0\ndbc = "m.dbc"\n' + tables + LEG_DEFAULTS_TOML + legs
+    )
+    return load_machine_config(directory / "m.toml")
 
 
 def dbc_text(messages: str, attributes: str, nodes: str = "Hub DAQ") -> str:

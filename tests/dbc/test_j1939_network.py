@@ -11,9 +11,8 @@ from daq.frames import RawFrame
 from daq.pipeline import Pipeline
 from dbc.database import load_database_string
 from dbc.decoding import is_j1939
-from dbc.machine import load_machine_config
 from tests.dbc.test_held_out_machines import eq4_N
-from tests.helpers import LEG_DEFAULTS_TOML
+from tests.helpers import machine_on
 
 #: PGN 0x1FF30 (data page 1) from 0x30 at priority 6, in the DBC; an 11-bit controller frame.
 DBC = """VERSION ""
@@ -46,13 +45,9 @@ def test_the_29_bit_messages_of_a_j1939_network_are_parameter_groups() -> None:
 
 def test_a_transducer_at_another_priority_than_the_dbcs_feeds_its_leg(tmp_path: Path) -> None:
     """Matched by the whole ID, its frames were unknown_id and the leg stale."""
-    (tmp_path / "j1939.dbc").write_text(DBC)
-    (tmp_path / "machine.toml").write_text(
-        '[machine]\nid = "m"\nmass_kg = 1000.0\ndbc = "j1939.dbc"\n'
-        + LEG_DEFAULTS_TOML
-        + '[legs.front]\npiston = "DUAL_P.P1"\nrod = "DUAL_P.P2"\n'
+    config, database = machine_on(
+        tmp_path, DBC, '[legs.front]\npiston = "DUAL_P.P1"\nrod = "DUAL_P.P2"\n'
     )
-    config, database = load_machine_config(tmp_path / "machine.toml")
     pipeline = Pipeline.from_config(config, database)
     frame_id = frame_id_pack(3, 0, 1, 0xFF, 0x30, 0x30)  # priority 3, not the DBC's 6
     data = (25000).to_bytes(2, "little") + (2000).to_bytes(2, "little") + b"\xff" * 4

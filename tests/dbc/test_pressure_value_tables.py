@@ -15,7 +15,7 @@ from dbc.database import load_database_string
 from dbc.machine import MachineConfig, load_machine_config
 from dbc.signal_range import named_values, value_range
 from estimator import foot_force_N
-from tests.helpers import LEG_DEFAULTS_TOML, dbc_text
+from tests.helpers import LEG_DEFAULTS_TOML, dbc_text, machine_on
 
 DBC = dbc_text(
     """
@@ -159,13 +159,11 @@ def test_a_code_named_at_the_top_of_the_bits_is_no_pressure_in_a_range_reaching_
     """``4095 "SNA"`` of a 12-bit [0|204.75] bar signal was a valid 204.75 bar sample
     (inside the declared range, so taken for a named measurement, below the 400 bar
     sensor range)."""
-    (tmp_path / "ends.dbc").write_text(ENDS_DBC)
-    (tmp_path / "machine.toml").write_text(
-        '[machine]\nid = "ends"\nmass_kg = 5000.0\ndbc = "ends.dbc"\n'
-        + LEG_DEFAULTS_TOML
-        + '[legs.ZYL1]\npiston = "HYD_P_ZYL1.HYD_P_ZYL1_A"\nrod = "HYD_P_ZYL1.HYD_P_ZYL1_B"\n'
+    config, database = machine_on(
+        tmp_path,
+        ENDS_DBC,
+        '[legs.ZYL1]\npiston = "HYD_P_ZYL1.HYD_P_ZYL1_A"\nrod = "HYD_P_ZYL1.HYD_P_ZYL1_B"\n',
     )
-    config, database = load_machine_config(tmp_path / "machine.toml")
     diff = database.get_message_by_name("HYD_P_ZYL1").get_signal_by_name("HYD_P_ZYL1_DIFF")
     assert named_values(diff, j1939=False) == {"Null": 0.0}  # not -327.68 nor 327.67 bar
     assert config.legs["ZYL1"].piston.named_Pa == {"Null": 0.0}

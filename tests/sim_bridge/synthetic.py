@@ -19,7 +19,7 @@ from daq.frames import RawFrame
 from daq.pipeline import Pipeline
 from dbc.decoding import DecodedFrame, FrameDecoder
 from dbc.encoding import FrameEncoder
-from dbc.machine import MachineConfig, load_machine_config
+from dbc.machine import MachineConfig
 from estimator import foot_force_N
 from estimator.leg import LegEstimate
 from sim_bridge.__main__ import cli
@@ -28,7 +28,7 @@ from sim_bridge.frames import FrameBuilder
 from sim_bridge.playout import Playout, fault_targets
 from sim_bridge.result import LEGS, PHASES, SimulationResult
 from sim_bridge.schedule import Instant, instants, schedule
-from tests.helpers import LEG_DEFAULTS_TOML, dbc_text, example_machine
+from tests.helpers import dbc_text, example_machine, machine_on
 
 CONFIG, DATABASE = example_machine()
 
@@ -173,8 +173,4 @@ def small_machine(
     """A machine of ``legs`` (TOML of ``[legs.*]`` tables, after the defaults, and other
     ``tables`` before them) on a DBC of ``messages`` and ``attributes``
     (:func:`~tests.helpers.dbc_text`), written into ``directory`` and loaded."""
-    (directory / "m.dbc").write_text(dbc_text(messages, attributes))
-    (directory / "m.toml").write_text(
-        '[machine]\nid = "m"\nmass_kg = 1000.0\ndbc = "m.dbc"\n' + tables + LEG_DEFAULTS_TOML + legs
-    )
-    return load_machine_config(directory / "m.toml")
+    return machine_on(directory, dbc_text(messages, attributes), legs, tables)
