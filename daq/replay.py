@@ -113,11 +113,15 @@ def estimates(
 
 
 def write_csv(rows: Iterable[LegEstimate], out: IO[str]) -> int:
-    """One CSV row per estimate (floats in full precision, ``reasons`` joined by ``|``)."""
+    """One CSV row per estimate (floats in full precision, ``reasons`` joined by ``|``).
+    The header is written once the first row is made (or ``rows`` ended without one): a
+    replay that fails before (a log not there, unreadable) leaves ``out`` untouched."""
     writer = csv.writer(out, lineterminator="\n")
+    rows = iter(rows)
+    first = next(rows, None)  # what reading the recording raises comes here, before the header
     writer.writerow(CSV_COLUMNS)
     count = 0
-    for e in rows:
+    for e in itertools.chain(() if first is None else (first,), rows):
         writer.writerow(
             (
                 e.leg,
@@ -237,7 +241,18 @@ def chained_log_frames(
     """The frames of CAN logs (and their loggers' losses), one log after the other in
     the order given (the median and contact carry over, as across a logger's file
     rotation); a log that begins before the one before it ended is logged: given out of
-    order, two loggers of one bus, or times counted from 0 in each."""
+    order, two loggers of one bus, or times counted from 0 in each. Raises
+    :class:`~daq.errors.RecordingError` at once, before a frame is read, when one of
+    them is not there or of no log format (it stopped a replay after the frames of the
+    logs before it)."""
+    for path in paths:
+        _readable(path)
+    return _chained_log_frames(paths, channel)
+
+
+def _chained_log_frames(
+    paths: Sequence[Path], channel: str | None
+) -> Iterator[RawFrame | BusEvent]:
     previous: tuple[Path, float] | None = None
     for path in paths:
         t_s: float | None = None
@@ -270,16 +285,7 @@ def can_log_frames(path: Path, channel: str | None = None) -> Iterator[RawFrame 
     (:class:`LogLines`) or BLF object (:func:`blf_cut`), with a warning. The frames
     ``candump -d`` says the kernel dropped (its ``DROPCOUNT`` lines) come as a
     :class:`~daq.frames.BusEvent` of that loss before the next frame, as live."""
-    if not path.is_file():  # python-can's SQLite reader would create it
-        what = "not a file" if path.exists() else "no such file"
-        raise RecordingError(path, f"cannot read it as a CAN log: {what}")
-    if not is_can_log(path):  # python-can: 'No read support for unknown log format ".txt"'
-        known = ", ".join(sorted(MESSAGE_READERS))
-        raise RecordingError(
-            path,
-            f"cannot read it as a CAN log: no log format for its suffix; replay reads {known} "
-            "(each also .gz) and service recordings (.mcap)",
-        )
+    _readable(path)
     if path.stat().st_size == 0:  # a logger stopped at once (python-can: a BLF "unpack" error)
         return
     try:
@@ -334,6 +340,21 @@ def can_log_frames(path: Path, channel: str | None = None) -> Iterator[RawFrame 
     if channel is not None and channel not in channels:
         raise RecordingError(
             path, f"no frame on channel {channel!r}; its channels: {', '.join(sorted(channels))}"
+        )
+
+
+def _readable(path: Path) -> None:
+    """Raises :class:`~daq.errors.RecordingError` unless ``path`` is a file of a CAN log
+    format (by its suffix)."""
+    if not path.is_file():  # python-can's SQLite reader would create it
+        what = "not a file" if path.exists() else "no such file"
+        raise RecordingError(path, f"cannot read it as a CAN log: {what}")
+    if not is_can_log(path):  # python-can: 'No read support for unknown log format ".txt"'
+        known = ", ".join(sorted(MESSAGE_READERS))
+        raise RecordingError(
+            path,
+            f"cannot read it as a CAN log: no log format for its suffix; replay reads {known} "
+            "(each also .gz) and service recordings (.mcap)",
         )
 
 
