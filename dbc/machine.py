@@ -26,6 +26,7 @@ from dbc.database import load_database, unsound
 from dbc.decoding import is_j1939, j1939_destination, j1939_pgn
 from dbc.errors import ConfigError
 from dbc.machine_signals import NO_SIGNALS, MachineSignals, parse_signals
+from dbc.names import did_you_mean, messages_with
 from dbc.protection import CRC_ALGORITHMS, DEFAULT_CRC_ALGORITHM, Protection, counter_modulo
 from dbc.signal_range import decoded_bounds, named_values, value_range
 from dbc.stability_config import StabilityConfig, angle_signal, parse_stability
@@ -505,11 +506,32 @@ def _leg(
 def _split_ref(table: TomlTable, key: str, text: str, database: Database) -> tuple[Message, str]:
     message_name, dot, signal_name = text.partition(".")
     if not dot or not message_name or not signal_name:
-        raise table.error(key, f"{text!r} must be written MESSAGE.SIGNAL")
+        raise table.error(key, f"{text!r} must be written MESSAGE.SIGNAL{_written(text, database)}")
     message = _message(table, key, message_name, database)
     if signal_name not in {signal.name for signal in message.signals}:
-        raise table.error(key, f"no signal {signal_name!r} in message {message_name} of the DBC")
+        raise table.error(key, _no_signal(signal_name, message, database))
     return message, signal_name
+
+
+def _written(text: str, database: Database) -> str:
+    """How ``text`` (a name without its message, or a message alone) is written whole."""
+    whole = [f"{message}.{text.strip('.')}" for message in messages_with(database, text.strip("."))]
+    if whole:
+        return f": {', '.join(whole)}"
+    names = {message.name: message for message in database.messages}
+    message = names.get(text.strip("."))
+    if message is not None:
+        return f"; {message.name}'s signals are {', '.join(s.name for s in message.signals)}"
+    return ""
+
+
+def _no_signal(signal: str, message: Message, database: Database) -> str:
+    """Why ``signal`` is not ``message``'s: the messages that do have it, else the names
+    it has that are close."""
+    reason = f"no signal {signal!r} in message {message.name} of the DBC"
+    if elsewhere := messages_with(database, signal):
+        return f"{reason}; it is in {', '.join(elsewhere)}"
+    return reason + did_you_mean(signal, (s.name for s in message.signals))
 
 
 def _signal(table: TomlTable, key: str, database: Database) -> SignalRef:
@@ -840,7 +862,8 @@ def _message(table: TomlTable, key: str, name: str, database: Database) -> Messa
     try:
         message = database.get_message_by_name(name)
     except KeyError:
-        raise table.error(key, f"no message {name!r} in the DBC") from None
+        hint = did_you_mean(name, (message.name for message in database.messages))
+        raise table.error(key, f"no message {name!r} in the DBC{hint}") from None
     problem = unsound(message)  # a message cantools' checks refused (see dbc.database)
     if problem is not None:
         raise table.error(key, f"message {name} of the DBC: {problem}")
@@ -889,7 +912,7 @@ def _protection(
         raise table.error("", "names neither a counter nor a crc signal")
     for key in ("counter", "crc"):
         if key in table and table.string(key) not in signals:
-            raise table.error(key, f"no signal {table.string(key)!r} in message {name} of the DBC")
+            raise table.error(key, _no_signal(table.string(key), message, database))
     counter = table.string("counter") if "counter" in table else None
     crc = table.string("crc") if "crc" in table else None
     algorithm_name = table.string("crc_algorithm", DEFAULT_CRC_ALGORITHM)
