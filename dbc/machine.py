@@ -19,7 +19,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from cantools.database.can import Database, Message
+from cantools.database.can import Database, Message, Signal
 
 from dbc import DEFAULT_DBC_PATH, _across_legs
 from dbc.database import load_database, unsound
@@ -475,6 +475,15 @@ def _leg(
     if leg_status is not None:
         chambers = _attach_leg_status(table, chambers, leg_status, leg_status_ok)
     piston, rod = chambers["piston"], chambers["rod"]
+    for key, chamber in chambers.items():
+        for other in chambers.values():
+            if other.status is not None and (chamber.message, chamber.signal) == (
+                other.message,
+                other.status.signal,
+            ):  # with a unit, the status' codes were valid pressures
+                raise table.error(
+                    key, f"{chamber.message}.{chamber.signal} is this leg's status, not a pressure"
+                )
     if str(piston) == str(rod):
         # A copy-paste slip, which eq. (4) would turn into p (A_piston - A_rod) silently.
         raise table.error("rod", f"is the piston's signal {piston}; each chamber has its own")
@@ -557,6 +566,13 @@ def _chamber(
             signal_key,
             f"signal {message.name}.{signal_name} is the message's multiplexer (which page "
             "a frame is), not a pressure",
+        )
+    if _enumerated(signal):  # with a unit, a 2-bit status was a valid 0..3 bar
+        names = ", ".join(f'{raw} "{name}"' for raw, name in sorted((signal.choices or {}).items()))
+        raise chamber.error(
+            signal_key,
+            f"signal {message.name}.{signal_name} names every value it takes ({names}): a "
+            "status, not a pressure",
         )
     mux_ids, page = _page(chamber, signal_key, message, signal_name)
     unit = chamber.string("unit") if "unit" in chamber else (signal.unit or "")
@@ -648,6 +664,13 @@ def _page(
     if page in choices:
         decoded.add(str(choices[page]))
     return (page,), (signal.multiplexer_signal, frozenset(decoded))
+
+
+def _enumerated(signal: Signal) -> bool:
+    """``signal``'s value table names every raw value its bits hold: an enumeration (a
+    status, a mode), never a measurement."""
+    choices: Mapping[int, object] = signal.choices or {}
+    return not signal.is_float and signal.length <= 16 and len(choices) >= 1 << signal.length
 
 
 def _mux_ids(message: Message, signal_name: str) -> tuple[int, ...] | None:
