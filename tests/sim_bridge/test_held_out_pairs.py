@@ -9,7 +9,10 @@ DBC signal of the simulation's (the truth's), each foot force within what that a
   proprietary-B PGNs at 10 and 100 ms, one in psi, the controller peer to peer;
 - ``fd_be_float``: a 32-byte CAN FD hub of big-endian float32 (Pa, hPa) and signed
   16-bit pressures, E2E profile 5;
-- ``eight_legs_mux``: eight legs, four per base, on two multiplexed hubs.
+- ``eight_legs_mux``: eight legs, four per base, on two multiplexed hubs;
+- ``iom_channels``: two I/O modules sending their four inputs in turn in one multiplexed
+  signal (each chamber names its page), 29-bit IDs that look J1939 and are not, mbar
+  with a large offset, CRLF and Windows-1252, every kind of DBC section CANdb++ writes.
 """
 
 import logging
@@ -41,7 +44,13 @@ from tests.sim_bridge.synthetic import (
 )
 
 STRANGER = FILES / "stranger"
-PAIRS = ("zyl4_mbar12", "xdcr_two_rates", "fd_be_float", "eight_legs_mux")
+PAIRS = (
+    "zyl4_mbar12",
+    "xdcr_two_rates",
+    "fd_be_float",
+    "eight_legs_mux",
+    "iom_channels",
+)
 PLAYED_S = 0.5
 
 
