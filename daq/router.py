@@ -24,8 +24,9 @@ import zenoh
 
 from daq.stop_signal import StopSignal
 from daq.subcommand import PROG, Subcommand, add_log_level_option, fail, setup_logging
-from daq.zenoh_session import one_line, open_config_session
+from daq.zenoh_session import open_config_session
 from dbc.errors import ConfigError, PortalDaqError
+from dbc.zenoh_config import read_config_file
 
 COMMAND = "router"
 MODE = "router"
@@ -36,13 +37,7 @@ DEFAULT_CONFIG = Path(str(resources.files("daq").joinpath("zenoh-router.json5"))
 
 def router_config(path: Path) -> zenoh.Config:
     """The router's :class:`zenoh.Config` from ``path``; ConfigError when unusable."""
-    if not path.is_file():
-        reason = "it is a directory" if path.is_dir() else "no such file"
-        raise ConfigError(path, "", f"{reason}; give --config a Zenoh JSON5 file")
-    try:
-        config = zenoh.Config.from_file(str(path))
-    except zenoh.ZError as exc:
-        raise ConfigError(path, "", f"not a valid Zenoh config: {one_line(str(exc))}") from exc
+    config = read_config_file(path, "--config")
     mode = json.loads(config.get_json("mode") or "null")
     if mode not in (None, MODE):
         raise ConfigError(path, "mode", f"must be {MODE!r} for a router, got {mode!r}")

@@ -30,8 +30,9 @@ itself, so a restart by systemd would not help); the consumer's loop turns at
 least every 0.1 s, and stops turning only when it hangs on a frame.
 
 Healthy, on the status topic and STATUS= (:func:`problems`): alive, and during the
-last status period the recorder was recording, nothing was dropped anywhere (every
-key of ``dropped``, ``dropped.kernel`` included), every configured Zenoh ``connect``
+last status period the recorder was recording, nothing was lost anywhere (every
+key of ``dropped``, ``dropped.kernel`` and ``dropped.publish_failed`` included, and
+``recording.failed_items``: :func:`losses`), every configured Zenoh ``connect``
 endpoint was reached, and frames came in (none for a whole period, or for the legs'
 stale time when that is longer, is a problem). ``problems`` lists what is wrong, one
 short text each. None of these stops the watchdog (a restart would not help).
@@ -132,7 +133,8 @@ class Service:
         self._rate_mark = (time.monotonic(), 0)
         self._frames_per_s = 0.0
         self._last_frame_monotonic = time.monotonic()
-        self._dropped_mark: dict[str, int] = {}
+        #: :func:`losses` at the previous status: what rose since is a problem.
+        self._lost_mark: dict[str, int] = {}
         self._reported_problems: list[str] = []
         #: The kernel drop count at the previous status (for the log line of a rise).
         self._kernel_dropped_mark = 0
@@ -280,6 +282,8 @@ class Service:
                 "kernel": kernel_dropped,
                 "rx": self.reader.dropped,
                 "publish": self.publisher.dropped,
+                # Messages whose put failed (an error of Zenoh's): lost as surely.
+                "publish_failed": self.publisher.errors,
                 "record": recorder.dropped if recorder is not None else 0,
             },
             "recording": None
@@ -302,11 +306,11 @@ class Service:
         found = problems(
             status,
             alive=self.alive(),
-            dropped_before=self._dropped_mark,
+            lost_before=self._lost_mark,
             silent_s=now - self._last_frame_monotonic,
             silence_s=self.silence_s,
         )
-        self._dropped_mark = dict(status["dropped"])
+        self._lost_mark = losses(status)
         kinds = [_NUMBER.sub("N", problem) for problem in found]  # "dropped.rx +N"
         if kinds != self._reported_problems:
             if found:
@@ -357,18 +361,33 @@ def hold_overflow(config: ServiceConfig, rcvbuf_bytes: int | None) -> str | None
     )
 
 
+def losses(status: JsonObject) -> dict[str, int]:
+    """What ``status`` counts as lost by the service since it started, by field: every key
+    of ``dropped`` and the items the recorder skipped (``recording.failed_items``).
+
+    >>> losses({"dropped": {"rx": 5, "publish_failed": 1}, "recording": {"failed_items": 2}})
+    {'dropped.rx': 5, 'dropped.publish_failed': 1, 'recording.failed_items': 2}
+    """
+    found = {f"dropped.{where}": count for where, count in status["dropped"].items()}
+    recording = status.get("recording")
+    if recording is not None:
+        found["recording.failed_items"] = recording["failed_items"]
+    return found
+
+
 def problems(
     status: JsonObject,
     *,
     alive: bool,
-    dropped_before: dict[str, int],
+    lost_before: dict[str, int],
     silent_s: float,
     silence_s: float,
 ) -> list[str]:
     """What makes ``status`` unhealthy (see the module docstring); empty when healthy.
+    ``lost_before`` is :func:`losses` of the previous status.
 
     >>> problems({"dropped": {"rx": 5, "kernel": 2}, "recording": None,
-    ...           "zenoh": {"unreached": []}}, alive=True, dropped_before={"rx": 5},
+    ...           "zenoh": {"unreached": []}}, alive=True, lost_before={"dropped.rx": 5},
     ...          silent_s=0.1, silence_s=1.0)
     ['dropped.kernel +2']
     """
@@ -376,9 +395,9 @@ def problems(
     recording = status.get("recording")
     if recording is not None and recording.get("failing"):
         found.append("recording stopped (write error)")
-    for where, count in status["dropped"].items():
-        if count > dropped_before.get(where, 0):
-            found.append(f"dropped.{where} +{count - dropped_before.get(where, 0)}")
+    for name, count in losses(status).items():
+        if count > lost_before.get(name, 0):
+            found.append(f"{name} +{count - lost_before.get(name, 0)}")
     found += [f"zenoh connect {endpoint} not reached" for endpoint in status["zenoh"]["unreached"]]
     if silent_s >= silence_s:
         found.append(f"no frame for {silent_s:.1f} s")

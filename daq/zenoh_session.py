@@ -13,14 +13,13 @@ surface, the access control of ``deploy/zenoh.json5``).
 """
 
 import json
-import re
 from typing import Any
 
 import zenoh
 
 from daq.errors import ZenohError
 from daq.service_config import ZenohSettings
-from dbc.errors import ConfigError
+from dbc.zenoh_config import one_line, put, read_config_file
 
 #: Where the service listens without a ``config_file`` and without ``listen``.
 DEFAULT_LISTEN = "tcp/127.0.0.1:7447"
@@ -44,12 +43,7 @@ def zenoh_config(settings: ZenohSettings, source: str = "") -> zenoh.Config:
         )
     }
     if settings.config_file is not None:
-        try:
-            config = zenoh.Config.from_file(str(settings.config_file))
-        except zenoh.ZError as exc:
-            raise ConfigError(
-                settings.config_file, "", f"not a valid Zenoh config: {one_line(str(exc))}"
-            ) from exc
+        config = read_config_file(settings.config_file, "[zenoh] config_file")
     else:
         config = zenoh.Config()
         overrides.update(SAFE_DEFAULTS)
@@ -64,10 +58,7 @@ def zenoh_config(settings: ZenohSettings, source: str = "") -> zenoh.Config:
     if settings.multicast_scouting is not None:
         overrides["scouting/multicast/enabled"] = settings.multicast_scouting
     for key, value in overrides.items():
-        try:
-            config.insert_json5(key, json.dumps(value))
-        except zenoh.ZError as exc:
-            raise ConfigError(source, f"zenoh.{key.split('/')[0]}", one_line(str(exc))) from exc
+        put(config, key, value, source=source, name=f"zenoh.{key.split('/')[0]}")
     return config
 
 
@@ -87,52 +78,6 @@ def open_config_session(config: zenoh.Config, hint: str) -> zenoh.Session:
     except zenoh.ZError as exc:
         first = (str(exc).strip().splitlines() or [""])[0]
         raise ZenohError(one_line(first) or "cannot open the session", hint) from exc
-
-
-def one_line(message: str) -> str:
-    """A Zenoh error on one line, without the noise of its source location for an operator
-    (`` at /root/.cargo/.../tcp.rs:61.``) nor the whole file it could not parse (a TOML
-    error's ``input: Some("...")``: a service config given as the Zenoh file printed
-    all of its 10 KB).
-
-    >>> one_line("bad --> 1:8\\n  |\\n  = expected array at /x/lib.rs:1486.")
-    'bad --> 1:8 = expected array'
-    >>> one_line('Error { message: "unclosed table", input: Some("[m\\\\n\\\\"x\\\\""), span: 8 }')
-    'Error { message: "unclosed table", span: 8 }'
-
-    A bad value put into a config is its message alone, a file's with where in the file
-    (both were wrapped in ``Message { msg: ..., location: ... }``):
-
-    >>> one_line('Json5Err(Message { msg: "Endpoints must be ...: x at /e.rs:615.", '
-    ...          'location: Some(Location { line: 1, column: 2 }) }) at /c.rs:86.')
-    'Endpoints must be ...: x'
-    >>> one_line('JSON error: Message { msg: "unknown field `modee`, expected one of `id`", '
-    ...          'location: Some(Location { line: 3, column: 5 }) }')
-    'unknown field `modee`, expected one of `id` (line 3, column 5)'
-
-    A TOML file's (Zenoh reads ``.toml`` as TOML: the service's config given as Zenoh's):
-
-    >>> one_line('TOML deserization error: Error { message: "unknown field `bus`", '
-    ...          'input: Some("[bus]\\n"), keys: [], span: Some(1..4) }')
-    'TOML: unknown field `bus`'
-    """
-    lines = [line.strip() for line in message.strip().splitlines()]
-    text = " ".join(line for line in lines if line and line != "|")
-    text = re.sub(r'input: Some\("(?:[^"\\]|\\.)*"\), ', "", text)
-    text = re.sub(r"\s+at \S+\.rs:\d+\.?", "", text)
-    found = re.fullmatch(
-        r'(Json5Err\(|JSON error: )Message \{ msg: "((?:[^"\\]|\\.)*)"'
-        r"(?:, location: Some\(Location \{ line: (\d+), column: (\d+) \}\))?.*",
-        text,
-    )
-    toml = re.fullmatch(r'TOML \w+ error: Error \{ message: "((?:[^"\\]|\\.)*)".*', text)
-    if toml is not None:
-        return f"TOML: {toml[1]}"
-    if found is None:
-        return text
-    # A value inserted (Json5Err) is located in the JSON made of it: no help to anyone.
-    inserted = found[1] == "Json5Err(" or found[3] is None
-    return found[2] + ("" if inserted else f" (line {found[3]}, column {found[4]})")
 
 
 def config_value(config: zenoh.Config, key: str) -> Any:

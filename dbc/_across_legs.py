@@ -107,12 +107,13 @@ def check_senders(
 ) -> None:
     """A J1939 signal that several chambers read (one transducer each, one PGN) needs each
     chamber's source address: without it, every transducer's frames would feed it."""
-    readers: dict[tuple[str, str], list[tuple[str, str, int | None]]] = {}
+    readers: dict[tuple[str, str, object], list[tuple[str, str, int | None]]] = {}
     for leg in legs.values():
         for key, chamber in _chambers(leg):
-            where = (chamber.message, chamber.signal)
+            # Chambers on other pages of one signal are no two readers of one value.
+            where = (chamber.message, chamber.signal, chamber.page and chamber.mux_ids)
             readers.setdefault(where, []).append((leg.name, key, chamber.source_address))
-    for (message, signal), chambers in readers.items():
+    for (message, signal, _), chambers in readers.items():
         if len(chambers) < 2 or not is_j1939(database.get_message_by_name(message)):
             continue
         for leg_name, key, address in chambers:

@@ -19,13 +19,14 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from cantools.database.can import Database, Message
+from cantools.database.can import Database, Message, Signal
 
 from dbc import DEFAULT_DBC_PATH, _across_legs
 from dbc.database import load_database, unsound
 from dbc.decoding import is_j1939, j1939_destination, j1939_pgn
 from dbc.errors import ConfigError
 from dbc.machine_signals import NO_SIGNALS, MachineSignals, parse_signals
+from dbc.names import did_you_mean, messages_with
 from dbc.protection import CRC_ALGORITHMS, DEFAULT_CRC_ALGORITHM, Protection, counter_modulo
 from dbc.signal_range import decoded_bounds, named_values, value_range
 from dbc.stability_config import StabilityConfig, angle_signal, parse_stability
@@ -61,7 +62,15 @@ LEG_SIGNAL_KEYS = ("piston", "rod", "status", "status_ok", "trigger", "max_skew_
 #: The service itself never reads the key.
 SIMULATED_LEGS = ("SB1_F1", "SB1_F2", "SB1_F3", "SB2_F1", "SB2_F2", "SB2_F3")
 #: Keys of a chamber written as a table: ``piston = { signal = "M.S", ... }``.
-CHAMBER_KEYS = ("signal", "source_address", "unit", "status", "status_ok", "cycle_time_ms")
+CHAMBER_KEYS = (
+    "signal",
+    "source_address",
+    "multiplexer",
+    "unit",
+    "status",
+    "status_ok",
+    "cycle_time_ms",
+)
 PROTECTION_KEYS = ("counter", "crc", "crc_algorithm", "data_id", "max_delta_counter")
 #: Keys of ``[messages.<MESSAGE>]``: what the config says of a message the DBC leaves out.
 MESSAGE_KEYS = ("cycle_time_ms",)
@@ -150,8 +159,15 @@ class ChamberSignal:
     #: How often the transducer sends, s: its chamber's ``cycle_time_ms``, else its
     #: message's (:attr:`MachineConfig.cycle_times_ms`).
     cycle_time_s: float
-    #: The multiplexer values of the frames that carry the signal; None: every frame.
+    #: The multiplexer values of the frames that carry the chamber's value (its signal's,
+    #: or the one page its ``multiplexer`` names); None: every frame.
     mux_ids: tuple[int, ...] | None = None
+    #: Where the signal is sent under several multiplexer values, one channel's value on
+    #: each page (an I/O module's ``AIN_Pressure`` under ``Channel`` 0..3): the
+    #: multiplexer signal and what it decodes to on this chamber's page (its number, and
+    #: its value-table name); only those frames carry the chamber. None: every frame
+    #: that carries the signal.
+    page: tuple[str, frozenset[int | str]] | None = None
     #: The DBC signal's physical range ``[min|max]`` in Pa, half a step wider (rounding),
     #: within J1939's valid range in a J1939 message: a value outside it is none the DBC
     #: allows (J1939's error and "not available" codes lie above it). Unbounded where
@@ -168,6 +184,8 @@ class ChamberSignal:
 
     def __str__(self) -> str:
         where = f"{self.message}.{self.signal}"
+        if self.page is not None and self.mux_ids is not None:
+            where += f"[{self.page[0]}={self.mux_ids[0]}]"
         return where if self.source_address is None else f"{where}@0x{self.source_address:02X}"
 
 
@@ -457,8 +475,16 @@ def _leg(
     if leg_status is not None:
         chambers = _attach_leg_status(table, chambers, leg_status, leg_status_ok)
     piston, rod = chambers["piston"], chambers["rod"]
-    where = (piston.message, piston.signal, piston.source_address)
-    if where == (rod.message, rod.signal, rod.source_address):
+    for key, chamber in chambers.items():
+        for other in chambers.values():
+            if other.status is not None and (chamber.message, chamber.signal) == (
+                other.message,
+                other.status.signal,
+            ):  # with a unit, the status' codes were valid pressures
+                raise table.error(
+                    key, f"{chamber.message}.{chamber.signal} is this leg's status, not a pressure"
+                )
+    if str(piston) == str(rod):
         # A copy-paste slip, which eq. (4) would turn into p (A_piston - A_rod) silently.
         raise table.error("rod", f"is the piston's signal {piston}; each chamber has its own")
     trigger = table.string("trigger", "piston")
@@ -489,11 +515,32 @@ def _leg(
 def _split_ref(table: TomlTable, key: str, text: str, database: Database) -> tuple[Message, str]:
     message_name, dot, signal_name = text.partition(".")
     if not dot or not message_name or not signal_name:
-        raise table.error(key, f"{text!r} must be written MESSAGE.SIGNAL")
+        raise table.error(key, f"{text!r} must be written MESSAGE.SIGNAL{_written(text, database)}")
     message = _message(table, key, message_name, database)
     if signal_name not in {signal.name for signal in message.signals}:
-        raise table.error(key, f"no signal {signal_name!r} in message {message_name} of the DBC")
+        raise table.error(key, _no_signal(signal_name, message, database))
     return message, signal_name
+
+
+def _written(text: str, database: Database) -> str:
+    """How ``text`` (a name without its message, or a message alone) is written whole."""
+    whole = [f"{message}.{text.strip('.')}" for message in messages_with(database, text.strip("."))]
+    if whole:
+        return f": {', '.join(whole)}"
+    names = {message.name: message for message in database.messages}
+    message = names.get(text.strip("."))
+    if message is not None:
+        return f"; {message.name}'s signals are {', '.join(s.name for s in message.signals)}"
+    return ""
+
+
+def _no_signal(signal: str, message: Message, database: Database) -> str:
+    """Why ``signal`` is not ``message``'s: the messages that do have it, else the names
+    it has that are close."""
+    reason = f"no signal {signal!r} in message {message.name} of the DBC"
+    if elsewhere := messages_with(database, signal):
+        return f"{reason}; it is in {', '.join(elsewhere)}"
+    return reason + did_you_mean(signal, (s.name for s in message.signals))
 
 
 def _signal(table: TomlTable, key: str, database: Database) -> SignalRef:
@@ -520,6 +567,14 @@ def _chamber(
             f"signal {message.name}.{signal_name} is the message's multiplexer (which page "
             "a frame is), not a pressure",
         )
+    if _enumerated(signal):  # with a unit, a 2-bit status was a valid 0..3 bar
+        names = ", ".join(f'{raw} "{name}"' for raw, name in sorted((signal.choices or {}).items()))
+        raise chamber.error(
+            signal_key,
+            f"signal {message.name}.{signal_name} names every value it takes ({names}): a "
+            "status, not a pressure",
+        )
+    mux_ids, page = _page(chamber, signal_key, message, signal_name)
     unit = chamber.string("unit") if "unit" in chamber else (signal.unit or "")
     in_Pa = chamber_unit(unit)
     if in_Pa is None:
@@ -542,7 +597,7 @@ def _chamber(
             raise chamber.error(
                 "status", f"must be a signal of {message.name}, the chamber's own message"
             )
-        if not _in_frames_of(message, status_signal, _mux_ids(message, signal_name)):
+        if not _in_frames_of(message, status_signal, mux_ids):
             raise chamber.error(
                 "status",
                 f"{status_signal} is sent under another multiplexer value than {signal_name}",
@@ -561,11 +616,61 @@ def _chamber(
         unit=unit,
         status=status,
         cycle_time_s=_cycle_time_s(chamber, signal_key, message, source_address, cycle_times_ms),
-        mux_ids=_mux_ids(message, signal_name),
+        mux_ids=mux_ids,
+        page=page,
         range_Pa=(low * factor - atmosphere_Pa, high * factor - atmosphere_Pa),
         named_Pa={name: value * factor - atmosphere_Pa for name, value in named.items()},
         atmosphere_Pa=atmosphere_Pa,
     )
+
+
+def _page(
+    table: TomlTable, key: str, message: Message, signal_name: str
+) -> tuple[tuple[int, ...] | None, tuple[str, frozenset[int | str]] | None]:
+    """A chamber's multiplexer values (:attr:`ChamberSignal.mux_ids`) and page
+    (:attr:`ChamberSignal.page`): its ``multiplexer`` (a number, or a name of the
+    multiplexer's value table) where the signal is under several multiplexer values,
+    which it must then name: an I/O module sends one channel per page in the same
+    signal, and a chamber reading every page read four sensors in turn as one."""
+    own = _mux_ids(message, signal_name)
+    signal = message.get_signal_by_name(signal_name)
+    if "multiplexer" not in table:
+        if own is not None and len(own) > 1:
+            raise table.error(
+                key,
+                f"{message.name}.{signal_name} is sent under {signal.multiplexer_signal} = "
+                f"{', '.join(map(str, own))}, a value on each page: set multiplexer = the "
+                "page of this chamber's",
+            )
+        return own, None
+    if own is None or signal.multiplexer_signal is None:
+        raise table.error("multiplexer", f"{message.name}.{signal_name} is not under a multiplexer")
+    choices: Mapping[int, object] = (
+        message.get_signal_by_name(signal.multiplexer_signal).choices or {}
+    )
+    value = table.data["multiplexer"]
+    by_name = {str(name): int(raw) for raw, name in choices.items()}
+    page = by_name.get(value) if isinstance(value, str) else value
+    if isinstance(page, bool) or not isinstance(page, int) or page not in own:
+        names = [f"{raw} ({choices[raw]})" if raw in choices else str(raw) for raw in own]
+        raise table.error(
+            "multiplexer",
+            f"{value!r} is no page of {message.name}.{signal_name}: it is sent under "
+            f"{signal.multiplexer_signal} = {', '.join(names)}",
+        )
+    if len(own) == 1:  # the only page it is on: every frame carrying it is that page
+        return own, None
+    decoded: set[int | str] = {page}
+    if page in choices:
+        decoded.add(str(choices[page]))
+    return (page,), (signal.multiplexer_signal, frozenset(decoded))
+
+
+def _enumerated(signal: Signal) -> bool:
+    """``signal``'s value table names every raw value its bits hold: an enumeration (a
+    status, a mode), never a measurement."""
+    choices: Mapping[int, object] = signal.choices or {}
+    return not signal.is_float and signal.length <= 16 and len(choices) >= 1 << signal.length
 
 
 def _mux_ids(message: Message, signal_name: str) -> tuple[int, ...] | None:
@@ -780,7 +885,8 @@ def _message(table: TomlTable, key: str, name: str, database: Database) -> Messa
     try:
         message = database.get_message_by_name(name)
     except KeyError:
-        raise table.error(key, f"no message {name!r} in the DBC") from None
+        hint = did_you_mean(name, (message.name for message in database.messages))
+        raise table.error(key, f"no message {name!r} in the DBC{hint}") from None
     problem = unsound(message)  # a message cantools' checks refused (see dbc.database)
     if problem is not None:
         raise table.error(key, f"message {name} of the DBC: {problem}")
@@ -829,7 +935,7 @@ def _protection(
         raise table.error("", "names neither a counter nor a crc signal")
     for key in ("counter", "crc"):
         if key in table and table.string(key) not in signals:
-            raise table.error(key, f"no signal {table.string(key)!r} in message {name} of the DBC")
+            raise table.error(key, _no_signal(table.string(key), message, database))
     counter = table.string("counter") if "counter" in table else None
     crc = table.string("crc") if "crc" in table else None
     algorithm_name = table.string("crc_algorithm", DEFAULT_CRC_ALGORITHM)

@@ -24,7 +24,7 @@ bridge sends all of them (the others only it uses; the service publishes them un
 """
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -46,6 +46,42 @@ BASE_SIGNAL_KEYS = ("inclination", "piston", "rod", "status")
 #: The simulation's bases, in order: what ``[signals.bases.<BASE>]`` is called without
 #: ``[stability]``, and the prefix of the default names (``INCL_SB1_pPiston``, ...).
 SIMULATED_BASES: tuple[str, str] = ("SB1", "SB2")
+#: The movement phases, numbered as in the project DBC's ``Machine_Phase`` value table.
+PHASES = ("idle", "move_carriage", "fold", "rotate", "unfold")
+
+
+def phase_values(choices: Mapping[int, object] | None) -> tuple[str | int, ...]:
+    """What the phase signal carries for each of :data:`PHASES`: the phase's name where
+    the signal's value table (``choices``) has it, else its number (0..4), which a DBC
+    may name otherwise (``0 "Ruhe"``) or not at all. The simulator bridge sends these.
+
+    >>> phase_values({0: "idle", 1: "move_carriage", 2: "fold", 3: "rotate", 4: "unfold"})
+    ('idle', 'move_carriage', 'fold', 'rotate', 'unfold')
+    >>> phase_values({0: "Ruhe", 1: "Laufkatze"})
+    (0, 1, 2, 3, 4)
+    """
+    names = {str(name) for name in (choices or {}).values()}
+    return tuple(phase if phase in names else index for index, phase in enumerate(PHASES))
+
+
+def phase_meanings(choices: Mapping[int, object] | None) -> dict[str, str]:
+    """The movement phase of each value of the phase signal, by its text as decoded (a
+    value-table name, or the number): the inverse of :func:`phase_values`.
+
+    >>> phase_meanings({0: "Ruhe", 1: "Laufkatze"})["Laufkatze"], phase_meanings(None)["3"]
+    ('move_carriage', 'rotate')
+    """
+    named = {int(number): str(name) for number, name in (choices or {}).items()}
+    meanings: dict[str, str] = {}
+    for phase, value in zip(PHASES, phase_values(choices), strict=True):
+        if isinstance(value, str):
+            meanings.setdefault(value, phase)
+        elif value in named:
+            meanings.setdefault(named[value], phase)
+        else:  # decoded as a number: an integer, or a float where the signal scales
+            meanings.setdefault(str(value), phase)
+            meanings.setdefault(str(float(value)), phase)
+    return meanings
 
 
 def base_defaults(base: str) -> dict[str, str]:

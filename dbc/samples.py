@@ -50,6 +50,8 @@ class _Route:
     signal: ChamberSignal
     #: The leg's sample is made when this chamber's value arrives.
     triggers: bool
+    #: The chamber's page (:attr:`~dbc.machine.ChamberSignal.page`); None: any frame.
+    page: tuple[str, frozenset[int | str]] | None
 
 
 @dataclass(frozen=True, slots=True)
@@ -70,10 +72,14 @@ class LegSampler:
         self._routes: dict[str, list[_Route]] = {}
         for leg in legs.values():
             piston, rod = leg.piston, leg.rod
-            if (piston.message, piston.source_address, piston.mux_ids) == (
+            # A chamber on one page of a signal sent on several (an I/O module's channels)
+            # goes by route, which looks at the page; the usual pairs need not.
+            if (piston.message, piston.source_address, piston.mux_ids, None, None) == (
                 rod.message,
                 rod.source_address,
                 rod.mux_ids,
+                piston.page,
+                rod.page,
             ):
                 statuses = tuple(
                     dict.fromkeys(s for s in (piston.status, rod.status) if s is not None)
@@ -93,7 +99,7 @@ class LegSampler:
             for chamber in TRIGGERS:
                 signal: ChamberSignal = getattr(leg, chamber)
                 self._routes.setdefault(signal.message, []).append(
-                    _Route(leg, chamber, signal, chamber == leg.trigger)
+                    _Route(leg, chamber, signal, chamber == leg.trigger, signal.page)
                 )
         self._latest: dict[tuple[str, str], _Reading] = {}
 
@@ -137,7 +143,12 @@ class LegSampler:
         ]
         if not senders and not by_sender:
             return None
-        matched = [route for route in by_sender if route.signal.signal in signals]
+        matched = [
+            route
+            for route in by_sender
+            if route.signal.signal in signals
+            and (route.page is None or signals.get(route.page[0]) in route.page[1])
+        ]
         for route in matched:
             status = route.signal.status
             chamber_faults = _with_status(faults, (status,) if status else (), signals)

@@ -10,7 +10,6 @@ it. SIGINT and SIGTERM stop the run after the current instant and close everythi
 exit status 2; so does bad usage (argparse).
 """
 
-import json
 import logging
 import signal
 import sys
@@ -136,35 +135,42 @@ def _open_frames_log(path: Path) -> MessageWriter:
 
 
 def zenoh_config(options: ZenohOptions) -> Any:
-    """A ``zenoh.Config`` from the options, as zenoh-python's examples build it."""
+    """A ``zenoh.Config`` from the options, as zenoh-python's examples build it; a file or
+    value Zenoh refuses is one line naming the option that gave it."""
     import zenoh
 
-    try:
-        if options.config_path is not None:
-            config = zenoh.Config.from_file(str(options.config_path))
-        else:
-            config = zenoh.Config()
-        if options.mode is not None:
-            config.insert_json5("mode", json.dumps(options.mode))
-        if options.connect:
-            config.insert_json5("connect/endpoints", json.dumps(list(options.connect)))
-        if options.listen:
-            config.insert_json5("listen/endpoints", json.dumps(list(options.listen)))
-        if options.no_multicast_scouting:
-            config.insert_json5("scouting/multicast/enabled", json.dumps(False))
-    except Exception as exc:  # zenoh.ZError and friends
-        raise ConfigError(options.config_path or "--zenoh", "", f"bad Zenoh config: {exc}") from exc
+    from dbc.zenoh_config import put, read_config_file  # Zenoh loads only with --zenoh
+
+    if options.config_path is not None:
+        config = read_config_file(options.config_path, "--zenoh-config")
+    else:
+        config = zenoh.Config()
+    if options.mode is not None:
+        put(config, "mode", options.mode, source="--mode")
+    if options.connect:
+        put(config, "connect/endpoints", list(options.connect), source="--connect")
+    if options.listen:
+        put(config, "listen/endpoints", list(options.listen), source="--listen")
+    if options.no_multicast_scouting:
+        put(config, "scouting/multicast/enabled", False, source="--no-multicast-scouting")
     return config
 
 
 def _open_zenoh(options: ZenohOptions) -> Any:
     import zenoh
 
+    from dbc.zenoh_config import one_line
+
     config = zenoh_config(options)
     try:
         return zenoh.open(config)
-    except Exception as exc:  # zenoh.ZError
-        raise ConfigError("--zenoh", "", f"cannot open a Zenoh session: {exc}") from exc
+    except zenoh.ZError as exc:
+        raise ConfigError(
+            "--zenoh",
+            "",
+            f"cannot open a Zenoh session: {one_line(str(exc))}; check --connect, --listen "
+            "and --mode: is the service or router there, is a --listen port taken?",
+        ) from exc
 
 
 @contextmanager

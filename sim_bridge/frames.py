@@ -117,6 +117,9 @@ class _ChamberSignals:
     #: The leg's sample is made when this chamber's value arrives (its trigger chamber).
     triggers: bool
     pressure: Signal
+    #: The multiplexer values of the frames carrying this chamber (its signal's, or the
+    #: one page the config's ``multiplexer`` names); None: every frame.
+    pages: tuple[int, ...] | None
     #: Factor from the pressure signal's DBC unit to Pa.
     to_Pa: float
     #: Added to the simulation's gauge pressure: the atmosphere, for an absolute
@@ -383,6 +386,7 @@ def _chamber_signals(
         chamber=chamber,
         triggers=chamber == leg.trigger,
         pressure=message.get_signal_by_name(mapped.signal),
+        pages=mapped.mux_ids,
         to_Pa=in_Pa[0],
         atmosphere_Pa=mapped.atmosphere_Pa,
         status=message.get_signal_by_name(status.signal) if status is not None else None,
@@ -402,7 +406,11 @@ def _plan(
     """What the frames of one sender carry: ``page``'s signals (None: all) of ``message``
     from ``source_address``; ``getters`` by signal name, or by ``MESSAGE.SIGNAL``;
     ``to_si``: the factors the encoder converts this sender's signals by."""
-    mine = tuple(chamber for chamber in chambers if on_page(chamber.pressure, page))
+    mine = tuple(
+        chamber
+        for chamber in chambers
+        if page is None or chamber.pages is None or page in chamber.pages
+    )
     taken = {s.name for c in mine for s in (c.pressure, c.status) if s is not None}
     if protection is not None:
         taken |= {name for name in (protection.counter, protection.crc) if name is not None}

@@ -13,8 +13,9 @@ from cantools.database.can import Database, Signal
 
 from dbc.decoding import SignalValue
 from dbc.machine import MachineConfig, SignalRef
+from dbc.machine_signals import phase_values
 from dbc.units import angle_factor_to_rad
-from sim_bridge.result import LEGS, PHASES, SimulationResult
+from sim_bridge.result import LEGS, SimulationResult
 
 #: A signal's value at one row: (result, row, completed cycles) -> physical value or name.
 Getter = Callable[[SimulationResult, int, int], SignalValue]
@@ -50,14 +51,13 @@ def in_angle_unit(signal: Signal, getter: Getter) -> Getter:
 
 
 def phase_getter(signal: Signal) -> Getter:
-    """The phase by its value-table name when the DBC's table has the names, else its index."""
-    names = {str(choice) for choice in (signal.choices or {}).values()}
+    """The phase by its value-table name when the DBC's table has the names, else its
+    index (:func:`dbc.machine_signals.phase_values`)."""
+    values = phase_values(signal.choices)
 
     def phase(result: SimulationResult, row: int, cycle: int) -> SignalValue:
         index = int(result.phase[row])
-        if 0 <= index < len(PHASES) and PHASES[index] in names:
-            return PHASES[index]
-        return index
+        return values[index] if 0 <= index < len(values) else index
 
     return phase
 

@@ -7,6 +7,7 @@ import numpy as np
 import numpy.typing as npt
 
 from dbc.machine import SIMULATED_LEGS
+from dbc.machine_signals import PHASES as PHASES  # the movement phases, as the DBC numbers them
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -15,8 +16,6 @@ FloatArray = npt.NDArray[np.float64]
 LEGS = SIMULATED_LEGS
 #: Base order of the per-base columns.
 BASES = ("SB1", "SB2")
-#: Movement phases, numbered as in the DBC's Machine_Phase value table.
-PHASES = ("idle", "move_carriage", "fold", "rotate", "unfold")
 
 
 def leg_column(leg: str, columns: Mapping[str, int] | None = None) -> int:

@@ -13,6 +13,8 @@ from dbc.machine import MachineConfig, load_machine_config
 
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLE_CONFIG = ROOT / "deploy" / "machine.example.toml"
+#: The service config of the default machine (what `portal-daq init` writes).
+EXAMPLE_SERVICE_CONFIG = ROOT / "deploy" / "portal-daq.example.toml"
 FILES = Path(__file__).resolve().parent / "files"
 LEGS = ("SB1_F1", "SB1_F2", "SB1_F3", "SB2_F1", "SB2_F2", "SB2_F3")
 #: Vector's frame formats: ``BA_ "VFrameFormat" BO_ <id> 3;`` is J1939, 14 and 15 CAN FD.

@@ -59,7 +59,7 @@ def calibrate_main(args: Sequence[str]) -> int:
     except (PortalDaqError, OSError) as exc:
         return fail(exc, 1)
     if not len(instants.t_s):
-        return fail("no quasi-static instant with every leg valid: nothing to calibrate", 1)
+        return fail(f"{instants.why_none()}: nothing to calibrate", 1)
     config = machine[0]
     geometry = [config.legs[leg].geometry for leg in instants.legs]
     lever = np.column_stack(

@@ -13,7 +13,7 @@ directories given (a rotated run's files chained in the order of the run, as rep
 report read them).
 """
 
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -28,6 +28,7 @@ from daq.replay import Machine, embedded_machine, is_can_log, recording_results
 from daq.report.tracks import StateRow, StateSignals, StateTrack
 from dbc.errors import ConfigError
 from dbc.machine import load_machine_config
+from dbc.machine_signals import phase_meanings
 from estimator.calibration import Snapshots, quasi_static, snapshots
 from estimator.leg import LegEstimate
 
@@ -39,7 +40,8 @@ WINDOW = 5
 MAX_CHANGE_N = 5000.0
 #: Movement phases in which no leg stroke or fold moves; others are left out (cylinder
 #: friction and inertia break the balance there). A recording without machine state
-#: is judged on the forces alone.
+#: is judged on the forces alone. A DBC that names the phases otherwise (``0 "Ruhe"``)
+#: or not at all is read by their numbers (:func:`dbc.machine_signals.phase_meanings`).
 STILL_PHASES = ("idle", "move_carriage", "rotate")
 
 
@@ -52,8 +54,27 @@ class Instants:
     #: Filtered forces as recorded (the configured calibration applied).
     force_N: npt.NDArray[np.float64]
     contact: npt.NDArray[np.bool_]
-    #: Snapshots read in all, and how many of them were quasi-static.
+    #: Snapshots read in all.
     total: int
+    #: Of them, those with every leg valid and steady, in any phase.
+    steady: int
+    #: The movement phases seen (as decoded, in the order first seen; empty without
+    #: machine state), and those of them that are still.
+    phases: tuple[str, ...] = ()
+    still_phases: tuple[str, ...] = ()
+
+    def why_none(self) -> str:
+        """Why there is no instant (:attr:`t_s` empty), for the user."""
+        if not self.steady:
+            return (
+                f"no quasi-static instant: none of {self.total} snapshots had every leg "
+                f"valid and steady"
+            )
+        return (
+            f"no quasi-static instant: {self.steady} of {self.total} snapshots had every leg "
+            f"valid and steady, none in a still movement phase ({', '.join(STILL_PHASES)}; "
+            f"the machine state said {', '.join(self.phases)})"
+        )
 
 
 def machine_for(paths: Sequence[Path], config_path: Path | None) -> Machine:
@@ -81,8 +102,10 @@ def read_instants(paths: Sequence[Path], machine: Machine, channel: str | None =
     ``channel``'s frames when it is given)."""
     legs = tuple(machine[0].legs)
     parts: list[Snapshots] = []
-    total = 0
+    total = steady = 0
+    phases: dict[str, None] = {}
     config = machine[0]
+    meanings = _phase_meanings(machine)
     # A leg is stale as in the service: after stale_after_cycles of its cycle times.
     stale_s = config.estimator.stale_after_cycles * max(
         leg.cycle_time_s for leg in config.legs.values()
@@ -91,9 +114,12 @@ def read_instants(paths: Sequence[Path], machine: Machine, channel: str | None =
         snaps, states = _replayed(files, machine, channel, stale_s)
         if not len(snaps.t_s):
             raise RecordingError(files[0], "no leg estimates: no leg frames to replay")
-        still = _still(states, snaps.t_s)
-        keep = quasi_static(snaps, WINDOW, MAX_CHANGE_N) & still
+        still = _still(states, snaps.t_s, meanings)
+        steady_here = quasi_static(snaps, WINDOW, MAX_CHANGE_N)
+        keep = steady_here & still
         total += len(snaps.t_s)
+        steady += int(steady_here.sum())
+        phases.update(dict.fromkeys(phase for _, _, _, phase in states))
         parts.append(
             Snapshots(
                 legs, snaps.t_s[keep], snaps.force_N[keep], snaps.valid[keep], snaps.contact[keep]
@@ -105,7 +131,20 @@ def read_instants(paths: Sequence[Path], machine: Machine, channel: str | None =
         force_N=np.vstack([p.force_N for p in parts]),
         contact=np.vstack([p.contact for p in parts]),
         total=total,
+        steady=steady,
+        phases=tuple(phases),
+        still_phases=tuple(phase for phase in phases if meanings.get(phase) in STILL_PHASES),
     )
+
+
+def _phase_meanings(machine: Machine) -> dict[str, str]:
+    """The movement phase of each decoded value of the machine's phase signal."""
+    config, database = machine
+    ref = config.signals.phase
+    if ref is None:
+        return {}
+    signal = database.get_message_by_name(ref.message).get_signal_by_name(ref.signal)
+    return phase_meanings(signal.choices)
 
 
 def recordings(paths: Sequence[Path]) -> list[list[Path]]:
@@ -138,11 +177,14 @@ def _replayed(
     return snapshots(estimates(), tuple(machine[0].legs), PERIOD_S, stale_s), states
 
 
-def _still(rows: Sequence[StateRow], t_s: npt.NDArray[np.float64]) -> npt.NDArray[np.bool_]:
-    """True at the times whose movement phase (the latest machine state before) is still."""
+def _still(
+    rows: Sequence[StateRow], t_s: npt.NDArray[np.float64], meanings: Mapping[str, str]
+) -> npt.NDArray[np.bool_]:
+    """True at the times whose movement phase (the latest machine state before) is still;
+    ``meanings``: the phase each decoded value stands for."""
     if not rows:
         return np.ones(t_s.shape, dtype=bool)
     state = StateTrack.of(rows)
     latest = np.searchsorted(state.t_s, t_s, side="right") - 1
-    phases = np.array(state.phase)
+    phases = np.array([meanings.get(phase, "") for phase in state.phase])
     return (latest >= 0) & np.isin(phases[np.maximum(latest, 0)], STILL_PHASES)

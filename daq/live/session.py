@@ -15,7 +15,6 @@ an endpoint that is not up yet (every second at most), so a viewer may start
 before the service.
 """
 
-import json
 import re
 from collections.abc import Sequence
 from typing import Any
@@ -23,14 +22,8 @@ from typing import Any
 import zenoh
 
 from daq.service_config import ZenohSettings
-from daq.zenoh_session import (
-    config_value,
-    endpoints,
-    one_line,
-    open_config_session,
-    zenoh_config,
-)
-from dbc.errors import ConfigError
+from daq.zenoh_session import config_value, endpoints, open_config_session, zenoh_config
+from dbc.zenoh_config import put
 
 #: The viewer's own listener when none is given.
 VIEWER_LISTEN = "tcp/127.0.0.1:0"
@@ -89,13 +82,10 @@ def viewer_zenoh_config(
         "listen/endpoints": "--listen" if listen else "",
     }
     for key, value in overrides.items():
-        try:
-            config.insert_json5(key, json.dumps(value))
-        except zenoh.ZError as exc:
-            reason = one_line(str(exc))
-            if options.get(key):
-                raise ConfigError(options[key], "", reason) from exc
-            raise ConfigError(source, f"zenoh.{key.split('/')[0]}", reason) from exc
+        if options.get(key):
+            put(config, key, value, source=options[key])
+        else:
+            put(config, key, value, source=source, name=f"zenoh.{key.split('/')[0]}")
     return config
 
 

@@ -274,6 +274,63 @@ def test_calibrate_from_one_bus_of_a_log_of_two(
     )
 
 
+@pytest.mark.parametrize(
+    "table",
+    [
+        'VAL_ 304 Machine_Phase 0 "Ruhe" 1 "Laufkatze" 2 "Falten" 3 "Drehen" 4 "Entfalten" ;',
+        "",  # no value table: the phase is its number
+    ],
+    ids=["named-otherwise", "numbers"],
+)
+def test_the_still_phases_are_found_by_number_in_a_dbc_that_names_them_otherwise(
+    walk: Recorded, tmp_path: Path, table: str
+) -> None:
+    """A DBC whose phase table says ``0 "Ruhe"`` (or has none) had no still phase for the
+    calibration, which compared the names with ``idle``: no instant, and the command
+    said "no quasi-static instant with every leg valid" of legs all valid. The phases
+    are read by their numbers there, as the simulator bridge sends them."""
+    from daq.export import export
+
+    log = tmp_path / "walk.log"
+    assert export([walk.path], log, "candump") > 0
+    project = DEFAULT_DBC_PATH.read_text()
+    named = 'VAL_ 304 Machine_Phase 0 "idle" 1 "move_carriage" 2 "fold" 3 "rotate" 4 "unfold" ;'
+    assert named in project
+    (tmp_path / "machine.dbc").write_text(project.replace(named, table))
+    config_path = tmp_path / "machine.toml"
+    config_path.write_text(
+        walk.config_path.read_text().replace("[machine]\n", '[machine]\ndbc = "machine.dbc"\n', 1)
+    )
+    machine = load_machine_config(config_path)
+    expected = read_instants([log], load_machine_config(walk.config_path))
+    instants = read_instants([log], machine)
+    assert len(expected.t_s) > 100
+    np.testing.assert_array_equal(instants.t_s, expected.t_s)
+    assert expected.still_phases == ("idle", "move_carriage", "rotate")
+    assert set(instants.still_phases) == (
+        {"Ruhe", "Laufkatze", "Drehen"} if table else {"0", "1", "3"}
+    )
+
+
+def test_no_instant_says_whether_the_legs_or_the_phases_kept_them_out() -> None:
+    """Steady instants in no still phase are told apart from legs never valid and steady."""
+    from daq.calibrate.data import Instants
+
+    empty = np.empty(0)
+    kept_out = Instants(
+        ("A",), empty, empty.reshape(0, 1), empty.reshape(0, 1) > 0, 901, 240, ("fold", "unfold")
+    )
+    assert kept_out.why_none() == (
+        "no quasi-static instant: 240 of 901 snapshots had every leg valid and steady, none "
+        "in a still movement phase (idle, move_carriage, rotate; the machine state said "
+        "fold, unfold)"
+    )
+    never = dataclasses.replace(kept_out, steady=0)
+    assert never.why_none() == (
+        "no quasi-static instant: none of 901 snapshots had every leg valid and steady"
+    )
+
+
 def test_calibrate_refuses_an_output_that_names_a_recording(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

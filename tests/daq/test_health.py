@@ -8,7 +8,7 @@ from pathlib import Path
 
 import zenoh
 
-from daq.service import problems, status_line
+from daq.service import losses, problems, status_line
 from daq.service_config import load_service_config
 from daq.zenoh_links import unreached
 from tests.daq.service_support import (
@@ -20,37 +20,71 @@ from tests.daq.service_support import (
     write_service_config,
 )
 from tests.daq.test_service_live import encoder_for, live_service, sender, zenoh_port
+from tests.daq.test_service_watchdog import wait_until
 
 
 def status(**changes: object) -> dict:  # type: ignore[type-arg]
     base = {
         "dropped": {"rx": 0, "publish": 0, "record": 0},
-        "recording": {"failing": False},
+        "recording": {"failing": False, "failed_items": 0},
         "zenoh": {"unreached": []},
     }
     return base | changes
 
 
 def test_healthy_when_nothing_is_wrong() -> None:
-    assert problems(status(), alive=True, dropped_before={}, silent_s=0.0, silence_s=1.0) == []
+    assert problems(status(), alive=True, lost_before={}, silent_s=0.0, silence_s=1.0) == []
 
 
 def test_any_drop_in_the_period_is_a_problem_whatever_its_key() -> None:
     now = status(dropped={"rx": 3, "publish": 0, "record": 7, "kernel": 2})
-    before = {"rx": 3, "publish": 0, "record": 5}
-    found = problems(now, alive=True, dropped_before=before, silent_s=0.0, silence_s=1.0)
+    before = {"dropped.rx": 3, "dropped.publish": 0, "dropped.record": 5}
+    found = problems(now, alive=True, lost_before=before, silent_s=0.0, silence_s=1.0)
     assert found == ["dropped.record +2", "dropped.kernel +2"]
 
 
 def test_failing_recorder_hung_thread_unreached_endpoint_and_silence() -> None:
-    now = status(recording={"failing": True}, zenoh={"unreached": ["tcp/10.0.0.9:7447"]})
-    found = problems(now, alive=False, dropped_before={}, silent_s=2.5, silence_s=1.0)
+    now = status(
+        recording={"failing": True, "failed_items": 0}, zenoh={"unreached": ["tcp/10.0.0.9:7447"]}
+    )
+    found = problems(now, alive=False, lost_before={}, silent_s=2.5, silence_s=1.0)
     assert found == [
         "a service thread hangs or died",
         "recording stopped (write error)",
         "zenoh connect tcp/10.0.0.9:7447 not reached",
         "no frame for 2.5 s",
     ]
+
+
+def test_an_item_the_recorder_skipped_is_a_loss_as_a_drop_is() -> None:
+    # recording.failed_items (an item whose writing raised) was shown but left the
+    # status healthy: the item is missing from the file as surely as a dropped one.
+    before = losses(status(recording={"failing": False, "failed_items": 2}))
+    now = status(recording={"failing": False, "failed_items": 5})
+    found = problems(now, alive=True, lost_before=before, silent_s=0.0, silence_s=1.0)
+    assert found == ["recording.failed_items +3"]
+    assert problems(now, alive=True, lost_before=losses(now), silent_s=0.0, silence_s=1.0) == []
+
+
+def test_messages_zenoh_failed_to_put_are_counted_and_unhealthy(tmp_path: Path) -> None:
+    # A put that raised (here: the session closed under the service) was counted only in
+    # the publisher (ZenohPublisher.errors), never shown: /status said healthy while no
+    # estimate reached Zenoh.
+    path = write_service_config(
+        tmp_path, channel=f"test-{uuid.uuid4().hex}", port=free_port(), status_period_s=3600.0
+    )
+    config = load_service_config(path)
+    with live_service(config) as service, sender(config) as bus:
+        first = service.status()
+        service.session.close()
+        for message in leg_messages(encoder_for(config), 2, time.time()):
+            bus.send(message)
+        wait_until(lambda: service.publisher.errors >= 12)  # two estimates of six legs
+        now = service.status()
+    assert first["dropped"]["publish_failed"] == 0
+    failed = now["dropped"]["publish_failed"]
+    assert failed >= 12 and now["healthy"] is False
+    assert f"dropped.publish_failed +{failed}" in now["problems"]
 
 
 def test_status_line_says_the_same() -> None:

@@ -95,7 +95,7 @@ def test_kernel_drops_show_on_status_and_make_only_that_period_unhealthy(
     with service_on(config, source) as service:
         # The loop's first status must be behind us: taken after the drops, it took their
         # period and the test's own call below found it healthy (a race, seen once).
-        wait_until(lambda: service._dropped_mark)
+        wait_until(lambda: service._lost_mark)
         before = service.status()
         source.frames.put((RawFrame(time.time(), 0x7AA, False, b""), 0))
         source.frames.put((RawFrame(time.time(), 0x7AA, False, b""), 7))

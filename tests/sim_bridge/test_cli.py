@@ -4,6 +4,7 @@ import csv
 import os
 import re
 import signal
+import socket
 import subprocess
 import sys
 import uuid
@@ -17,7 +18,7 @@ from dbc.decoding import FrameDecoder
 from sim_bridge.__main__ import cli
 from sim_bridge._args import BridgeOptions, parse_args
 from sim_bridge.faults import FaultWindow
-from tests.helpers import EXAMPLE_CONFIG, ROOT
+from tests.helpers import EXAMPLE_CONFIG, EXAMPLE_SERVICE_CONFIG, ROOT
 from tests.sim_bridge.synthetic import CONFIG, DATABASE, make_result, write_export
 
 
@@ -108,6 +109,34 @@ def test_bad_input_is_one_line_on_stderr_and_status_2(
     assert cli(args) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and expected in err[0] and err[0].startswith("sim_bridge: "), err
+
+
+def closed_port() -> int:
+    with socket.socket() as sock:  # bound, never listening: a connect is refused
+        sock.bind(("127.0.0.1", 0))
+        return int(sock.getsockname()[1])
+
+
+@pytest.mark.parametrize(
+    ("extra", "expected"),
+    [
+        (["--connect", "nonsense"], "sim_bridge: --connect: Endpoints must be of the form "),
+        (["--zenoh-config", "nothere.json5"], "sim_bridge: nothere.json5: no such file; give "),
+        (["--zenoh-config", str(EXAMPLE_SERVICE_CONFIG)], "config: TOML: unknown field `bus`"),
+        (["--mode", "client", "--connect", "tcp/127.0.0.1:PORT"], "Unable to connect to any of"),
+    ],
+)
+def test_a_zenoh_option_refused_is_one_line_naming_it(
+    export: list[str], extra: list[str], expected: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # They were Zenoh's own words, with the Rust source line of each error, blamed on
+    # --zenoh, and the whole service config (10 KB) given as --zenoh-config.
+    extra = [arg.replace("PORT", str(closed_port())) for arg in extra]
+    args = [*virtual(f"cli-{uuid.uuid4()}"), *export, "--as-fast-as-possible", "--zenoh", *extra]
+    assert cli(args) == 2
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert expected in line and ".rs:" not in line and "Single(" not in line, line
+    assert len(line) < 500, line
 
 
 def test_a_bad_mapping_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
