@@ -681,3 +681,31 @@ def test_an_asc_logs_controller_states_are_error_frames_and_its_tx_requests_no_f
     caplog.clear()
     assert [f.is_error_frame for f in can_log_frames(log, "0")] == [False, True]
     assert "reported receive queue overrun 1: each" in caplog.text
+
+
+def test_a_sensor_silent_for_a_while_or_never_heard_is_in_the_reports_header(
+    tmp_path: Path,
+) -> None:
+    """A transducer silent for 0.4 s (a loose connector, a reboot) left no estimate, and
+    the header said "invalid estimates by reason: none", "frames lost: 0": only a gap in
+    a picture told it. One that never spoke was not named at all."""
+    from daq.report.content import analyse
+    from daq.report.loading import load_recording
+    from daq.report.page import header_rows
+
+    log = sim_log(tmp_path)
+    lines = log.read_text().splitlines()
+    t0 = float(lines[0][1 : lines[0].index(")")])
+
+    def kept(line: str) -> bool:
+        t_s = float(line[1 : line.index(")")]) - t0
+        frame_id = line.split()[2].split("#")[0]
+        return not (frame_id == "102" and 0.3 < t_s < 0.7) and frame_id != "105"
+
+    log.write_text("".join(f"{line}\n" for line in lines if kept(line)))
+    rows = dict(header_rows(analyse(load_recording(log, EXAMPLE_CONFIG))))
+    silent = rows["legs silent (no estimate for longer than the stale time)"]
+    assert silent == "SB1_F3 1x, 0.40 s, SB2_F3 1x, 0.99 s", silent  # the whole log
+    whole = load_recording(sim_log(tmp_path, "whole.log"), EXAMPLE_CONFIG)
+    whole_rows = dict(header_rows(analyse(whole)))
+    assert whole_rows["legs silent (no estimate for longer than the stale time)"] == "none"
