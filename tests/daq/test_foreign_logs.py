@@ -59,6 +59,29 @@ def test_an_asc_log_with_relative_timestamps_counts_them_from_the_start(tmp_path
     assert [f.t_s for f in can_log_frames(absolute)] == [0.010, 0.010, 0.005]
 
 
+def test_a_relative_asc_logs_times_count_the_steps_of_lines_that_are_no_frame(
+    tmp_path: Path,
+) -> None:
+    """Each time is the step since the line before, a statistic's, a status's, a
+    transmit request's too: summing the frames' steps alone put every frame after such a
+    line early (here by 0.5 s, 0.25 s and 1 us)."""
+    lines = ASC_RELATIVE.splitlines(keepends=True)
+    lines[6:6] = [
+        "   0.500000 2  Statistic: D 100 R 0 XD 0 XR 0 E 0 O 0 B 12.50%\n",
+        "   0.250000 CAN 2 Status:chip status error passive - TxErr: 132 RxErr: 0\n",
+        "   0.000001 2  100             TxRq d 8 00 00 00 00 00 00 00 00\n",
+    ]
+    log = tmp_path / "relative.asc"
+    log.write_text("".join(lines))
+    frames = list(can_log_frames(log))
+    assert [(f.t_s, f.is_error_frame) for f in frames] == [
+        (pytest.approx(0.010, abs=1e-9), False),
+        (pytest.approx(0.760, abs=1e-9), True),
+        (pytest.approx(0.770001, abs=1e-9), False),
+        (pytest.approx(0.775001, abs=1e-9), False),
+    ]
+
+
 def test_candump_error_frames_keep_to_the_channel_asked_and_are_counted(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], caplog: pytest.LogCaptureFixture
 ) -> None:
