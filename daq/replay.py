@@ -38,6 +38,7 @@ from can.io.generic import BinaryIOMessageReader, MessageReader, TextIOMessageRe
 from can.io.player import MESSAGE_READERS
 from cantools.database.can import Database
 
+from daq.blf_log import BlfReader
 from daq.can_batch import recorded_frames
 from daq.candump_text import CandumpReader
 from daq.errors import RecordingError
@@ -348,7 +349,7 @@ def can_log_frames(path: Path, channel: str | None = None) -> Iterator[RawFrame 
                 raise RecordingError(path, f"unreadable after frame {count}: {reason}") from exc
     if isinstance(reader, CandumpReader) and reader.dropped_frames != dropped:  # at the end
         yield _loss(t_s, reader.dropped_frames - dropped)
-    if isinstance(reader, AscReader | TrcReader):
+    if isinstance(reader, AscReader | TrcReader | BlfReader):
         _log_controller_events(path, reader.controller_events, channel)
     if count == 0 and (hint := _what_it_looks_like(path)):  # an ASC reader skips every line
         suffix = _log_suffix(path)[0]
@@ -444,8 +445,9 @@ def blf_cut(path: Path, reader: MessageReader) -> str | None:
 
 
 #: Our readers where python-can's read a suffix wrongly.
-_OWN_READERS: dict[str, type[TextIOMessageReader]] = {
+_OWN_READERS: dict[str, type[MessageReader]] = {
     ".asc": AscReader,
+    ".blf": BlfReader,
     ".csv": CsvReader,
     ".trc": TrcReader,
     ".log": CandumpReader,
