@@ -15,9 +15,11 @@ pipeline as ``error_frame``, as live):
 
 Everything else (statistics, markers, texts, overload frames, ...) is no frame and is
 passed over as python-can does. The objects between those are still parsed by
-python-can, a container's run at a time; only the objects' headers are walked here.
+python-can, a container's run at a time; only the objects' headers are walked here, and
+only in a container that holds an error object's header (a search in C).
 """
 
+import re
 from collections import Counter
 from collections.abc import Iterator
 from typing import Any
@@ -40,6 +42,11 @@ ERROR_OBJECTS = {
     74: ("CAN_DRIVER_ERROR_EXT", True),
     104: ("CAN_FD_ERROR_64", False),
 }
+#: The header of an error object (signature, header size, version 1 or 2, object size,
+#: type): a container without one is python-can's alone.
+_ERROR_HEADER = re.compile(
+    b"LOBJ..[\x01\x02]\x00....[" + bytes(ERROR_OBJECTS) + b"]\x00\x00\x00", re.DOTALL
+)
 #: The channel's size in each (a WORD, or a BYTE in CAN_FD_ERROR_64).
 _CHANNEL_BYTES = {2: 2, 31: 2, 74: 2, 104: 1}
 
@@ -57,6 +64,9 @@ class BlfReader(can.BLFReader):
         """python-can's parsing of ``data`` (a container's objects) between the error
         objects, which are read here; ``self._pos`` ends where python-can's would (the
         start of an object that continues in the next container)."""
+        if _ERROR_HEADER.search(data) is None:  # the common case, found in C: python-can's
+            yield from super()._parse_data(data)
+            return
         run_start = pos = 0
         while True:
             start = data.find(b"LOBJ", pos, pos + 8)  # after the padding python-can skips
