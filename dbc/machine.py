@@ -19,13 +19,14 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from cantools.database.can import Database, Message
+from cantools.database.can import Database, Message, Signal
 
 from dbc import DEFAULT_DBC_PATH, _across_legs
 from dbc.database import load_database, unsound
 from dbc.decoding import is_j1939, j1939_destination, j1939_pgn
 from dbc.errors import ConfigError
 from dbc.machine_signals import NO_SIGNALS, MachineSignals, parse_signals
+from dbc.names import did_you_mean, messages_with
 from dbc.protection import CRC_ALGORITHMS, DEFAULT_CRC_ALGORITHM, Protection, counter_modulo
 from dbc.signal_range import decoded_bounds, named_values, value_range
 from dbc.stability_config import StabilityConfig, angle_signal, parse_stability
@@ -474,6 +475,15 @@ def _leg(
     if leg_status is not None:
         chambers = _attach_leg_status(table, chambers, leg_status, leg_status_ok)
     piston, rod = chambers["piston"], chambers["rod"]
+    for key, chamber in chambers.items():
+        for other in chambers.values():
+            if other.status is not None and (chamber.message, chamber.signal) == (
+                other.message,
+                other.status.signal,
+            ):  # with a unit, the status' codes were valid pressures
+                raise table.error(
+                    key, f"{chamber.message}.{chamber.signal} is this leg's status, not a pressure"
+                )
     if str(piston) == str(rod):
         # A copy-paste slip, which eq. (4) would turn into p (A_piston - A_rod) silently.
         raise table.error("rod", f"is the piston's signal {piston}; each chamber has its own")
@@ -505,11 +515,32 @@ def _leg(
 def _split_ref(table: TomlTable, key: str, text: str, database: Database) -> tuple[Message, str]:
     message_name, dot, signal_name = text.partition(".")
     if not dot or not message_name or not signal_name:
-        raise table.error(key, f"{text!r} must be written MESSAGE.SIGNAL")
+        raise table.error(key, f"{text!r} must be written MESSAGE.SIGNAL{_written(text, database)}")
     message = _message(table, key, message_name, database)
     if signal_name not in {signal.name for signal in message.signals}:
-        raise table.error(key, f"no signal {signal_name!r} in message {message_name} of the DBC")
+        raise table.error(key, _no_signal(signal_name, message, database))
     return message, signal_name
+
+
+def _written(text: str, database: Database) -> str:
+    """How ``text`` (a name without its message, or a message alone) is written whole."""
+    whole = [f"{message}.{text.strip('.')}" for message in messages_with(database, text.strip("."))]
+    if whole:
+        return f": {', '.join(whole)}"
+    names = {message.name: message for message in database.messages}
+    message = names.get(text.strip("."))
+    if message is not None:
+        return f"; {message.name}'s signals are {', '.join(s.name for s in message.signals)}"
+    return ""
+
+
+def _no_signal(signal: str, message: Message, database: Database) -> str:
+    """Why ``signal`` is not ``message``'s: the messages that do have it, else the names
+    it has that are close."""
+    reason = f"no signal {signal!r} in message {message.name} of the DBC"
+    if elsewhere := messages_with(database, signal):
+        return f"{reason}; it is in {', '.join(elsewhere)}"
+    return reason + did_you_mean(signal, (s.name for s in message.signals))
 
 
 def _signal(table: TomlTable, key: str, database: Database) -> SignalRef:
@@ -535,6 +566,13 @@ def _chamber(
             signal_key,
             f"signal {message.name}.{signal_name} is the message's multiplexer (which page "
             "a frame is), not a pressure",
+        )
+    if _enumerated(signal):  # with a unit, a 2-bit status was a valid 0..3 bar
+        names = ", ".join(f'{raw} "{name}"' for raw, name in sorted((signal.choices or {}).items()))
+        raise chamber.error(
+            signal_key,
+            f"signal {message.name}.{signal_name} names every value it takes ({names}): a "
+            "status, not a pressure",
         )
     mux_ids, page = _page(chamber, signal_key, message, signal_name)
     unit = chamber.string("unit") if "unit" in chamber else (signal.unit or "")
@@ -626,6 +664,13 @@ def _page(
     if page in choices:
         decoded.add(str(choices[page]))
     return (page,), (signal.multiplexer_signal, frozenset(decoded))
+
+
+def _enumerated(signal: Signal) -> bool:
+    """``signal``'s value table names every raw value its bits hold: an enumeration (a
+    status, a mode), never a measurement."""
+    choices: Mapping[int, object] = signal.choices or {}
+    return not signal.is_float and signal.length <= 16 and len(choices) >= 1 << signal.length
 
 
 def _mux_ids(message: Message, signal_name: str) -> tuple[int, ...] | None:
@@ -840,7 +885,8 @@ def _message(table: TomlTable, key: str, name: str, database: Database) -> Messa
     try:
         message = database.get_message_by_name(name)
     except KeyError:
-        raise table.error(key, f"no message {name!r} in the DBC") from None
+        hint = did_you_mean(name, (message.name for message in database.messages))
+        raise table.error(key, f"no message {name!r} in the DBC{hint}") from None
     problem = unsound(message)  # a message cantools' checks refused (see dbc.database)
     if problem is not None:
         raise table.error(key, f"message {name} of the DBC: {problem}")
@@ -889,7 +935,7 @@ def _protection(
         raise table.error("", "names neither a counter nor a crc signal")
     for key in ("counter", "crc"):
         if key in table and table.string(key) not in signals:
-            raise table.error(key, f"no signal {table.string(key)!r} in message {name} of the DBC")
+            raise table.error(key, _no_signal(table.string(key), message, database))
     counter = table.string("counter") if "counter" in table else None
     crc = table.string("crc") if "crc" in table else None
     algorithm_name = table.string("crc_algorithm", DEFAULT_CRC_ALGORITHM)

@@ -1,7 +1,9 @@
 """A chamber naming a signal that is no pressure whatever unit it is given: the message's
 multiplexer (the bridge crashed on it, "Expected multiplexer id in {0, 1, 2 or 3}"), its
 rolling counter or its CRC (0..15 read as a valid pressure in bar, the bridge's counter
-written over the simulated pressure). Each stops the config naming the leg's key."""
+written over the simulated pressure), the leg's status, or a signal whose value table names
+every value it takes (a 2-bit sensor state in kPa was a valid 0..3 kPa). Each stops the
+config naming the leg's key."""
 
 import shutil
 from pathlib import Path
@@ -39,6 +41,21 @@ STRANGER = FILES / "stranger"
             'rod = { signal = "HUB_HINTEN.HUB_HINTEN_CRC", unit = "kPa" }',
             "legs.HR2.rod",
             "HUB_HINTEN.HUB_HINTEN_CRC is [protection.HUB_HINTEN] crc, not a pressure",
+        ),
+        (
+            "zyl4_mbar12",
+            'rod = "HYD_ZYL_VL.HYD_P_ZYL_VL_B"',
+            'rod = { signal = "HYD_ZYL_VL.HYD_ZYL_VL_Zustand", unit = "bar" }',
+            "legs.VL.rod",
+            "HYD_ZYL_VL.HYD_ZYL_VL_Zustand is this leg's status, not a pressure",
+        ),
+        (
+            "xdcr_two_rates",
+            'rod = { signal = "XDCR_ROD.HydPress", source_address = 0x50',
+            'rod = { signal = "XDCR_ROD.SensorState", unit = "kPa", source_address = 0x50',
+            "legs.A1.rod.signal",
+            'signal XDCR_ROD.SensorState names every value it takes (0 "Ok", 1 "OpenCircuit", '
+            '2 "ShortCircuit", 3 "NotAvailable"): a status, not a pressure',
         ),
     ],
 )

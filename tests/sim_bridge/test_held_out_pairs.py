@@ -12,7 +12,11 @@ DBC signal of the simulation's (the truth's), each foot force within what that a
 - ``eight_legs_mux``: eight legs, four per base, on two multiplexed hubs;
 - ``iom_channels``: two I/O modules sending their four inputs in turn in one multiplexed
   signal (each chamber names its page), 29-bit IDs that look J1939 and are not, mbar
-  with a large offset, CRLF and Windows-1252, every kind of DBC section CANdb++ writes.
+  with a large offset, CRLF and Windows-1252, every kind of DBC section CANdb++ writes;
+- ``spn_xdcr``: J1939 transducers named by SPN, a PGN per piston, the rods on one PGN
+  told apart by source address, no cycle time in the DBC;
+- ``split_rates``: each leg's piston and rod in two 11-bit messages at 10 and 50 ms, MPa
+  and psi(g), a state byte with a bit per rod transducer.
 """
 
 import logging
@@ -30,7 +34,7 @@ from dbc.machine import ChamberSignal, MachineConfig, load_machine_config
 from dbc.units import chamber_unit
 from estimator import foot_force_N
 from estimator.leg import LegEstimate
-from sim_bridge.faults import FaultConfig
+from sim_bridge.faults import FaultConfig, FaultWindow
 from sim_bridge.leg_map import leg_map
 from sim_bridge.schedule import instants, schedule
 from tests.helpers import FILES
@@ -50,6 +54,9 @@ PAIRS = (
     "fd_be_float",
     "eight_legs_mux",
     "iom_channels",
+    "spn_xdcr",
+    "split_rates",
+    "abs_vehicle",
 )
 PLAYED_S = 0.5
 
@@ -66,12 +73,12 @@ def half_step_Pa(database: Database, chamber: ChamberSignal, p_Pa: float) -> flo
 
 
 def played(
-    name: str, drop_source_address: int | None = None
+    name: str, drop_source_address: int | None = None, faults: FaultConfig | None = None
 ) -> tuple[MachineConfig, Database, dict[str, list[tuple[LegEstimate, int]]], Pipeline]:
-    """``PLAYED_S`` of a synthetic cycle on pair ``name``: each leg's estimates with the
-    simulation row their frames were built from."""
+    """``PLAYED_S`` of a synthetic cycle on pair ``name`` (with the bridge's ``faults``):
+    each leg's estimates with the simulation row their frames were built from."""
     config, database = load_machine_config(STRANGER / f"{name}.toml")
-    playout = make_playout(make_result(), FaultConfig(seed=1), config, database)
+    playout = make_playout(make_result(), faults or FaultConfig(seed=1), config, database)
     pipeline = Pipeline.from_config(config, database)
     estimates: dict[str, list[tuple[LegEstimate, int]]] = defaultdict(list)
     for instant in instants(schedule(playout.cycles, end_sim_ns=round(PLAYED_S * 1e9))):
@@ -136,6 +143,22 @@ def test_a_transducer_that_never_speaks_makes_its_legs_samples_invalid() -> None
     assert {e.reasons for e, _ in estimates["B3"]} == {("rod_stale", "range")}
     assert all(e.valid for leg in ("A1", "A2", "A3", "B1", "B2") for e, _ in estimates[leg])
     assert pipeline.bad == {}
+
+
+def test_a_rod_message_that_stops_makes_its_legs_samples_invalid() -> None:
+    """split_rates: base 2's rods (STANGE_SB2, every 50 ms) fall silent at 0.2 s while its
+    pistons (every 10 ms) go on: beyond one rod cycle after the last rod frame, each sample
+    of its legs is invalid (``rod_stale``), not a force from the last rod value; base 1's
+    stay valid."""
+    silent = FaultWindow("STANGE_SB2", 0.2, 1.0)
+    _, _, estimates, _ = played("split_rates", faults=FaultConfig(seed=1, silent=(silent,)))
+    for leg in ("SB2_F1", "SB2_F2", "SB2_F3"):
+        times_s = [(estimate.t_s - 1000.0, estimate) for estimate, _ in estimates[leg]]
+        # The last rod frame went at 0.15 s: its value pairs until 0.2 s.
+        assert all(e.valid for t_s, e in times_s if t_s < 0.15 + 0.05 + 1e-6)
+        late = [e for t_s, e in times_s if t_s > 0.15 + 0.05 + 1e-6]
+        assert len(late) == 29 and all(e.reasons == ("rod_stale",) for e in late)
+    assert all(e.valid for leg in ("SB1_F1", "SB1_F2", "SB1_F3") for e, _ in estimates[leg])
 
 
 def test_a_transducer_at_an_address_no_chamber_has_is_named_once(
