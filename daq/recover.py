@@ -68,7 +68,8 @@ def recover(
 ) -> Recovered:
     """Copy every readable record of ``source`` into a complete MCAP on ``target``.
 
-    Raises :class:`RecordingError` (naming ``name``) when ``source`` is no MCAP at all."""
+    Raises :class:`RecordingError` (naming ``name``) when ``source`` is no MCAP at all or
+    holds no record of one (0 bytes: nothing to recover)."""
     writer = Writer(
         cast(IO[Any], target), chunk_size=chunk_size, compression=COMPRESSION[compression]
     )
@@ -112,8 +113,12 @@ def recover(
             metadata += 1
         elif isinstance(record, Footer):
             footer = True
-    if not started:
-        writer.start()
+    if not records.started:  # 0 bytes, or cut in its header: it was rewritten as an MCAP
+        raise RecordingError(
+            name,
+            f"holds no MCAP record ({records.stopped_by}): nothing was recorded in it (the "
+            "recorder stopped as it opened the file); nothing to recover",
+        )
     writer.finish()  # type: ignore[no-untyped-call]
     stopped_by = records.stopped_by or (None if footer else "no footer")
     return Recovered(messages, attachments, metadata, stopped_by, records.damaged_chunks)

@@ -34,7 +34,7 @@ from typing import IO, TextIO, cast
 
 import can
 from can.io.blf import BLFParseError
-from can.io.generic import MessageReader, TextIOMessageReader
+from can.io.generic import BinaryIOMessageReader, MessageReader, TextIOMessageReader
 from can.io.player import MESSAGE_READERS
 from cantools.database.can import Database
 
@@ -42,6 +42,7 @@ from daq.can_batch import recorded_frames
 from daq.candump_text import CandumpReader
 from daq.errors import RecordingError
 from daq.frames import BUS_UP, BusEvent, RawFrame, from_can_message
+from daq.log_kind import FORMATS, looks_like
 from daq.mcap_file import BUS_TOPIC, CONFIG_ATTACHMENT, DBC_ATTACHMENT, RAW_TOPIC
 from daq.mcap_reading import RecordedAttachment, RecordedMessage, RecordingStream
 from daq.pipeline import FrameResult, Pipeline
@@ -113,11 +114,15 @@ def estimates(
 
 
 def write_csv(rows: Iterable[LegEstimate], out: IO[str]) -> int:
-    """One CSV row per estimate (floats in full precision, ``reasons`` joined by ``|``)."""
+    """One CSV row per estimate (floats in full precision, ``reasons`` joined by ``|``).
+    The header is written once the first row is made (or ``rows`` ended without one): a
+    replay that fails before (a log not there, unreadable) leaves ``out`` untouched."""
     writer = csv.writer(out, lineterminator="\n")
+    rows = iter(rows)
+    first = next(rows, None)  # what reading the recording raises comes here, before the header
     writer.writerow(CSV_COLUMNS)
     count = 0
-    for e in rows:
+    for e in itertools.chain(() if first is None else (first,), rows):
         writer.writerow(
             (
                 e.leg,
@@ -225,10 +230,24 @@ def of_one_kind(files: Sequence[Path]) -> None:
 
 def is_can_log(path: Path) -> bool:
     """``path``'s suffix is one of python-can's log readers (also gzipped: ``.log.gz``)."""
+    return _log_suffix(path)[0] in MESSAGE_READERS
+
+
+def _log_suffix(path: Path) -> tuple[str, bool]:
+    """The suffix of ``path``'s log format (``.log``, also of ``.log.gz``; '' if none)
+    and whether it is gzipped."""
     suffixes = [suffix.lower() for suffix in path.suffixes[-2:]]
-    if suffixes[-1:] == [".gz"]:
+    gzipped = suffixes[-1:] == [".gz"]
+    if gzipped:
         suffixes.pop()
-    return bool(suffixes) and suffixes[-1] in MESSAGE_READERS
+    return (suffixes[-1] if suffixes else ""), gzipped
+
+
+def _what_it_looks_like(path: Path) -> str:
+    """'; it looks like ...: name it ...' for a log whose content is of another format
+    than its name says (:func:`daq.log_kind.looks_like`), else ''."""
+    hint = looks_like(path, *_log_suffix(path))
+    return "" if hint is None else f"; {hint}"
 
 
 def chained_log_frames(
@@ -237,7 +256,18 @@ def chained_log_frames(
     """The frames of CAN logs (and their loggers' losses), one log after the other in
     the order given (the median and contact carry over, as across a logger's file
     rotation); a log that begins before the one before it ended is logged: given out of
-    order, two loggers of one bus, or times counted from 0 in each."""
+    order, two loggers of one bus, or times counted from 0 in each. Raises
+    :class:`~daq.errors.RecordingError` at once, before a frame is read, when one of
+    them is not there or of no log format (it stopped a replay after the frames of the
+    logs before it)."""
+    for path in paths:
+        _readable(path)
+    return _chained_log_frames(paths, channel)
+
+
+def _chained_log_frames(
+    paths: Sequence[Path], channel: str | None
+) -> Iterator[RawFrame | BusEvent]:
     previous: tuple[Path, float] | None = None
     for path in paths:
         t_s: float | None = None
@@ -270,22 +300,14 @@ def can_log_frames(path: Path, channel: str | None = None) -> Iterator[RawFrame 
     (:class:`LogLines`) or BLF object (:func:`blf_cut`), with a warning. The frames
     ``candump -d`` says the kernel dropped (its ``DROPCOUNT`` lines) come as a
     :class:`~daq.frames.BusEvent` of that loss before the next frame, as live."""
-    if not path.is_file():  # python-can's SQLite reader would create it
-        what = "not a file" if path.exists() else "no such file"
-        raise RecordingError(path, f"cannot read it as a CAN log: {what}")
-    if not is_can_log(path):  # python-can: 'No read support for unknown log format ".txt"'
-        known = ", ".join(sorted(MESSAGE_READERS))
-        raise RecordingError(
-            path,
-            f"cannot read it as a CAN log: no log format for its suffix; replay reads {known} "
-            "(each also .gz) and service recordings (.mcap)",
-        )
+    _readable(path)
     if path.stat().st_size == 0:  # a logger stopped at once (python-can: a BLF "unpack" error)
         return
     try:
         reader, lines = _log_reader(path)
     except (OSError, NotImplementedError, *_READER_ERRORS) as exc:  # NotImplemented: no asammdf
-        raise RecordingError(path, f"cannot read it as a CAN log: {exc}") from exc
+        hint = _what_it_looks_like(path)
+        raise RecordingError(path, f"cannot read it as a CAN log: {exc}{hint}") from exc
     count = 0
     channels: set[str] = set()
     elapsed_s = 0.0
@@ -323,17 +345,37 @@ def can_log_frames(path: Path, channel: str | None = None) -> Iterator[RawFrame 
         except _READER_ERRORS as exc:
             cut = blf_cut(path, reader)
             if cut is None:
-                hint = _LINE_FORMATS.get(path.suffix.lower(), "")
+                hint = (count == 0 and _what_it_looks_like(path)) or _LINE_FORMATS.get(
+                    path.suffix.lower(), ""
+                )
                 reason = f"{str(exc) or type(exc).__name__}{hint}"  # BLFParseError(): nothing
                 raise RecordingError(path, f"unreadable after frame {count}: {reason}") from exc
     if isinstance(reader, CandumpReader) and reader.dropped_frames != dropped:  # at the end
         yield _loss(t_s, reader.dropped_frames - dropped)
+    if count == 0 and (hint := _what_it_looks_like(path)):  # an ASC reader skips every line
+        suffix = _log_suffix(path)[0]
+        raise RecordingError(path, f"no frame of {FORMATS.get(suffix, suffix)} in it{hint}")
     cut = cut or (lines.cut if lines is not None else blf_cut(path, reader))
     if cut is not None:
         logger.warning("%s is cut short (%s): read up to frame %d", path, cut, count)
     if channel is not None and channel not in channels:
         raise RecordingError(
             path, f"no frame on channel {channel!r}; its channels: {', '.join(sorted(channels))}"
+        )
+
+
+def _readable(path: Path) -> None:
+    """Raises :class:`~daq.errors.RecordingError` unless ``path`` is a file of a CAN log
+    format (by its suffix)."""
+    if not path.is_file():  # python-can's SQLite reader would create it
+        what = "not a file" if path.exists() else "no such file"
+        raise RecordingError(path, f"cannot read it as a CAN log: {what}")
+    if not is_can_log(path):  # python-can: 'No read support for unknown log format ".txt"'
+        known = ", ".join(sorted(MESSAGE_READERS))
+        raise RecordingError(
+            path,
+            f"cannot read it as a CAN log: no log format for its suffix; replay reads {known} "
+            "(each also .gz) and service recordings (.mcap)",
         )
 
 
@@ -346,12 +388,19 @@ def _loss(t_s: float, kernel_dropped: int) -> BusEvent:
 def _log_reader(path: Path) -> tuple[MessageReader, LogLines | None]:
     """python-can's reader of ``path`` by its suffix (also gzipped); a text log's lines
     come through :class:`LogLines`."""
-    suffixes = [suffix.lower() for suffix in path.suffixes[-2:]]
-    gzipped = suffixes[-1:] == [".gz"]
-    suffix = suffixes[-2] if gzipped and len(suffixes) == 2 else suffixes[-1] if suffixes else ""
+    suffix, gzipped = _log_suffix(path)
     reader_type = _OWN_READERS.get(suffix) or MESSAGE_READERS.get(suffix)
+    if reader_type is not None and issubclass(reader_type, BinaryIOMessageReader):
+        # opened here, so that a reader refusing it (BLF: 'Unexpected file format') is
+        # not left holding it open
+        binary = gzip.open(path, "rb") if gzipped else open(path, "rb")  # noqa: SIM115
+        try:
+            return reader_type(binary), None
+        except BaseException:
+            binary.close()
+            raise
     if reader_type is None or not issubclass(reader_type, TextIOMessageReader):
-        return can.LogReader(str(path)), None  # binary, or python-can's word on the suffix
+        return can.LogReader(str(path)), None  # SQLite, or python-can's word on the suffix
     # The frames are ASCII; a header, comment or name may be in a Windows code page
     # (a German CANoe writes "date Mo Mär 02 ..." in Windows-1252): replaced, not fatal.
     file = (

@@ -250,3 +250,22 @@ def test_an_output_that_cannot_be_written_is_named_as_given(tmp_path: Path) -> N
     assert (
         str(raised.value) == f"{tmp_path / 'gone.mcap'}: cannot recover: No such file or directory"
     )
+
+
+@pytest.mark.parametrize("content", [b"", b"\x89MCAP0\r\n", b"\x89MCAP0\r\n\x01\x19\x00"])
+def test_a_file_that_holds_no_record_is_refused_as_it_is(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], content: bytes
+) -> None:
+    """A file the recorder had just opened (0 bytes, or cut in its header) was rewritten
+    as an empty MCAP file of 303 bytes, exit 3 ('recovered 0 messages'): nothing was
+    there to recover, and the evidence of what the file was went."""
+    from daq.cli import main
+
+    cut = tmp_path / "pam_20261202T113100Z.mcap"
+    cut.write_bytes(content)
+    assert main(["recover", str(cut)]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"portal-daq: {cut}: holds no MCAP record ("), err
+    assert err[0].endswith("nothing to recover"), err
+    assert cut.read_bytes() == content
+    assert [p.name for p in tmp_path.iterdir()] == [cut.name]

@@ -1,6 +1,8 @@
 """``portal-daq replay ... --out FILE``: the CSV replaces FILE only once the replay is
 done; a replay refused or failed leaves FILE as it was, and says why in one line."""
 
+import contextlib
+import io
 import os
 import stat
 import threading
@@ -48,6 +50,26 @@ def test_a_missing_log_leaves_the_output_as_it_was(tmp_path: Path, earlier: Path
     result = replay_into(tmp_path / "cylce.log", earlier)
     assert_one_line_error(result, 1, "cylce.log: cannot read it as a CAN log: no such file")
     _left_alone(earlier)
+
+
+@pytest.mark.parametrize("given", [["cylce.log"], ["cycle.log", "cylce.log"], ["cycle.asc"]])
+def test_a_replay_to_stdout_that_fails_at_once_writes_nothing(
+    tmp_path: Path, given: list[str]
+) -> None:
+    """It wrote the CSV's header (and the rows of the logs before a missing one), then
+    the error: a pipe into another program took a header for an empty replay."""
+    from daq.replay_command import replay_main
+
+    (tmp_path / "cycle.log").write_text(LOG)
+    (tmp_path / "cycle.asc").write_text(
+        "date Wed Dec 02 11:31:04.171 am 2026\n0.0 1 1g0 Rx d 1 00\n"
+    )
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        code = replay_main(
+            [*(str(tmp_path / name) for name in given), "--config", str(EXAMPLE_CONFIG)]
+        )
+    assert (code, out.getvalue()) == (1, "")
 
 
 def test_a_replay_that_is_done_replaces_the_output(tmp_path: Path, earlier: Path) -> None:
