@@ -352,6 +352,8 @@ def can_log_frames(path: Path, channel: str | None = None) -> Iterator[RawFrame 
                 raise RecordingError(path, f"unreadable after frame {count}: {reason}") from exc
     if isinstance(reader, CandumpReader) and reader.dropped_frames != dropped:  # at the end
         yield _loss(t_s, reader.dropped_frames - dropped)
+    if isinstance(reader, AscReader | TrcReader):
+        _log_controller_events(path, reader.controller_events, channel)
     if count == 0 and (hint := _what_it_looks_like(path)):  # an ASC reader skips every line
         suffix = _log_suffix(path)[0]
         raise RecordingError(path, f"no frame of {FORMATS.get(suffix, suffix)} in it{hint}")
@@ -376,6 +378,23 @@ def _readable(path: Path) -> None:
             path,
             f"cannot read it as a CAN log: no log format for its suffix; replay reads {known} "
             "(each also .gz) and service recordings (.mcap)",
+        )
+
+
+def _log_controller_events(
+    path: Path, events: Counter[tuple[str, str]], channel: str | None
+) -> None:
+    """One warning line for the CAN controller's status changes a log holds (of
+    ``channel`` only, when given): bus off, error passive, ..., each an error frame."""
+    states: Counter[str] = Counter()
+    for (where, state), n in events.items():
+        if channel in (None, where):
+            states[state] += n
+    if states:
+        logger.warning(
+            "%s: the CAN controller reported %s: each counted as an error frame",
+            path,
+            ", ".join(f"{state} {n}" for state, n in states.most_common()),
         )
 
 

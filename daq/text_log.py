@@ -4,8 +4,9 @@
 import gzip
 import re
 import zlib
-from collections.abc import Generator
-from typing import IO, Any
+from collections import Counter
+from collections.abc import Generator, Iterable, Iterator
+from typing import IO, Any, TextIO, cast
 
 import can
 
@@ -17,6 +18,14 @@ _CSV_HEADER = "timestamp,arbitration_id,extended,remote,error,dlc,data\n"
 
 #: The header's last line in an ASC log (python-can's pattern).
 _EVENTS_LINE = re.compile(r"(no)?\s*internal\s+events\s+logged", re.IGNORECASE)
+
+#: A CAN controller's status line in an ASC log: its time, channel (from 1) and state
+#: (``0.5 CAN 1 Status:chip status error passive - TxErr: 132 RxErr: 0``).
+_ASC_STATUS = re.compile(
+    r"\s*(?P<time>\d+\.\d+)\s+CAN\s+(?P<channel>\d+)\s+Status:\s*(?P<state>[^-\n]*[^-\s])"
+)
+#: A transmit request in an ASC log (classic: ``TIME CH ID TxRq``, FD: ``TIME CANFD CH TxRq``).
+_ASC_TX_REQUEST = re.compile(r"\s*\d+\.\d+\s+(?:\d+\s+\S+|CANFD\s+\d+)\s+TxRq\s", re.IGNORECASE)
 
 
 class LogLines:
@@ -70,17 +79,58 @@ class LogLines:
 
 
 class AscReader(can.ASCReader):
-    """python-can's ASC reader, except that a ``CANFD`` line is an FD frame only when its
-    flags have EDL (bit 12) set, as python-can's BLF reader has it: Vector's tools log
-    the classic frames of a CAN FD channel as ``CANFD`` lines too, which python-can made
-    FD frames (refused as ``fd_frame``); and that a header without its last line,
-    ``internal events logged`` (older CANalyzers, other tools), does not cost the log's
-    first line: python-can's header reading took it and dropped it, a frame lost
-    uncounted where a frame came next (of a :class:`LogLines` file)."""
+    """python-can's ASC reader, except that
+
+    - a ``CANFD`` line is an FD frame only when its flags have EDL (bit 12) set, as
+      python-can's BLF reader has it: Vector's tools log the classic frames of a CAN FD
+      channel as ``CANFD`` lines too, which python-can made FD frames (``fd_frame``);
+    - a header without its last line, ``internal events logged`` (older CANalyzers, other
+      tools), does not cost the log's first line: python-can's header reading took it and
+      dropped it, a frame lost uncounted where a frame came next (of a :class:`LogLines`
+      file);
+    - a CAN controller's status line (``CAN 2 Status:chip status busoff``, ``error
+      passive``, ``warning level``, ``receive queue overrun``; not ``error active``, the
+      state of a controller that is well) is an error frame of its channel, as SocketCAN
+      reports one (candump logs it so), and tallied in :attr:`controller_events`;
+      python-can skipped them: a bus-off showed nowhere;
+    - a transmit request (``TxRq``: the logging node asked for a frame to be sent; the
+      frame itself is its ``Tx`` line) is no frame: python-can read it as one, so every
+      frame the logger's node sent came twice (``counter_repeat``, a second estimate).
+    """
+
+    def __init__(self, file: Any, **kwargs: Any) -> None:
+        super().__init__(file, **kwargs)
+        #: The controller status changes read, by (channel as python-can names it, state).
+        self.controller_events: Counter[tuple[str, str]] = Counter()
+        self._lines: object = file
+        self._in_header = True  # a line read past the header is read again (and counted once)
+
+    def __iter__(self) -> Generator[can.Message, None, None]:
+        self._lines = lines = self.file
+        self.file = cast(TextIO, self._event_lines(lines))
+        try:
+            yield from super().__iter__()
+        finally:
+            self.file = lines
+
+    def _event_lines(self, lines: Iterable[str]) -> Iterator[str]:
+        """The lines, a status line as an error frame's line, without transmit requests."""
+        for line in lines:
+            if "TxRq" in line and _ASC_TX_REQUEST.match(line):
+                continue
+            status = None if self._in_header or "Status:" not in line else _ASC_STATUS.match(line)
+            if status is not None:
+                state = status["state"].removeprefix("chip status ")
+                if state == "error active":
+                    continue
+                self.controller_events[str(int(status["channel"]) - 1), state] += 1
+                line = f"{status['time']} {status['channel']} ErrorFrame\n"
+            yield line
 
     def _extract_header(self) -> None:
         super()._extract_header()  # reads up to the events line, or one line past the header
-        lines: object = self.file
+        self._in_header = False
+        lines = self._lines
         if isinstance(lines, LogLines) and not _EVENTS_LINE.match((lines.last or "").strip()):
             lines.read_again()
 

@@ -14,8 +14,13 @@ python-can's :class:`can.TRCReader` reads the data and remote frames of versions
   the log), as in every other text log; python-can left it out with a warning of its
   own, a frame lost uncounted.
 
-Lines that are no frame are left out, as python-can does: the controller's status
-(1.x ``Warng`` / 1.0 ``FFFFFFFF`` lines: bus light, heavy, off; 2.x ``ST``), its error
+- reads the controller's status lines (1.x ``Warng`` / 1.0 ``FFFFFFFF`` lines, 2.x
+  ``ST``: bus light, bus heavy, bus off, error passive, an overrun) as error frames of
+  their channel, as SocketCAN reports such a state (candump logs it so), tallied by
+  state in :attr:`TrcReader.controller_events`; python-can left them out: a bus-off
+  showed nowhere. A status of 0 (all well again) is no error.
+
+Lines that are no frame are left out, as python-can does: the controller's error
 counters (``EC``) and user events (``EV``).
 
 >>> import io
@@ -28,18 +33,36 @@ counters (``EC``) and user events (``EV``).
 [(768, b'\\x01\\x02', False), (0, b'', True)]
 """
 
+from collections import Counter
 from collections.abc import Iterator
-from typing import TextIO, cast
+from typing import Any, TextIO, cast
 
 import can
 
 #: The file versions PEAK defines: python-can reads all but 1.2, which we read.
 _VERSIONS = ("1.0", "1.1", "1.2", "1.3", "2.0", "2.1")
 
+#: The bits of a PCAN status value (PCAN-Basic's ``PCAN_ERROR_*``) a status line carries.
+_STATUS_BITS = {
+    0x01: "transmit buffer full",
+    0x02: "controller overrun",
+    0x04: "bus light",
+    0x08: "bus heavy",
+    0x10: "bus off",
+    0x40: "receive queue overrun",
+    0x80: "transmit queue full",
+    0x40000: "error passive",
+}
+
 
 class TrcReader(can.TRCReader):
     """python-can's TRC reader that reads error frames and version 1.2, and stops at a
     frame line it cannot parse (see the module docstring)."""
+
+    def __init__(self, file: Any, **kwargs: Any) -> None:
+        super().__init__(file, **kwargs)
+        #: The controller status changes read, by (channel as python-can names it, state).
+        self.controller_events: Counter[tuple[str, str]] = Counter()
 
     def _extract_header(self) -> str:
         declared: list[str] = []
@@ -83,16 +106,34 @@ class TrcReader(can.TRCReader):
             channel=channel,
         )
 
+    def _status(
+        self, cols: tuple[str, ...], value_at: int, offset_ms: str, channel: int, dated: bool = True
+    ) -> can.Message | None:
+        """The error frame of a status line whose four status bytes begin at word
+        ``value_at`` of ``cols``; None for a status of 0 (all well)."""
+        words = " ".join(cols).split()
+        value = int("".join(words[value_at : value_at + 4]), 16)
+        if value == 0:
+            return None
+        states = [name for bit, name in _STATUS_BITS.items() if value & bit]
+        for state in states or [f"status 0x{value:X}"]:
+            self.controller_events[str(channel), state] += 1
+        return self._error_frame(offset_ms, channel, dated)
+
     def _parse_msg_v1_0(self, cols: tuple[str, ...]) -> can.Message | None:
-        # NUMBER) OFFSET ID LENGTH (DATA... | RTR | ERROR DATA...)
+        # NUMBER) OFFSET ID LENGTH (DATA... | RTR | ERROR DATA...); status: ID FFFFFFFF
         if len(cols) > 4 and cols[4] == "ERROR":
             return self._error_frame(cols[1], 1, dated=False)
+        if cols[2] == "FFFFFFFF":
+            return self._status(cols, 4, cols[1], 1, dated=False)
         return super()._parse_msg_v1_0(cols)
 
     def _parse_cols_v1_1(self, cols: tuple[str, ...]) -> can.Message | None:
         # NUMBER) OFFSET TYPE ID LENGTH DATA...
         if cols[2] == "Error":
             return self._error_frame(cols[1], 1)
+        if cols[2] == "Warng":
+            return self._status(cols, 5, cols[1], 1)
         return super()._parse_cols_v1_1(cols)
 
     def _parse_cols_v1_2(self, cols: tuple[str, ...]) -> can.Message | None:
@@ -103,11 +144,17 @@ class TrcReader(can.TRCReader):
         # NUMBER) OFFSET BUS TYPE ID - LENGTH DATA...
         if cols[3] == "Error":
             return self._error_frame(cols[1], int(cols[2]))
+        if cols[3] == "Warng":
+            return self._status(cols, 7, cols[1], int(cols[2]))
         return super()._parse_cols_v1_3(cols)
 
     def _parse_cols_v2_x(self, cols: tuple[str, ...]) -> can.Message | None:
-        if cols[self.columns["T"]] == "ER":
+        kind = cols[self.columns["T"]]
+        if kind in ("ER", "ST"):
             bus = self.columns.get("B")
             channel = int(cols[bus]) if bus is not None else 1
+            if kind == "ST":  # its four status bytes end the line
+                words = len(" ".join(cols).split())
+                return self._status(cols, words - 4, cols[self.columns["O"]], channel)
             return self._error_frame(cols[self.columns["O"]], channel)
         return super()._parse_cols_v2_x(cols)

@@ -628,3 +628,56 @@ def test_a_frame_time_that_is_no_time_is_one_line(
         err = capsys.readouterr().err.strip().splitlines()
         assert err[-1].startswith(f"portal-daq: {log}: unreadable after frame 2: frame time ")
         assert "is no time" in err[-1] and "Traceback" not in "\n".join(err)
+
+
+CANOE_TWO_CHANNELS = """\
+date Wed Dec 02 11:31:04.171 am 2026
+base hex  timestamps absolute
+internal events logged
+// version 13.0.0
+Begin Triggerblock Wed Dec 02 11:31:04.171 am 2026
+   0.000000 Start of measurement
+   0.000000 CAN 1 Status:chip status error active
+   0.000000 CAN 2 Status:chip status error active
+   0.001000 1  18FEF100x       Rx   d 8 FF FF FF FF FF FF FF FF  Length = 280000 BitCount = 144
+   0.009990 2  100             TxRq d 8 46 12 08 07 00 00 00 1C
+   0.010000 2  100             Tx   d 8 46 12 08 07 00 00 00 1C  Length = 228000 BitCount = 118
+   0.015000 CAN 2 Status:chip status warning level - TxErr: 96 RxErr: 0
+   0.016000 CAN 2 Status:chip status error passive - TxErr: 132 RxErr: 0
+   0.017000 CAN 2 Status:chip status busoff - TxErr: 256 RxErr: 0
+   0.018000 CAN 1 Status:receive queue overrun
+   0.019990 CANFD 2 TxRq 100 0 0 8 8 46 12 08 07 01 00 00 93 0 0 0 0 0 0 0 0
+   0.020000 CANFD 2 Tx 100 0 0 8 8 46 12 08 07 01 00 00 93 130000 130 0 0 0 0 0 0
+   0.120000 CAN 2 Status:chip status error active
+End TriggerBlock
+"""
+
+
+def test_an_asc_logs_controller_states_are_error_frames_and_its_tx_requests_no_frames(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """python-can skipped the controller's status lines (a bus-off showed nowhere) and read
+    each transmit request (TxRq: the logging node asked for a frame; the frame is its Tx
+    line) as a frame: every frame the node sent came twice, counter_repeat and an
+    invalid estimate more."""
+    log = tmp_path / "canoe.asc"
+    log.write_text(CANOE_TWO_CHANNELS)
+    frames = list(can_log_frames(log, "1"))  # CANalyzer's channel 2
+    assert [(f.is_error_frame, f.t_s) for f in frames] == [
+        (False, 0.010),
+        (True, 0.015),
+        (True, 0.016),
+        (True, 0.017),
+        (False, 0.020),
+    ]
+    assert (
+        f"{log}: the CAN controller reported warning level 1, error passive 1, busoff 1: "
+        "each counted as an error frame" in caplog.text
+    )
+    out = io.StringIO()
+    assert replay(log, out, EXAMPLE_CONFIG, "1") == 2
+    assert [row.split(",")[-2] for row in out.getvalue().splitlines()[1:]] == ["1", "1"]  # valid
+    assert "error_frame 3)" in caplog.text and "counter_repeat" not in caplog.text
+    caplog.clear()
+    assert [f.is_error_frame for f in can_log_frames(log, "0")] == [False, True]
+    assert "reported receive queue overrun 1: each" in caplog.text

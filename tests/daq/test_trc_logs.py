@@ -147,18 +147,51 @@ def test_every_frame_of_peaks_examples_is_used_or_counted(
     tmp_path: Path, caplog: pytest.LogCaptureFixture, version: str
 ) -> None:
     """Error frames were left out uncounted (1.1 to 2.x) or stopped the replay (1.0's
-    ``ERROR``), and a 1.2 log was unreadable at its first line (read as 1.0)."""
+    ``ERROR``), and a 1.2 log was unreadable at its first line (read as 1.0). The
+    controller's status lines (bus light, bus heavy) are error frames too, and said."""
     path = tmp_path / "peak.trc"
     path.write_text(PEAK_EXAMPLES[version].replace("\n", "\r\n"), newline="")
     kinds = [
         "error" if f.is_error_frame else "remote" if f.is_remote_frame else f"{f.arbitration_id:X}"
         for f in can_log_frames(path)
     ]
-    errors = ["error", "error"] if version == "2.1" else ["error"]
+    errors = ["error", "error", "error"] if version == "2.1" else ["error", "error"]
     data = ["1"] if version == "1.0" else ["300", "400"]
     assert kinds == [*data, *errors, "remote"]
     replay(path, io.StringIO(), EXAMPLE_CONFIG)
     assert f"error_frame {len(errors)}, remote_frame 1, unknown_id {len(data)})" in caplog.text
+    state = "bus heavy" if version.startswith("2.") else "bus light"
+    assert f"{path}: the CAN controller reported {state} 1: each counted as an error" in caplog.text
+
+
+def test_a_bus_off_and_its_recovery_in_a_trc_log_are_counted_per_channel(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """python-can left out every status line: a bus-off of the channel replayed showed
+    nowhere. A status of 0 (all well again) is no error; a line of another channel is
+    not this one's."""
+    body = PEAK_EXAMPLES["2.1"].split("      1 ")[0] + "".join(
+        f"{line}\n"
+        for line in [
+            "      1      1059.900 DT 1      0100 Rx -  8    46 12 08 07 00 00 00 1C",
+            "      2      1060.000 ST 1         - Rx -  4    00 00 00 10",
+            "      3      1060.100 ST 2         - Rx -  4    00 04 00 48",
+            "      4      1070.000 ST 1         - Rx -  4    00 00 00 00",
+            "      5      1070.100 DT 1      0100 Rx -  8    46 12 08 07 01 00 00 93",
+        ]
+    )
+    path = tmp_path / "busoff.trc"
+    path.write_text(body)
+    frames = list(can_log_frames(path, "1"))
+    assert [f.is_error_frame for f in frames] == [False, True, False]
+    assert frames[1].t_s - frames[0].t_s == pytest.approx(0.0001, abs=2e-6)  # ms offsets
+    assert "the CAN controller reported bus off 1: each counted" in caplog.text
+    caplog.clear()
+    assert [f.is_error_frame for f in can_log_frames(path)] == [False, True, True, False]
+    assert (
+        "reported bus off 1, bus heavy 1, receive queue overrun 1, error passive 1: each"
+        in caplog.text
+    )
 
 
 def test_a_trc_file_version_peak_has_not_defined_is_refused_by_name(tmp_path: Path) -> None:
