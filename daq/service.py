@@ -55,6 +55,7 @@ from daq.pipeline import Pipeline
 from daq.publisher import ZenohPublisher
 from daq.recorder import Recorder
 from daq.recorder_process import RecorderProcess
+from daq.schemas import signal_units
 from daq.sd_notify import SdNotifier
 from daq.service_config import ServiceConfig
 from daq.sim_truth import TRUTH_KEY, TruthSubscriber
@@ -71,6 +72,21 @@ _NUMBER = re.compile(r"\d+(\.\d+)?")
 HEARTBEAT_MAX_AGE_S = 2.0
 #: A saturated 1 Mbit/s bus: an 8-byte standard frame takes up to ~111 us.
 SATURATED_FRAMES_PER_S = 9000.0
+#: ``<prefix>/units`` answers a ``get`` with :func:`units`.
+UNITS_KEY = "units"
+
+
+def units(config: ServiceConfig) -> JsonObject:
+    """What ``<prefix>/units`` answers: the unit each value of ``<prefix>/signals/<MESSAGE>``
+    is in, by message and signal (Pa for every pressure the decoder converts, else the
+    DBC's unit; ``""`` for none), so that a dashboard needs no DBC to label them."""
+    decoded = config.machine.decoded_units
+    return {
+        "signals": {
+            message.name: signal_units(message, decoded.get(message.name, {}))
+            for message in config.database.messages
+        }
+    }
 
 
 class Service:
@@ -93,7 +109,10 @@ class Service:
         self.inbox: queue.Queue[RawFrame | BusEvent] = queue.Queue(maxsize=config.bus.queue_size)
         self.pipeline = Pipeline.from_config(config.machine, config.database)
         self.publisher = ZenohPublisher(
-            session, config.zenoh.key_prefix, queue_size=config.publish.queue_size
+            session,
+            config.zenoh.key_prefix,
+            queue_size=config.publish.queue_size,
+            answers={UNITS_KEY: units(config)},
         )
         self.recorder = recorder
         #: Records the simulator bridge's truth, if any is published (``[recording] truth``).
