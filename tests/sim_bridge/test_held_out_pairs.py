@@ -16,7 +16,11 @@ DBC signal of the simulation's (the truth's), each foot force within what that a
 - ``spn_xdcr``: J1939 transducers named by SPN, a PGN per piston, the rods on one PGN
   told apart by source address, no cycle time in the DBC;
 - ``split_rates``: each leg's piston and rod in two 11-bit messages at 10 and 50 ms, MPa
-  and psi(g), a state byte with a bit per rod transducer.
+  and psi(g), a state byte with a bit per rod transducer;
+- ``abs_vehicle``: absolute transmitters ("bar (abs)", "PSIA") in a vehicle DBC that
+  cantools reads only without its checks;
+- ``iom_j1939``: two J1939 I/O modules on one PGN, eight inputs each in turn, each
+  chamber named by source address and page.
 """
 
 import logging
@@ -57,6 +61,7 @@ PAIRS = (
     "spn_xdcr",
     "split_rates",
     "abs_vehicle",
+    "iom_j1939",
 )
 PLAYED_S = 0.5
 
