@@ -180,6 +180,9 @@ class Service:
             self.truth.start()
         self.consumer.start()
         self.reader.start()
+        # Silence is judged from now: starting (the recorder's process takes ~0.5 s to
+        # spawn) is no time a frame could have come in.
+        self._last_frame_monotonic = time.monotonic()
 
     def close(self) -> None:
         """Stop receiving, drain the queues, finish the recording. Idempotent."""

@@ -8,9 +8,11 @@ from pathlib import Path
 
 import zenoh
 
-from daq.service import losses, problems, status_line
+from daq.runner import bus_factory
+from daq.service import Service, losses, problems, status_line
 from daq.service_config import load_service_config
 from daq.zenoh_links import unreached
+from daq.zenoh_session import zenoh_config
 from tests.daq.service_support import (
     Collector,
     free_port,
@@ -85,6 +87,23 @@ def test_messages_zenoh_failed_to_put_are_counted_and_unhealthy(tmp_path: Path) 
     failed = now["dropped"]["publish_failed"]
     assert failed >= 12 and now["healthy"] is False
     assert f"dropped.publish_failed +{failed}" in now["problems"]
+
+
+def test_the_time_the_service_takes_to_start_is_no_silence(tmp_path: Path) -> None:
+    # The first status of every start said "not healthy: no frame for 1.0 s" 30 ms after
+    # the bus opened: silence was counted from when the service was built, before the
+    # recorder's process spawned (~0.5 s; seconds on a slow machine).
+    path = write_service_config(
+        tmp_path, channel=f"test-{uuid.uuid4().hex}", port=free_port(), status_period_s=1.0
+    )
+    config = load_service_config(path)
+    with zenoh.open(zenoh_config(config.zenoh)) as session:
+        service = Service(config, open_bus=bus_factory(config.bus, []), session=session)
+        built_s = time.monotonic()
+        wait_until(lambda: time.monotonic() - built_s > service.silence_s)  # a slow start
+        with service:
+            first = service.status()
+    assert not [problem for problem in first["problems"] if problem.startswith("no frame")]
 
 
 def test_status_line_says_the_same() -> None:
