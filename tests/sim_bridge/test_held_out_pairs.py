@@ -184,6 +184,24 @@ def test_a_transducer_at_an_address_no_chamber_has_is_named_once(
     ]
 
 
+def test_a_message_sent_at_another_length_than_the_dbcs_is_named_once(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    """split_rates' PLC sends STANGE_SB1 in 8 bytes where the DBC says 7 (a DBC of an
+    older PLC program): its legs had no rod, and only the count wrong_dlc said so."""
+    config, database = load_machine_config(STRANGER / "split_rates.toml")
+    pipeline = Pipeline.from_config(config, database)
+    with caplog.at_level(logging.WARNING, logger="daq.pipeline"):
+        for i, length in enumerate((8, 8, 8, 6)):
+            pipeline.process(RawFrame(1.0 + 0.05 * i, 0x211, False, bytes(length)))
+    assert pipeline.bad == {"wrong_dlc": 4}
+    assert [r.getMessage() for r in caplog.records] == [
+        f"frame 0x211: STANGE_SB1 has DLC {length}, the DBC says 7: its frames are counted "
+        "wrong_dlc and not used"
+        for length in (8, 6)
+    ]
+
+
 @pytest.mark.parametrize("compiled", [True, False], ids=["compiled", "reference"])
 def test_peer_to_peer_messages_are_told_apart_by_their_destination(compiled: bool) -> None:
     """The controller (0x27) sends proprietary A 0xEF00 to the DAQ (0x80: the machine
