@@ -100,12 +100,19 @@ BusFactory = Callable[[], FrameSource]
 LinkProbe = Callable[[], bool | None]
 Inbox = queue.Queue[RawFrame | BusEvent]
 
+_NO_SOCKETCAN = (
+    "this kernel has no SocketCAN: load it (sudo modprobe can-raw; vcan too for a virtual bus), "
+    "or set [bus] interface to another python-can interface"
+)
 _HINTS = {
     errno.ENETDOWN: "the CAN interface is down; bring it up: ip link set {channel} up",
     errno.ENODEV: "no such CAN interface; check [bus] channel and `ip link show {channel}`",
     errno.ENXIO: "no such CAN interface; check [bus] channel and `ip link show {channel}`",
     errno.EPERM: "not permitted; run the service as a user allowed to open CAN sockets",
     errno.EACCES: "not permitted; run the service as a user allowed to open CAN sockets",
+    # A kernel without CAN (a laptop's, a container's): retrying will not bring it.
+    errno.EAFNOSUPPORT: _NO_SOCKETCAN,
+    errno.EPROTONOSUPPORT: _NO_SOCKETCAN,
 }
 
 

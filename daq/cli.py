@@ -23,6 +23,7 @@ from daq.subcommand import PROG, Subcommand
 #: One line per subcommand module; each defines ``SUBCOMMAND``. Keep them sorted.
 SUBCOMMAND_MODULES = (
     "daq.calibrate.command",
+    "daq.check_command",
     "daq.dashboard.cli",
     "daq.export_command",
     "daq.init_command",

@@ -1,10 +1,14 @@
-"""``portal-daq init [DIR] [--example NAME]``: write an example configuration to start from.
+"""``portal-daq init [DIR] [--example NAME] [--deploy]``: write an example configuration to
+start from, and with ``--deploy`` the kit that installs the service on the machine.
 
 The examples ship inside the package (``daq/examples/<name>/``; ``deploy/`` links to
 them), so whoever installed the wheel gets the same files as a clone of the repository:
 the service + machine TOML, the Zenoh configuration it names and, for the machines
-with a DBC of their own, that DBC. Existing files are never overwritten without
-``--force``: nothing is written then, and the one line on stderr names them.
+with a DBC of their own, that DBC. So does the deployment kit (``daq/deploy/``:
+``install.sh``, the systemd unit and sysusers file, the sysctl and networkd drop-ins;
+``deploy/`` of the repository links to them), written into ``DIR/deploy/``. Existing
+files are never overwritten without ``--force``: nothing is written then, and the one
+line on stderr names them.
 """
 
 import argparse
@@ -19,6 +23,10 @@ from dbc.errors import ConfigError
 
 #: The examples, one folder each.
 EXAMPLES = resources.files("daq") / "examples"
+#: The deployment kit: install.sh and the files it installs, in folders.
+DEPLOY = resources.files("daq") / "deploy"
+#: The kit's programs (written executable).
+DEPLOY_SCRIPTS = ("install.sh",)
 #: The file of every example that ``portal-daq run --config`` takes.
 CONFIG_NAME = "portal-daq.toml"
 
@@ -34,25 +42,53 @@ def example_files(name: str) -> list[Traversable]:
                   key=lambda entry: entry.name)  # fmt: skip
 
 
-def write_example(name: str, directory: Path, *, force: bool = False) -> list[Path]:
-    """Copy example ``name`` into ``directory`` (created); the paths written.
+def write_example(
+    name: str, directory: Path, *, force: bool = False, deploy: bool = False
+) -> list[Path]:
+    """Copy example ``name`` into ``directory`` (created), with ``deploy`` the deployment
+    kit into ``directory/deploy`` (``install.sh`` executable); the paths written.
 
     Raises ``FileExistsError`` naming the files that exist (none is written) unless
     ``force``, :class:`~dbc.errors.ConfigError` when ``directory`` is a file, and
     ``OSError`` when the directory cannot be written.
     """
-    if directory.exists() and not directory.is_dir():
-        raise ConfigError(directory, "", "it is a file; give init a directory to write into")
-    files = example_files(name)
-    targets = [directory / entry.name for entry in files]
-    existing = [str(target) for target in targets if target.exists()]
+    files = [(entry, directory / entry.name) for entry in example_files(name)]
+    if deploy:
+        files += [(entry, directory / "deploy" / path) for entry, path in deploy_files()]
+    written = _write(files, force)
+    if deploy:
+        for script in DEPLOY_SCRIPTS:
+            (directory / "deploy" / script).chmod(0o755)
+    return written
+
+
+def deploy_files(
+    folder: Traversable = DEPLOY, under: Path = Path()
+) -> list[tuple[Traversable, Path]]:
+    """The deployment kit's files with their paths in it, sorted (``install.sh``,
+    ``systemd/portal-daq.service``, ...)."""
+    found: list[tuple[Traversable, Path]] = []
+    for entry in sorted(folder.iterdir(), key=lambda entry: entry.name):
+        if entry.is_dir():
+            found += deploy_files(entry, under / entry.name)
+        elif entry.is_file() and not entry.name.startswith("."):
+            found.append((entry, under / entry.name))
+    return found
+
+
+def _write(files: list[tuple[Traversable, Path]], force: bool) -> list[Path]:
+    """Write each (packaged file, target) pair; see :func:`write_example`."""
+    for directory in {target.parent for _, target in files}:
+        if directory.exists() and not directory.is_dir():
+            raise ConfigError(directory, "", "it is a file; give init a directory to write into")
+    existing = [str(target) for _, target in files if target.exists()]
     if existing and not force:
         exist, them = ("exists", "it") if len(existing) == 1 else ("exist", "them")
         raise FileExistsError(f"{', '.join(existing)} {exist}; --force overwrites {them}")
-    directory.mkdir(parents=True, exist_ok=True)
-    for entry, target in zip(files, targets, strict=True):
+    for entry, target in files:
+        target.parent.mkdir(parents=True, exist_ok=True)
         target.write_bytes(entry.read_bytes())
-    return targets
+    return [target for _, target in files]
 
 
 def init_main(args: Sequence[str]) -> int:
@@ -68,9 +104,18 @@ def init_main(args: Sequence[str]) -> int:
                         help="where to write (created; default: here)")  # fmt: skip
     parser.add_argument("--example", choices=names, default="default", help="which machine")
     parser.add_argument("--force", action="store_true", help="overwrite existing files")
+    parser.add_argument(
+        "--deploy",
+        action="store_true",
+        help="also write DIR/deploy/: install.sh and the systemd unit, sysusers, sysctl and "
+        "networkd files it installs (`sudo DIR/deploy/install.sh --package WHEEL` installs "
+        "the service with this configuration)",
+    )
     options = parser.parse_args(args)
     try:
-        written = write_example(options.example, options.directory, force=options.force)
+        written = write_example(
+            options.example, options.directory, force=options.force, deploy=options.deploy
+        )
     except (FileExistsError, ConfigError) as exc:
         return fail(exc, 2)
     except OSError as exc:
@@ -81,6 +126,13 @@ def init_main(args: Sequence[str]) -> int:
         f"{PROG}: edit [bus] channel, [recording] directory and the machine tables, then "
         f"`{PROG} run --config {config}` (`{PROG} replay LOG --config {config}` for a CAN log)\n"
     )
+    if options.deploy:
+        install = options.directory / "deploy" / "install.sh"
+        sys.stderr.write(
+            f"{PROG}: on the machine, `sudo {install} --package WHEEL` installs the service "
+            f"(/opt/portal-daq/venv, this configuration in /etc/portal-daq, the systemd unit); "
+            f"`{install} --help` says what goes where\n"
+        )
     return 0
 
 

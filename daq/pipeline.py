@@ -16,7 +16,7 @@ from cantools.database.can import Database
 from daq.frames import RawFrame
 from daq.pose import PoseTracker
 from dbc.decoding import DecodedFrame, FrameDecoder, is_j1939
-from dbc.errors import ErrorFrameError, FrameError, RemoteFrameError
+from dbc.errors import ErrorFrameError, FrameError, FrameLengthError, RemoteFrameError
 from dbc.machine import MachineConfig
 from dbc.samples import LegSampler
 from dbc.signal_range import value_range
@@ -80,6 +80,8 @@ class Pipeline:
         self.frames_lost = 0
         # The unmapped senders seen (message, source address): each is logged once.
         self._unmapped: set[tuple[str, int | None]] = set()
+        # The messages and lengths of the wrong_dlc frames seen: each is logged once.
+        self._wrong_lengths: set[str] = set()
 
     @classmethod
     def from_config(cls, machine: MachineConfig, database: Database) -> "Pipeline":
@@ -119,6 +121,8 @@ class Pipeline:
             )
         except FrameError as error:
             self.bad[error.kind] += 1
+            if error.kind == FrameLengthError.kind:
+                self._log_wrong_length(error)
             return FrameResult(frame, None, error)
         if decoded.faults:
             self.bad.update(decoded.faults)
@@ -155,6 +159,15 @@ class Pipeline:
             address,
             UNMAPPED_SOURCE,
         )
+
+    def _log_wrong_length(self, error: FrameError) -> None:
+        """One line for the first frame of each message and length the DBC does not
+        give it: a sender and a DBC that disagree on a message's length (a hub sending
+        6 bytes of a DBC's 8) left its legs stale with only the count saying why."""
+        if error.reason in self._wrong_lengths:
+            return
+        self._wrong_lengths.add(error.reason)
+        logger.warning("%s: its frames are counted %s and not used", error, error.kind)
 
     def reset_counters(self) -> None:
         """After a gap in reception (bus down, reopened): forget the rolling counters so

@@ -25,14 +25,16 @@ on the status topic). Zenoh closes a link that stays blocked longer than
 than the watchdog's heartbeat limit). Putting in the acquisition thread itself was
 measured and left: with ``BLOCK`` a slow subscriber behind a router held it for
 seconds, and with ``DROP`` Zenoh drops without a count. A liveliness token
-``<prefix>/alive`` lives as long as the publisher.
+``<prefix>/alive`` lives as long as the publisher, and so do the queryables that answer a
+plain ``get`` with what does not change while the service runs (``answers``, e.g.
+``<prefix>/units``).
 """
 
 import logging
 import queue
 import threading
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Mapping, Sequence
 
 import zenoh
 import zenoh.ext
@@ -110,6 +112,7 @@ class ZenohPublisher(Worker):
         prefix: str,
         *,
         queue_size: int = 10_000,
+        answers: Mapping[str, JsonObject] | None = None,
     ) -> None:
         super().__init__()
         self.session = session
@@ -117,6 +120,9 @@ class ZenohPublisher(Worker):
         self._queue = MessageQueue(maxsize=queue_size)
         self._publishers: dict[str, zenoh.ext.AdvancedPublisher] = {}
         self._token: zenoh.LivelinessToken | None = None
+        #: What a ``get`` of ``<prefix>/<suffix>`` is answered, by suffix (encoded once).
+        self._answers = {suffix: json_bytes(payload) for suffix, payload in (answers or {}).items()}
+        self._queryables: list[zenoh.Queryable[None]] = []
         self._closed = False
         #: Messages published, dropped (queue full) and failed (an error while publishing).
         self.published = 0
@@ -134,6 +140,9 @@ class ZenohPublisher(Worker):
 
     def _before_start(self) -> None:
         self._token = self.session.liveliness().declare_token(self.key("alive"))
+        for suffix, data in self._answers.items():
+            key = self.key(suffix)
+            self._queryables.append(self.session.declare_queryable(key, _answer(key, data)))
 
     def submit(self, suffix: str, payload: JsonObject | bytes) -> None:
         """Queue ``payload`` (or its JSON, already encoded) for ``<prefix>/<suffix>``; never
@@ -155,7 +164,7 @@ class ZenohPublisher(Worker):
         if self._closed:
             return
         self._closed = True
-        for entity in (*self._publishers.values(), self._token):
+        for entity in (*self._publishers.values(), *self._queryables, self._token):
             if entity is None:
                 continue
             try:
@@ -163,6 +172,7 @@ class ZenohPublisher(Worker):
             except zenoh.ZError as exc:  # e.g. the session was closed first
                 logger.debug("undeclaring %s: %s", entity, exc)
         self._publishers.clear()
+        self._queryables.clear()
 
     def _run(self) -> None:
         deadline: float | None = None
@@ -203,3 +213,15 @@ class ZenohPublisher(Worker):
                 logger.warning("publishing on %s failed: %s", key, exc)
             return
         self.published += 1
+
+
+def _answer(key: str, data: bytes) -> Callable[[zenoh.Query], None]:
+    """A queryable's callback (in Zenoh's thread) that replies ``data`` on ``key``."""
+
+    def reply(query: zenoh.Query) -> None:
+        try:
+            query.reply(key, data, encoding=JSON)
+        except zenoh.ZError as exc:  # e.g. the session closing meanwhile
+            logger.warning("answering a get of %s failed: %s", key, exc)
+
+    return reply

@@ -142,15 +142,22 @@ SIM_TRUTH: Schema = {
 }
 
 
+def signal_units(message: Message, units: Mapping[str, str] = {}) -> dict[str, str]:
+    """The unit each decoded signal of ``message`` is in, by name: ``units``' (what the
+    decoder converted it to, from :attr:`dbc.machine.MachineConfig.decoded_units`), else
+    the DBC's; ``""`` for none. The schema's descriptions and ``<prefix>/units``."""
+    return {signal.name: units.get(signal.name, signal.unit or "") for signal in message.signals}
+
+
 def signals_schema(message: Message, units: Mapping[str, str] = {}) -> Schema:
     """Schema of ``/signals/<MESSAGE>``: the message's signals by name, each described
     by its unit: ``units``' (what the decoder converted it to, from
     :attr:`dbc.machine.MachineConfig.decoded_units`), else the DBC's."""
     signal_types: dict[str, Any] = {}
+    described = signal_units(message, units)
     for signal in message.signals:
         types = ["number", "null"] + (["string"] if signal.choices else [])
-        description = units.get(signal.name, signal.unit or "")
-        signal_types[signal.name] = {"type": types, "description": description}
+        signal_types[signal.name] = {"type": types, "description": described[signal.name]}
     return _object(
         f"portal.signals.{message.name}",
         {

@@ -31,10 +31,10 @@ least every 0.1 s, and stops turning only when it hangs on a frame.
 
 Healthy, on the status topic and STATUS= (:func:`problems`): alive, and during the
 last status period the recorder was recording, nothing was lost anywhere (every
-key of ``dropped``, ``dropped.kernel`` and ``dropped.publish_failed`` included, and
-``recording.failed_items``: :func:`losses`), every configured Zenoh ``connect``
-endpoint was reached, and frames came in (none for a whole period, or for the legs'
-stale time when that is longer, is a problem). ``problems`` lists what is wrong, one
+key of ``dropped``, ``dropped.kernel`` and ``dropped.publish_failed`` included,
+``bad.internal_error`` and ``recording.failed_items``: :func:`losses`), every configured
+Zenoh ``connect`` endpoint was reached, and frames came in (none for a whole period, or
+for the legs' stale time when that is longer, is a problem). ``problems`` lists what is wrong, one
 short text each. None of these stops the watchdog (a restart would not help).
 """
 
@@ -55,6 +55,7 @@ from daq.pipeline import Pipeline
 from daq.publisher import ZenohPublisher
 from daq.recorder import Recorder
 from daq.recorder_process import RecorderProcess
+from daq.schemas import signal_units
 from daq.sd_notify import SdNotifier
 from daq.service_config import ServiceConfig
 from daq.sim_truth import TRUTH_KEY, TruthSubscriber
@@ -71,6 +72,21 @@ _NUMBER = re.compile(r"\d+(\.\d+)?")
 HEARTBEAT_MAX_AGE_S = 2.0
 #: A saturated 1 Mbit/s bus: an 8-byte standard frame takes up to ~111 us.
 SATURATED_FRAMES_PER_S = 9000.0
+#: ``<prefix>/units`` answers a ``get`` with :func:`units`.
+UNITS_KEY = "units"
+
+
+def units(config: ServiceConfig) -> JsonObject:
+    """What ``<prefix>/units`` answers: the unit each value of ``<prefix>/signals/<MESSAGE>``
+    is in, by message and signal (Pa for every pressure the decoder converts, else the
+    DBC's unit; ``""`` for none), so that a dashboard needs no DBC to label them."""
+    decoded = config.machine.decoded_units
+    return {
+        "signals": {
+            message.name: signal_units(message, decoded.get(message.name, {}))
+            for message in config.database.messages
+        }
+    }
 
 
 class Service:
@@ -93,7 +109,10 @@ class Service:
         self.inbox: queue.Queue[RawFrame | BusEvent] = queue.Queue(maxsize=config.bus.queue_size)
         self.pipeline = Pipeline.from_config(config.machine, config.database)
         self.publisher = ZenohPublisher(
-            session, config.zenoh.key_prefix, queue_size=config.publish.queue_size
+            session,
+            config.zenoh.key_prefix,
+            queue_size=config.publish.queue_size,
+            answers={UNITS_KEY: units(config)},
         )
         self.recorder = recorder
         #: Records the simulator bridge's truth, if any is published (``[recording] truth``).
@@ -161,6 +180,9 @@ class Service:
             self.truth.start()
         self.consumer.start()
         self.reader.start()
+        # Silence is judged from now: starting (the recorder's process takes ~0.5 s to
+        # spawn) is no time a frame could have come in.
+        self._last_frame_monotonic = time.monotonic()
 
     def close(self) -> None:
         """Stop receiving, drain the queues, finish the recording. Idempotent."""
@@ -363,12 +385,16 @@ def hold_overflow(config: ServiceConfig, rcvbuf_bytes: int | None) -> str | None
 
 def losses(status: JsonObject) -> dict[str, int]:
     """What ``status`` counts as lost by the service since it started, by field: every key
-    of ``dropped`` and the items the recorder skipped (``recording.failed_items``).
+    of ``dropped``, the frames whose processing failed (``bad.internal_error``: a bug) and
+    the items the recorder skipped (``recording.failed_items``).
 
-    >>> losses({"dropped": {"rx": 5, "publish_failed": 1}, "recording": {"failed_items": 2}})
-    {'dropped.rx': 5, 'dropped.publish_failed': 1, 'recording.failed_items': 2}
+    >>> losses({"dropped": {"rx": 5, "publish_failed": 1}, "bad": {"internal_error": 3},
+    ...         "recording": {"failed_items": 2}})  # doctest: +NORMALIZE_WHITESPACE
+    {'dropped.rx': 5, 'dropped.publish_failed': 1, 'bad.internal_error': 3,
+     'recording.failed_items': 2}
     """
     found = {f"dropped.{where}": count for where, count in status["dropped"].items()}
+    found["bad.internal_error"] = status.get("bad", {}).get("internal_error", 0)
     recording = status.get("recording")
     if recording is not None:
         found["recording.failed_items"] = recording["failed_items"]

@@ -64,10 +64,12 @@ def zenoh_config(settings: ZenohSettings, source: str = "") -> zenoh.Config:
 
 def open_session(settings: ZenohSettings, source: str = "") -> zenoh.Session:
     """Open the session; a failure (e.g. the listen port is taken) is a ZenohError."""
+    where = "[zenoh] listen/connect"
+    if settings.config_file is not None:  # where the endpoints come from when not set here
+        where += f" (or listen/connect in {settings.config_file})"
     return open_config_session(
         zenoh_config(settings, source),
-        "check [zenoh] listen/connect: is the port taken by another process, "
-        "is the address on this host?",
+        f"check {where}: is the port taken by another process, is the address on this host?",
     )
 
 

@@ -173,10 +173,14 @@ def unit_factors(
                     if pinned and address is not None
                     else "a chamber without source_address reads every sender"
                 )
+                if chamber.page is not None:  # inputs of one I/O module, each on a page
+                    sender, rule = "pages of one signal", "a signal's pages have one unit"
+                else:
+                    rule = "one transducer has one unit"
                 raise legs_table.table(leg.name).error(
                     key,
                     f"{chamber} is in {chamber.unit!r} here and in {other_unit!r} for "
-                    f"legs.{other_leg}.{other_key} ({sender}); one transducer has one unit",
+                    f"legs.{other_leg}.{other_key} ({sender}); {rule}",
                 )
             others.append((address, factor, chamber.unit, leg.name, key))
     for (message_name, signal_name), chambers in readers.items():

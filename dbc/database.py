@@ -60,6 +60,7 @@ def load_database(path: str | Path) -> Database:
 
 def load_database_string(text: str, source: str) -> Database:
     """Load a DBC from its text (e.g. one embedded in a recording); ``source`` names it."""
+    text = _with_extended_flags(text, source)
     try:
         database = _load(text, source, strict=True)
     except (UnsupportedDatabaseFormatError, ValueError, KeyError) as exc:
@@ -104,6 +105,46 @@ def _without_layout_checks(text: str, source: str, refused: Exception) -> Databa
         "; ".join(problems or [_first_line(refused)]),
     )
     return database
+
+
+#: A message's ID where a statement after the messages names one: its attributes,
+#: value tables, comments, float types, multiplexer values, senders, signal groups.
+_NAMES_A_MESSAGE = re.compile(
+    r'^(?P<head>[ \t]*(?:BA_[ \t]+"[^"]*"[ \t]+(?:BO_|SG_)|BA_REL_[ \t]+"[^"]*"[ \t]+'
+    r"BU_SG_REL_[ \t]+\w+[ \t]+SG_|VAL_|CM_[ \t]+(?:BO_|SG_)|SIG_VALTYPE_|SG_MUL_VAL_|"
+    r"BO_TX_BU_|SIG_GROUP_)[ \t]+)(?P<id>\d+)\b",
+    re.M,
+)
+_MESSAGE_ID = re.compile(r"^[ \t]*BO_[ \t]+(\d+)[ \t]", re.M)
+#: The DBC's flag of a 29-bit ID (bit 31 of the number a ``BO_`` line writes).
+EXTENDED_FLAG = 0x80000000
+
+
+def _with_extended_flags(text: str, source: str) -> str:
+    """``text`` with the statements that name a 29-bit message by its ID without the
+    extended flag (``BA_ "GenMsgCycleTime" BO_ 419373089 10;`` for ``BO_ 2566856737``:
+    a hand edit, or a script writing the ID both ways) naming it as its ``BO_`` does,
+    with one warning: cantools ignored such an attribute (the cycle time was "not in the
+    DBC") and refused such a value table (left out: a status had no names)."""
+    ids = {int(number) for number in _MESSAGE_ID.findall(text)}
+    fixed: dict[int, int] = {}
+
+    def flagged(match: re.Match[str]) -> str:
+        number = int(match["id"])
+        if number in ids or number | EXTENDED_FLAG not in ids:
+            return match[0]
+        fixed[number] = number | EXTENDED_FLAG
+        return f"{match['head']}{number | EXTENDED_FLAG}"
+
+    text = _NAMES_A_MESSAGE.sub(flagged, text)
+    if fixed:
+        logger.warning(
+            "%s: read as the 29-bit messages they are: the statements naming %s without "
+            "the extended flag (bit 31)",
+            source,
+            ", ".join(f"{number} (BO_ {flagged_id})" for number, flagged_id in fixed.items()),
+        )
+    return text
 
 
 #: cantools' refusal of a value table or float type naming a signal the DBC does not

@@ -34,16 +34,18 @@ def value_range(signal: Signal, j1939: bool) -> tuple[float, float]:
             margin = 0.5 * abs(signal.scale) if not signal.is_float else 0.0
             margin += 1e-9 * max(abs(signal.minimum), abs(signal.maximum))
             low, high = signal.minimum - margin, signal.maximum + margin
-    if signal.is_float or signal.scale <= 0:
+    if signal.is_float or signal.scale == 0:
         return (low, high)
+    # The raw values that are values, half a step inside the codes at the ends; a
+    # negative factor (an inverted signal) turns them end for end.
     bits = signal.length - 1 if signal.is_signed else signal.length
-    high = min(high, ((1 << bits) - 1.5) * signal.scale + signal.offset)
-    if signal.is_signed:
-        low = max(low, (0.5 - (1 << bits)) * signal.scale + signal.offset)
+    raw_high = (1 << bits) - 1.5
+    raw_low = 0.5 - (1 << bits) if signal.is_signed else -math.inf
     raw_max = J1939_VALID_RAW_MAX.get(signal.length)
     if j1939 and raw_max is not None and not signal.is_signed:
-        high = min(high, (raw_max + 0.5) * signal.scale + signal.offset)
-    return (low, high)
+        raw_high = min(raw_high, raw_max + 0.5)
+    ends = sorted(raw * signal.scale + signal.offset for raw in (raw_low, raw_high))
+    return (max(low, ends[0]), min(high, ends[1]))
 
 
 def decoded_bounds(signal: Signal) -> tuple[float, float]:

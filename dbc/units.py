@@ -54,6 +54,8 @@ PRESSURE_UNITS_TO_PA: dict[str, float] = {
     "kgf/cm2": 98066.5,
     "kg/cm2": 98066.5,
     "kp/cm2": 98066.5,  # kilopond, German for kgf
+    # The technical atmosphere (1 kgf/cm2): older German gauges' "atü" (gauge), "ata".
+    "at": 98066.5,
     "n/cm2": 1.0e4,
     "dan/cm2": 1.0e5,  # decanewton: the bar of French and older European gauges
     # The same units spelled out in base units, as some DBC editors write them.
@@ -68,28 +70,28 @@ ACCEPTED_PRESSURE_UNITS = "Pa, kPa, MPa, bar, mbar, psi, hPa, N/mm2, N/cm2, daN/
 
 
 #: Marks of a gauge unit after the unit's name (longest first), e.g. "psig", "bar(g)",
-#: "bar rel", "bar rel.", "bar (relative)", "bar(ü)" (German *Überdruck*, as Windows-1252
-#: writes it).
+#: "bar rel", "bar (relative)", "bar(ü)" (German *Überdruck*, as Windows-1252 writes it);
+#: abbreviated with a dot too ("bar rel.", "bar(rel.)": the dots are left out).
 GAUGE_MARKS = (
     "(relative)",
     "relative",
     "(gauge)",
     "gauge",
     "(rel)",
-    "rel.",
     "rel",
     "(\u00fc)",
     "\u00fc",
     "(g)",
     "g",
 )
-#: Marks of an absolute unit after the unit's name (longest first), e.g. "psia", "kPa abs".
+#: Marks of an absolute unit after the unit's name (longest first), e.g. "psia", "kPa abs",
+#: "bar abs.", "psi(abs.)".
 ABSOLUTE_MARKS = ("(absolute)", "absolute", "(abs)", "abs", "(a)", "a")
 
 
 def pressure_factor_to_Pa(unit: str) -> float | None:
-    """Pa per one ``unit`` (case-insensitive, surrounding blanks, brackets and a gauge
-    mark ignored, "²" and "^2" read as "2"); None if unknown."""
+    """Pa per one ``unit`` (case-insensitive, surrounding blanks, brackets, dots and a
+    gauge mark ignored, "²" and "^2" read as "2"); None if unknown."""
     return _factor_marked(unit, GAUGE_MARKS)
 
 
@@ -106,7 +108,8 @@ def chamber_unit(unit: str) -> tuple[float, float] | None:
 
 def _factor_marked(unit: str, marks: tuple[str, ...]) -> float | None:
     """Pa per one ``unit``, which may end with one of ``marks``; None if unknown."""
-    name = unit.strip().lower().replace("\u00b2", "2").replace("^2", "2")
+    # No unit has a dot; an abbreviated mark has ("bar abs.", "bar(rel.)").
+    name = unit.strip().lower().replace("\u00b2", "2").replace("^2", "2").replace(".", "")
     if name[:1] == "[" and name[-1:] == "]":  # "[bar]": some editors bracket the unit
         name = name[1:-1].strip()
     factor = PRESSURE_UNITS_TO_PA.get(name)

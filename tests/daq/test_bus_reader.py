@@ -255,6 +255,9 @@ def test_bus_errors_carry_a_hint() -> None:
     assert "ip link set can0 up" in str(error) and error.channel == "can0"
     error = bus_error("can9", OSError(errno.ENODEV, "No such device"))
     assert str(error).startswith("CAN bus 'can9': No such device (no such CAN interface")
+    # A kernel without CAN: the service retried for ever saying only this.
+    error = bus_error("can0", OSError(errno.EAFNOSUPPORT, "Address family not supported"))
+    assert "no SocketCAN: load it (sudo modprobe can-raw;" in str(error)
 
 
 def test_kernel_filters_pass_exactly_the_dbc_ids() -> None:

@@ -156,6 +156,23 @@ def test_taken_zenoh_port_exits_1_with_a_hint(tmp_path: Path) -> None:
     assert "port" in last and ".rs:" not in last and "Traceback" not in result.stderr
 
 
+def test_a_taken_port_of_the_zenoh_file_is_looked_for_there(tmp_path: Path) -> None:
+    # The listen endpoint of `portal-daq init`'s config is in its zenoh.json5; the hint
+    # sent the user to [zenoh] listen, which is not in the TOML.
+    assert run_cli("init", str(tmp_path)).returncode == 0
+    config, zenoh_file = tmp_path / "portal-daq.toml", tmp_path / "zenoh.json5"
+    endpoint = f"tcp/127.0.0.1:{free_port()}"  # not 7447: this host's other services
+    zenoh_file.write_text(zenoh_file.read_text().replace("tcp/127.0.0.1:7447", endpoint))
+    text = config.read_text().replace("/var/lib/portal-daq/recordings", str(tmp_path / "rec"))
+    config.write_text(text)
+    with zenoh.open(peer_config(listen=endpoint)):
+        result = run_cli("run", "--config", str(config))
+    assert result.returncode == 1, result.stderr
+    last = result.stderr.strip().splitlines()[-1]
+    assert "Address already in use" in last
+    assert f"(or listen/connect in {zenoh_file})" in last
+
+
 def test_notify_order_and_clean_sigterm(tmp_path: Path) -> None:
     """READY before STATUS/WATCHDOG, STOPPING last; the MCAP file gets its summary."""
     config = write_service_config(

@@ -64,6 +64,8 @@ def test_foreign_puts_are_refused_and_the_local_socket_may_put_truth(tmp_path: P
         # Subscribing and querying (history) are allowed to anyone.
         status = Collector(foreign, f"{prefix}/status", advanced=True)
         status.wait_until(lambda: bool(status.of(f"{prefix}/status")))
+        (units,) = foreign.get(f"{prefix}/units")  # the access control lets it answer
+        assert json.loads(units.ok.payload.to_bytes())["signals"]["LEG_SB1_F1"]
         for _ in range(5):
             foreign.put(f"{prefix}/sim/truth", FAKE)
             foreign.put(f"{prefix}/status", b'{"healthy": true}')

@@ -17,3 +17,36 @@ def test_a_29_bit_id_without_the_extended_flag_names_the_id_to_write() -> None:
         'is more than 11 bits in message XDCR." (a 29-bit ID is written with bit 31 set '
         "in a DBC: BO_ 2566856737, not BO_ 419373089)"
     )
+
+
+def test_statements_naming_a_29_bit_message_without_its_flag_are_that_messages(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    """BO_ 2566856737 (0x18FF2021 with bit 31) and its cycle time, value tables, comment
+    and float type written with 419373089 (a script writing the ID both ways): cantools
+    ignored the cycle time (the config said the DBC had none) and refused the value
+    table (left out: the status had no names). A 11-bit message's statements stay."""
+    messages = (
+        'BO_ 2566856737 XDCR: 8 Xdcr\n SG_ P : 0|32@1- (1,0) [0|4e7] "Pa" DAQ\n'
+        ' SG_ Status : 32|2@1+ (1,0) [0|3] "" DAQ\n'
+        'BO_ 1024 STATE: 1 Ctrl\n SG_ Phase : 0|8@1+ (1,0) [0|4] "" DAQ\n'
+    )
+    attributes = (
+        'BA_ "GenMsgCycleTime" BO_ 419373089 20;\nBA_ "GenMsgCycleTime" BO_ 1024 100;\n'
+        'VAL_ 419373089 Status 0 "ok" 1 "fault" ;\nVAL_ 1024 Phase 0 "idle" ;\n'
+        'CM_ SG_ 419373089 P "Pressure";\nSIG_VALTYPE_ 419373089 P : 1;\n'
+    )
+    with caplog.at_level("WARNING", logger="dbc.database"):
+        database = load_database_string(dbc_text(messages, attributes), "vendor.dbc")
+    xdcr = database.get_message_by_name("XDCR")
+    assert xdcr.cycle_time == 20 and xdcr.get_signal_by_name("Status").choices == {
+        0: "ok",
+        1: "fault",
+    }
+    assert xdcr.get_signal_by_name("P").is_float and xdcr.get_signal_by_name("P").comment
+    state = database.get_message_by_name("STATE")
+    assert state.cycle_time == 100 and state.get_signal_by_name("Phase").choices == {0: "idle"}
+    assert [r.getMessage() for r in caplog.records] == [
+        "vendor.dbc: read as the 29-bit messages they are: the statements naming 419373089 "
+        "(BO_ 2566856737) without the extended flag (bit 31)"
+    ]

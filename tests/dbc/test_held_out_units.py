@@ -19,7 +19,9 @@ from tests.dbc.test_held_out_machines import PSI_PA, STRANGER, _hub_frame, eq4_N
     [("bar(\u00fc)", 1e5), ("BAR\u00fc", 1e5), ("bar rel", 1e5), ("bar (rel)", 1e5)]
     + [("[bar]", 1e5), (" [kPa] ", 1e3), ("N/m\u00b2", 1.0), ("kN/m2", 1e3)]
     + [("N/mm^2", 1e6), ("lbf/in\u00b2", PSI_PA), ("lb/in2", PSI_PA)]
-    + [("kPa abs", None), ("bar(a)", None), ("[bara]", None), ("rel", None), ("\u00fc", None)],
+    + [("kPa abs", None), ("bar(a)", None), ("[bara]", None), ("rel", None), ("\u00fc", None)]
+    + [("bar(rel.)", 1e5), ("psig.", PSI_PA), ("at\u00fc", 98066.5), ("at", 98066.5)]
+    + [("atm", None), ("ata", None), ("bar abs.", None), ("0.01 bar", None)],
 )
 def test_units_as_held_out_dbcs_spell_them(unit: str, pa: float | None) -> None:
     factor = pressure_factor_to_Pa(unit)
@@ -29,6 +31,7 @@ def test_units_as_held_out_dbcs_spell_them(unit: str, pa: float | None) -> None:
 @pytest.mark.parametrize(
     ("unit", "absolute"),
     [("kPa abs", True), ("bar(a)", True), ("PSIA", True), ("bara", True), ("MPa absolute", True)]
+    + [("bar abs.", True), ("psi(abs.)", True), ("bar (abs.)", True), ("ata", True)]
     + [("bar", False), ("psig", False), ("a", False), ("kg", False), ("", False), ("Pa", False)],
 )
 def test_absolute_units_are_told_apart(unit: str, absolute: bool) -> None:

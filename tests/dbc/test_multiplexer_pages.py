@@ -87,6 +87,12 @@ def test_each_chamber_reads_the_page_it_names() -> None:
             "IOM_VORNE_AIN.IOM_Zaehler is not under a multiplexer",
         ),
         (
+            ('multiplexer = "AIN2",', 'multiplexer = "AIN2", unit = "psi",'),
+            "legs.VL.rod",
+            "IOM_VORNE_AIN.AIN_Druck[Kanal=1] is in 'psi' here and in 'mbar' for legs.VL.piston "
+            "(pages of one signal); a signal's pages have one unit",
+        ),
+        (
             ('multiplexer = "AIN2"', 'multiplexer = "AIN1"'),
             "legs.VL.rod",
             "is the piston's signal IOM_VORNE_AIN.AIN_Druck[Kanal=0]; each chamber has its own",

@@ -194,3 +194,43 @@ def test_the_last_raw_values_of_the_bits_are_outside_the_value_range() -> None:
     assert low <= 0.0 and 4094 * 0.05 <= high < 4095 * 0.05
     low, high = value_range(message.get_signal_by_name("HYD_P_ZYL1_DIFF"), j1939=False)
     assert -32768 * 0.01 < low <= -32767 * 0.01 and 32766 * 0.01 <= high < 32767 * 0.01
+
+
+def test_the_end_codes_of_an_inverted_signal_are_no_pressure(tmp_path: Path) -> None:
+    """A signal of negative factor (-0.01 bar/bit from 655.35 bar: raw 0 is the top) has
+    its all-ones code at the bottom: 0xFFFF was a valid 0 bar (the checks at the ends of
+    the bits were skipped for a factor below 0), and so was J1939's 0xFE00 error code."""
+    messages = """
+BO_ 256 INV: 4 Hub
+ SG_ pCap : 0|16@1+ (-0.01,655.35) [0|655.35] "bar" DAQ
+ SG_ pRod : 16|16@1+ (-0.01,655.35) [0|655.35] "bar" DAQ
+
+BO_ 2566856704 XDCR: 8 Hub
+ SG_ P : 0|16@1+ (-0.05,3276.75) [0|3276.75] "kPa" DAQ
+"""
+    attributes = (
+        'BA_ "GenMsgCycleTime" BO_ 256 10;\nBA_ "GenMsgCycleTime" BO_ 2566856704 10;\n'
+        'BA_ "VFrameFormat" BO_ 2566856704 3;\n'
+    )
+    legs = (
+        '[legs.A]\npiston = "INV.pCap"\nrod = "INV.pRod"\n'
+        '[legs.B]\npiston = { signal = "XDCR.P", source_address = 0x21 }\n'
+        'rod = { signal = "XDCR.P", source_address = 0x22 }\n'
+    )
+    config, database = machine_on(tmp_path, dbc_text(messages, attributes), legs)
+    pipeline = Pipeline.from_config(config, database)
+
+    def inverted(cap_raw: int, rod_raw: int) -> RawFrame:
+        return RawFrame(
+            1.0, 256, False, cap_raw.to_bytes(2, "little") + rod_raw.to_bytes(2, "little")
+        )
+
+    (estimate,) = pipeline.process(inverted(55535, 60535)).estimates
+    assert estimate.valid and estimate.p_piston_Pa == pytest.approx(100e5)
+    assert estimate.p_rod_Pa == pytest.approx(50e5)
+    (estimate,) = pipeline.process(inverted(55535, 0xFFFF)).estimates
+    assert estimate.reasons == ("range",) and math.isnan(estimate.p_rod_Pa)
+    low_Pa, high_Pa = config.legs["B"].piston.range_Pa
+    # J1939's valid raw range ends at 0xFAFF: 0xFE00 (error) is 25.6 kPa here, below it.
+    assert (0xFAFF + 0.5) * -50 + 3276.75e3 == pytest.approx(low_Pa)
+    assert high_Pa == pytest.approx(3276.75e3 + 25, rel=1e-9)

@@ -1,6 +1,7 @@
 """deploy/: the systemd unit passes systemd-analyze, the install script installs into a root."""
 
 import configparser
+import os
 import shutil
 import subprocess
 import sys
@@ -8,6 +9,7 @@ from pathlib import Path
 
 import pytest
 
+from daq.cli import main
 from daq.service_config import BusSettings
 from tests.helpers import ROOT
 
@@ -136,12 +138,43 @@ def test_install_script_into_a_temporary_root(tmp_path: Path) -> None:
     passwd = (root / "etc/passwd").read_text()
     assert any(line.startswith("portal-daq:") for line in passwd.splitlines())
 
-    # A second install keeps the operator's configuration.
+    assert (root / "etc/portal-daq/portal_sensors.dbc").is_file()
+    assert (root / "opt/portal-daq/README.md").read_text() == (ROOT / "README.md").read_text()
+
+    # A second install keeps the operator's configuration; this time from the kit an
+    # installed package writes (`portal-daq init DIR --deploy`: a wheel has no deploy/).
     config.write_text(config.read_text() + "\n# edited by the operator\n")
+    kit = tmp_path / "kit"
+    subprocess.run([str(venv / "bin/portal-daq"), "init", str(kit), "--deploy"], check=True)
     subprocess.run(
-        [str(DEPLOY / "install.sh"), "--root", str(root), "--pip-args", "--no-deps"],
+        [str(kit / "deploy/install.sh"), "--root", str(root), "--package", str(ROOT),
+         "--pip-args", "--no-deps"],
         check=True,
         capture_output=True,
         timeout=600,
-    )
+    )  # fmt: skip
     assert config.read_text().endswith("# edited by the operator\n")
+    assert unit.read_text() == UNIT.read_text()
+
+
+def test_init_writes_the_deployment_kit_of_the_repository(tmp_path: Path) -> None:
+    # A user with the wheel alone had no install.sh, no unit: no way to deploy.
+    assert main(["init", str(tmp_path), "--deploy"]) == 0
+    kit = tmp_path / "deploy"
+    packaged = ROOT / "daq" / "deploy"  # deploy/ links to it: one copy of each file
+    for name in ("install.sh", "systemd", "network", "sysctl"):
+        assert (DEPLOY / name).resolve() == packaged / name
+    expected = {path.relative_to(packaged) for path in packaged.rglob("*") if path.is_file()}
+    assert {path.relative_to(kit) for path in kit.rglob("*") if path.is_file()} == expected
+    assert Path("systemd/portal-daq.service") in expected
+    for path in expected:
+        assert (kit / path).read_bytes() == (packaged / path).read_bytes(), path
+    assert os.access(kit / "install.sh", os.X_OK)
+    # Without a source tree around it, install.sh needs to be told what to install.
+    root = tmp_path / "root"
+    refused = subprocess.run(
+        [str(kit / "install.sh"), "--root", str(root)], capture_output=True, text=True
+    )
+    assert refused.returncode == 2 and not root.exists()
+    assert refused.stderr.startswith("install.sh: no source tree around ")
+    assert "give --package, the portal-daq wheel" in refused.stderr

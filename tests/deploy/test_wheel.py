@@ -115,3 +115,19 @@ def test_init_writes_an_example_the_installed_service_takes(venv: Path) -> None:
     assert replayed.returncode == 0, replayed.stderr
     legs = {line.split(",")[0] for line in replayed.stdout.splitlines()[1:]}
     assert legs == {"SB1_F1", "SB1_F2", "SB1_F3", "SB2_F1", "SB2_F2", "SB2_F3"}
+
+
+def test_the_wheel_carries_the_deployment_kit(venv: Path) -> None:
+    """A user with the wheel alone had no install.sh, unit or drop-ins (deploy/ is not in a
+    wheel): `portal-daq init DIR --deploy` writes them, the script executable."""
+    elsewhere = venv.parent / "elsewhere-deploy"
+    elsewhere.mkdir(exist_ok=True)
+    init = run(venv / "bin" / "portal-daq", "init", "machine", "--deploy", cwd=elsewhere)
+    assert init.returncode == 0, init.stderr
+    kit = elsewhere / "machine" / "deploy"
+    unit = kit / "systemd" / "portal-daq.service"
+    assert unit.read_bytes() == (ROOT / "deploy" / "systemd" / "portal-daq.service").read_bytes()
+    assert (kit / "sysctl" / "90-portal-daq.conf").is_file()
+    helped = run(kit / "install.sh", "--help", cwd=elsewhere)
+    assert helped.returncode == 0 and "--package SPEC" in helped.stdout
+    assert "deploy/install.sh --package WHEEL" in init.stderr

@@ -16,7 +16,11 @@ DBC signal of the simulation's (the truth's), each foot force within what that a
 - ``spn_xdcr``: J1939 transducers named by SPN, a PGN per piston, the rods on one PGN
   told apart by source address, no cycle time in the DBC;
 - ``split_rates``: each leg's piston and rod in two 11-bit messages at 10 and 50 ms, MPa
-  and psi(g), a state byte with a bit per rod transducer.
+  and psi(g), a state byte with a bit per rod transducer;
+- ``abs_vehicle``: absolute transmitters ("bar (abs)", "PSIA") in a vehicle DBC that
+  cantools reads only without its checks;
+- ``iom_j1939``: two J1939 I/O modules on one PGN, eight inputs each in turn, each
+  chamber named by source address and page.
 """
 
 import logging
@@ -57,6 +61,7 @@ PAIRS = (
     "spn_xdcr",
     "split_rates",
     "abs_vehicle",
+    "iom_j1939",
 )
 PLAYED_S = 0.5
 
@@ -176,6 +181,24 @@ def test_a_transducer_at_an_address_no_chamber_has_is_named_once(
     assert [r.getMessage() for r in caplog.records] == [
         "XDCR_ROD from source address 0x56: no chamber has this source_address; its frames "
         "are counted unmapped_source and not used"
+    ]
+
+
+def test_a_message_sent_at_another_length_than_the_dbcs_is_named_once(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    """split_rates' PLC sends STANGE_SB1 in 8 bytes where the DBC says 7 (a DBC of an
+    older PLC program): its legs had no rod, and only the count wrong_dlc said so."""
+    config, database = load_machine_config(STRANGER / "split_rates.toml")
+    pipeline = Pipeline.from_config(config, database)
+    with caplog.at_level(logging.WARNING, logger="daq.pipeline"):
+        for i, length in enumerate((8, 8, 8, 6)):
+            pipeline.process(RawFrame(1.0 + 0.05 * i, 0x211, False, bytes(length)))
+    assert pipeline.bad == {"wrong_dlc": 4}
+    assert [r.getMessage() for r in caplog.records] == [
+        f"frame 0x211: STANGE_SB1 has DLC {length}, the DBC says 7: its frames are counted "
+        "wrong_dlc and not used"
+        for length in (8, 6)
     ]
 
 

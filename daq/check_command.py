@@ -1,0 +1,76 @@
+"""``portal-daq check --config FILE``: check a configuration against its DBC, no bus.
+
+Reads the service configuration (a machine configuration alone too) and the DBC it
+names as ``run`` and ``replay`` do, and prints what each leg reads: each chamber's
+``MESSAGE.SIGNAL`` (with its J1939 sender and multiplexer page), unit, cycle time and
+status. A wrong key is the one line ``FILE: KEY: reason``, exit 2, as ``run`` says it; a
+user with the wheel alone had no way to see a config's mapping without a bus or a log.
+"""
+
+import argparse
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+from daq.service_config import load_service_config
+from daq.subcommand import PROG, Subcommand, fail, setup_logging
+from dbc.errors import ConfigError, DbcError
+from dbc.machine import ChamberSignal, MachineConfig, StatusCheck
+
+
+def check_main(args: Sequence[str]) -> int:
+    parser = argparse.ArgumentParser(
+        prog=f"{PROG} check",
+        description="Check a service or machine configuration against its DBC, without a "
+        "bus, and print what each leg reads; a wrong key is one line FILE: KEY: reason "
+        "(exit 2).",
+    )
+    parser.add_argument("--config", type=Path, required=True, help="service + machine TOML")
+    options = parser.parse_args(args)
+    setup_logging("WARNING")
+    try:
+        config = load_service_config(options.config)
+    except (ConfigError, DbcError) as exc:
+        return fail(exc, 2)
+    sys.stdout.write(describe(config.machine, len(config.database.messages)))
+    return 0
+
+
+def describe(machine: MachineConfig, messages: int) -> str:
+    """What ``machine``'s legs read, a line per leg and chamber."""
+    lines = [
+        f"{machine.source}: machine {machine.machine_id}, {len(machine.legs)} legs, "
+        f"DBC {machine.dbc_path} ({messages} messages)"
+    ]
+    for leg in machine.legs.values():
+        lines.append(
+            f"leg {leg.name}: sample on each {leg.trigger} value, the other chamber's at "
+            f"most {1000 * leg.max_skew_s:g} ms older"
+        )
+        lines.append(f"  piston: {_chamber(leg.piston)}")
+        lines.append(f"  rod: {_chamber(leg.rod)}")
+    guarded = [
+        f"{name} ({', '.join(part for part in (p.counter, p.crc) if part)})"
+        for name, p in machine.protection.items()
+    ]
+    if guarded:
+        lines.append(f"protected: {', '.join(guarded)}")
+    return "\n".join(lines) + "\n"
+
+
+def _chamber(chamber: ChamberSignal) -> str:
+    status = f", status {_status(chamber.status)}" if chamber.status is not None else ""
+    gauge = " (absolute: less the standard atmosphere)" if chamber.atmosphere_Pa else ""
+    return f"{chamber} in {chamber.unit!r}{gauge}, every {1000 * chamber.cycle_time_s:g} ms{status}"
+
+
+def _status(status: StatusCheck) -> str:
+    """The status signal and its fine values, by name where the value table names them."""
+    names = sorted(str(value) for value in status.ok if isinstance(value, str))
+    fine = names or sorted(str(value) for value in status.ok)
+    return f"{status.signal} (fine: {', '.join(fine)})"
+
+
+SUBCOMMAND = Subcommand(
+    "check", "check a configuration against its DBC and show what each leg reads", check_main
+)

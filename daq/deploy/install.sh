@@ -1,0 +1,109 @@
+#!/usr/bin/env bash
+# install.sh: install portal-daq as a systemd service on the machine's embedded PC.
+#
+#   sudo deploy/install.sh                 # from a clone: install its source tree into /
+#   deploy/install.sh --root /tmp/target   # install into another root (image builds, tests)
+#   sudo ./install.sh --package portal_daq-0.1.0-py3-none-any.whl
+#                                          # from `portal-daq init DIR --deploy` (a wheel's)
+#
+# What it does, all below --root (default /):
+#   /opt/portal-daq/venv                 a venv with portal-daq and its dependencies
+#   /opt/portal-daq/README.md            the documentation the unit points to
+#   /etc/portal-daq/portal-daq.toml      the configuration (kept if it exists): the one
+#                                        beside the kit (init --deploy's DIR), else the
+#                                        package's example
+#   /etc/portal-daq/zenoh.json5          the Zenoh session configuration (the same)
+#   /etc/portal-daq/*.dbc                the DBCs beside it (the example's: a copy of the
+#                                        packaged DBC, which it reads until told otherwise)
+#   /etc/systemd/system/portal-daq.service
+#   /etc/systemd/network/80-can0.network (can0 at 500 kbit/s, bus-off restart)
+#   /etc/sysctl.d/90-portal-daq.conf     net.core.rmem_max for the CAN receive buffer
+#   /usr/lib/sysusers.d/portal-daq.conf  and the system user portal-daq (systemd-sysusers)
+#   the unit enabled (systemctl --root); started only when installing into / with --start.
+#
+# Options: --root DIR, --start, --with-vcan (also install the bench-testing vcan0 netdev),
+#          --package SPEC (what pip installs: a wheel file, or any pip requirement; default:
+#          the source tree this script sits in, deploy/ of a clone),
+#          --pip-args "ARGS" (extra arguments for pip install, e.g. --no-deps).
+set -euo pipefail
+KIT=$(cd "$(dirname "$0")" && pwd)
+ROOT=/
+START=no
+VCAN=no
+PIP_ARGS=""
+PACKAGE=""
+while [ $# -gt 0 ]; do
+    case "$1" in
+        --root) ROOT=$2; shift 2 ;;
+        --start) START=yes; shift ;;
+        --with-vcan) VCAN=yes; shift ;;
+        --package) PACKAGE=$2; shift 2 ;;
+        --pip-args) PIP_ARGS=$2; shift 2 ;;
+        -h|--help) sed -n '2,26p' "$0"; exit 0 ;;
+        *) echo "install.sh: unknown option $1 (see --help)" >&2; exit 2 ;;
+    esac
+done
+if [ -z "$PACKAGE" ]; then
+    if [ -f "$KIT/../pyproject.toml" ]; then
+        PACKAGE=$(cd "$KIT/.." && pwd)
+    else
+        echo "install.sh: no source tree around $KIT: give --package, the portal-daq wheel" \
+            "to install (e.g. --package portal_daq-0.1.0-py3-none-any.whl)" >&2
+        exit 2
+    fi
+fi
+ROOT=$(realpath -m "$ROOT")
+at() { echo "${ROOT%/}$1"; }
+say() { echo "install.sh: $*"; }
+
+command -v python3 >/dev/null || { echo "install.sh: python3 is needed" >&2; exit 1; }
+
+VENV=$(at /opt/portal-daq/venv)
+say "venv in $VENV"
+mkdir -p "$(at /opt/portal-daq)"
+python3 -m venv "$VENV"
+# shellcheck disable=SC2086 # PIP_ARGS is a list of arguments
+"$VENV/bin/python" -m pip install -q $PIP_ARGS "$PACKAGE"
+# The README is the package's description: the same text a clone has.
+"$VENV/bin/python" -c 'import importlib.metadata as m, sys
+sys.stdout.write(m.metadata("portal-daq").get_payload())' > "$(at /opt/portal-daq/README.md)"
+
+# The configuration: the one beside the kit (`portal-daq init DIR --deploy` wrote it into
+# DIR, edited since, maybe with a DBC of the machine's), else the package's example.
+if [ -f "$KIT/../portal-daq.toml" ]; then
+    config=$(cd "$KIT/.." && pwd)
+else
+    config=$(mktemp -d)
+    trap 'rm -rf "$config"' EXIT
+    if ! made=$("$VENV/bin/portal-daq" init "$config" 2>&1); then echo "$made" >&2; exit 1; fi
+fi
+say "configuration in $(at /etc/portal-daq) from $config"
+install -d -m 0755 "$(at /etc/portal-daq)"
+for src in "$config"/portal-daq.toml "$config"/zenoh.json5 "$config"/*.dbc; do
+    [ -e "$src" ] || continue
+    dst=$(at "/etc/portal-daq/${src##*/}")
+    if [ -e "$dst" ]; then say "keeping existing $dst"; else install -m 0644 "$src" "$dst"; fi
+done
+
+say "systemd units"
+install -D -m 0644 "$KIT/systemd/portal-daq.service" "$(at /etc/systemd/system/portal-daq.service)"
+install -D -m 0644 "$KIT/network/80-can0.network" "$(at /etc/systemd/network/80-can0.network)"
+if [ "$VCAN" = yes ]; then
+    install -m 0644 "$KIT/network/80-vcan0.netdev" "$KIT/network/80-vcan0.network" \
+        "$(at /etc/systemd/network/)"
+fi
+install -D -m 0644 "$KIT/systemd/portal-daq.sysusers" "$(at /usr/lib/sysusers.d/portal-daq.conf)"
+install -D -m 0644 "$KIT/sysctl/90-portal-daq.conf" "$(at /etc/sysctl.d/90-portal-daq.conf)"
+
+if [ "$ROOT" = / ]; then
+    systemd-sysusers /usr/lib/sysusers.d/portal-daq.conf
+    sysctl -q -p /etc/sysctl.d/90-portal-daq.conf
+    systemctl daemon-reload
+    systemctl enable portal-daq.service
+    [ "$START" = yes ] && systemctl restart systemd-networkd portal-daq.service
+else
+    install -d -m 0755 "$(at /etc)"
+    systemd-sysusers --root="$ROOT" "$(at /usr/lib/sysusers.d/portal-daq.conf)"
+    systemctl --root="$ROOT" enable portal-daq.service
+fi
+say "done; check with: systemctl status portal-daq (journalctl -u portal-daq for its log)"

@@ -1,0 +1,65 @@
+"""``portal-daq check --config FILE``: a configuration checked against its DBC without a
+bus or a log, each leg's mapping printed (exit 0), a wrong key one line (exit 2)."""
+
+import shutil
+from pathlib import Path
+
+import pytest
+
+from daq.cli import main
+from daq.init_command import init_main
+from tests.helpers import FILES
+
+STRANGER = FILES / "stranger"
+
+
+def test_each_legs_chambers_are_shown_as_read(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["check", "--config", str(STRANGER / "iom_channels.toml")]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].endswith(
+        "machine iom, 4 legs, DBC " + str(STRANGER / "iom_channels.dbc") + " (2 messages)"
+    )
+    assert lines[4:7] == [
+        "leg VR: sample on each rod value, the other chamber's at most 10 ms older",
+        "  piston: IOM_VORNE_AIN.AIN_Druck[Kanal=2] in 'mbar', every 10 ms, status "
+        "AIN_Diagnose (fine: OK)",
+        "  rod: IOM_VORNE_AIN.AIN_Druck[Kanal=3] in 'mbar', every 10 ms, status AIN_Diagnose "
+        "(fine: OK)",
+    ]
+    assert lines[-1] == "protected: IOM_VORNE_AIN (IOM_Zaehler), IOM_HINTEN_AIN (IOM_Zaehler)"
+    assert main(["check", "--config", str(STRANGER / "xdcr_two_rates.toml")]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert (
+        "  rod: XDCR_ROD.HydPress@0x53 in 'kPa', every 50 ms, status SensorState (fine: Ok)"
+        in lines
+    )
+    assert (
+        "  piston: XDCR_PISTON.Pressure@0x42 in 'psi', every 10 ms, status SensorState (fine: Ok)"
+        in lines
+    )
+
+
+def test_a_service_config_written_by_init_checks(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert init_main([str(tmp_path), "--example", "j1939"]) == 0
+    capsys.readouterr()
+    assert main(["check", "--config", str(tmp_path / "portal-daq.toml")]) == 0
+    out = capsys.readouterr().out
+    assert "machine hda-j1939, 6 legs" in out
+    assert "  rod: HYD_PRESS.Pressure@0x2C in 'bar', every 10 ms, status Status (fine: ok)" in out
+
+
+def test_a_wrong_key_is_one_line_and_exit_2(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    shutil.copy(STRANGER / "split_rates.dbc", tmp_path)
+    text = (STRANGER / "split_rates.toml").read_text()
+    (tmp_path / "m.toml").write_text(text.replace("p_Stange_F2", "p_stange_f2", 1))
+    assert main(["check", "--config", str(tmp_path / "m.toml")]) == 2
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    assert captured.err == (
+        f"portal-daq: {tmp_path / 'm.toml'}: legs.SB1_F2.rod: no signal 'p_stange_f2' in "
+        "message STANGE_SB1 of the DBC; did you mean p_Stange_F2?\n"
+    )
