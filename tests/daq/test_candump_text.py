@@ -99,8 +99,9 @@ def test_remote_fd_and_dash_l_lines(line: str, expected: str) -> None:
             "writes the frame times a replay needs",
         ),
         (
-            " (000.000000)  can0  100   [1]  00\n (000.010000)  can0  100   [1]  00\n"
-            " (000.000250)  can0  101   [1]  00\n",
+            # frames of no DBC message (a LEG_SB1_F1 of one byte is logged as wrong_dlc)
+            " (000.000000)  can0  7F0   [1]  00\n (000.010000)  can0  7F0   [1]  00\n"
+            " (000.000250)  can0  7F1   [1]  00\n",
             "unreadable after frame 2: frame times go backwards (0.010000 then 0.000250): "
             "candump -td's steps between frames? candump -L (or -ta) writes the frame times",
         ),
