@@ -50,3 +50,28 @@ def test_statements_naming_a_29_bit_message_without_its_flag_are_that_messages(
         "vendor.dbc: read as the 29-bit messages they are: the statements naming 419373089 "
         "(BO_ 2566856737) without the extended flag (bit 31)"
     ]
+
+
+def test_attributes_given_without_a_definition_are_defined_by_their_values(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    """A DBC written by a script gives the cycle time, the frame format and the network's
+    protocol (BA_) without defining them (BA_DEF_): cantools refused it whole, 'not a
+    valid DBC: DBC: "'GenMsgCycleTime'"'. Each is defined by its values, so the message
+    is J1939 every 20 ms."""
+    text = (
+        'VERSION ""\nNS_ :\nBS_:\nBU_: Xdcr\n'
+        'BO_ 2566856737 XDCR: 8 Xdcr\n SG_ P : 0|16@1+ (0.01,0) [0|600] "bar" DAQ\n'
+        'BA_DEF_DEF_ "GenMsgCycleTime" 0;\nBA_ "ProtocolType" "J1939";\n'
+        'BA_ "GenMsgCycleTime" BO_ 2566856737 20;\nBA_ "VFrameFormat" BO_ 2566856737 3;\n'
+        'BA_ "GenSigStartValue" SG_ 2566856737 P 1.5;\nBA_ "NodeId" BU_ Xdcr 33;\n'
+    )
+    with caplog.at_level("WARNING", logger="dbc.database"):
+        database = load_database_string(text, "script.dbc")
+    (xdcr,) = database.messages
+    assert (xdcr.cycle_time, xdcr.protocol) == (20, "j1939")
+    assert xdcr.get_signal_by_name("P").dbc.attributes["GenSigStartValue"].value == 1.5
+    assert [r.getMessage() for r in caplog.records] == [
+        "script.dbc: attributes given without a definition (BA_DEF_), defined by their "
+        "values: ProtocolType, GenMsgCycleTime, VFrameFormat, GenSigStartValue, NodeId"
+    ]
