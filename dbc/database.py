@@ -259,8 +259,16 @@ def load_database_bytes(data: bytes, source: str) -> Database:
 _NO_EXTENDED_FLAG = re.compile(r"Standard frame id (0x[0-9a-fA-F]+) is more than 11 bits")
 
 
+#: cantools' words for a statement it could not read from the start of a line: the
+#: one before it did not end (a ``VAL_`` or ``BA_`` without its ``;``, by hand).
+_AT_A_LINES_START = re.compile(r"Invalid syntax at line (\d+), column 1:")
+
+
 def _hint(reason: str) -> str:
     """What to change where cantools' ``reason`` alone does not say it."""
+    start = _AT_A_LINES_START.search(reason)
+    if start is not None:
+        return f" (does the statement before line {start[1]} end with its ';'?)"
     match = _NO_EXTENDED_FLAG.search(reason)
     if match is None:
         return ""

@@ -75,3 +75,18 @@ def test_attributes_given_without_a_definition_are_defined_by_their_values(
         "script.dbc: attributes given without a definition (BA_DEF_), defined by their "
         "values: ProtocolType, GenMsgCycleTime, VFrameFormat, GenSigStartValue, NodeId"
     ]
+
+
+def test_a_statement_without_its_semicolon_is_pointed_at() -> None:
+    """A value table written by hand without its ';': cantools' reason names the next
+    line, column 1, which is right as it is."""
+    text = dbc_text(
+        'BO_ 256 HUB: 8 Hub\n SG_ Status : 0|2@1+ (1,0) [0|3] "" DAQ\n',
+        'VAL_ 256 Status 0 "ok" 1 "fault"\nBA_ "GenMsgCycleTime" BO_ 256 10;\n',
+    )
+    with pytest.raises(DbcError) as refused:
+        load_database_string(text, "hand.dbc")
+    assert str(refused.value).endswith(
+        'column 1: ">>!<<BA_ "GenMsgCycleTime" BO_ 256 10;"" (does the statement before '
+        "line 13 end with its ';'?)"
+    )
