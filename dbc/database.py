@@ -267,7 +267,7 @@ _AT_A_LINES_START = re.compile(r"Invalid syntax at line (\d+), column 1:")
 def _hint(reason: str) -> str:
     """What to change where cantools' ``reason`` alone does not say it."""
     start = _AT_A_LINES_START.search(reason)
-    if start is not None:
+    if start is not None and int(start[1]) > 1:
         return f" (does the statement before line {start[1]} end with its ';'?)"
     match = _NO_EXTENDED_FLAG.search(reason)
     if match is None:

@@ -90,3 +90,6 @@ def test_a_statement_without_its_semicolon_is_pointed_at() -> None:
         'column 1: ">>!<<BA_ "GenMsgCycleTime" BO_ 256 10;"" (does the statement before '
         "line 13 end with its ';'?)"
     )
+    with pytest.raises(DbcError) as refused:
+        load_database_string("leg,t,force_N\nA,1.0,2.0\n", "estimates.csv")
+    assert "statement before" not in str(refused.value)
