@@ -28,7 +28,12 @@ def replay_main(args: Sequence[str]) -> int:
     parser.add_argument(
         "recording", type=Path, nargs="+", help="MCAP files or a directory of one run, or CAN logs"
     )
-    parser.add_argument("--config", type=Path, help="machine config (MCAP: default embedded)")
+    parser.add_argument(
+        "--config",
+        type=Path,
+        help="service or machine TOML (`portal-daq init`'s); needed for CAN logs; "
+        "MCAP: the one embedded in the recording by default",
+    )
     parser.add_argument("--out", type=Path, help="CSV file (default: stdout)")
     add_channel_option(parser, "replay")
     options = parser.parse_args(args)

@@ -24,7 +24,13 @@ def run_main(args: Sequence[str]) -> int:
         description="Run the DAQ service: CAN frames in, soil-pressure estimates published "
         "on Zenoh and recorded to MCAP, until SIGTERM or SIGINT.",
     )
-    parser.add_argument("--config", type=Path, required=True, help="service + machine TOML")
+    parser.add_argument(
+        "--config",
+        type=Path,
+        required=True,
+        help="service + machine TOML (`portal-daq init DIR` writes one to edit: [bus] channel, "
+        "[recording] directory, the legs)",
+    )
     add_log_level_option(parser, "INFO")
     options = parser.parse_args(args)
     setup_logging(options.log_level)

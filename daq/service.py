@@ -31,10 +31,10 @@ least every 0.1 s, and stops turning only when it hangs on a frame.
 
 Healthy, on the status topic and STATUS= (:func:`problems`): alive, and during the
 last status period the recorder was recording, nothing was lost anywhere (every
-key of ``dropped``, ``dropped.kernel`` and ``dropped.publish_failed`` included, and
-``recording.failed_items``: :func:`losses`), every configured Zenoh ``connect``
-endpoint was reached, and frames came in (none for a whole period, or for the legs'
-stale time when that is longer, is a problem). ``problems`` lists what is wrong, one
+key of ``dropped``, ``dropped.kernel`` and ``dropped.publish_failed`` included,
+``bad.internal_error`` and ``recording.failed_items``: :func:`losses`), every configured
+Zenoh ``connect`` endpoint was reached, and frames came in (none for a whole period, or
+for the legs' stale time when that is longer, is a problem). ``problems`` lists what is wrong, one
 short text each. None of these stops the watchdog (a restart would not help).
 """
 
@@ -385,12 +385,16 @@ def hold_overflow(config: ServiceConfig, rcvbuf_bytes: int | None) -> str | None
 
 def losses(status: JsonObject) -> dict[str, int]:
     """What ``status`` counts as lost by the service since it started, by field: every key
-    of ``dropped`` and the items the recorder skipped (``recording.failed_items``).
+    of ``dropped``, the frames whose processing failed (``bad.internal_error``: a bug) and
+    the items the recorder skipped (``recording.failed_items``).
 
-    >>> losses({"dropped": {"rx": 5, "publish_failed": 1}, "recording": {"failed_items": 2}})
-    {'dropped.rx': 5, 'dropped.publish_failed': 1, 'recording.failed_items': 2}
+    >>> losses({"dropped": {"rx": 5, "publish_failed": 1}, "bad": {"internal_error": 3},
+    ...         "recording": {"failed_items": 2}})  # doctest: +NORMALIZE_WHITESPACE
+    {'dropped.rx': 5, 'dropped.publish_failed': 1, 'bad.internal_error': 3,
+     'recording.failed_items': 2}
     """
     found = {f"dropped.{where}": count for where, count in status["dropped"].items()}
+    found["bad.internal_error"] = status.get("bad", {}).get("internal_error", 0)
     recording = status.get("recording")
     if recording is not None:
         found["recording.failed_items"] = recording["failed_items"]

@@ -197,7 +197,12 @@ def run_parser() -> argparse.ArgumentParser:
     bus.add_argument(
         "--duration", type=_positive(float), help="stop after this much simulated time, s"
     )
-    bus.add_argument("--as-fast-as-possible", action="store_true", help="never sleep (benchmarks)")
+    bus.add_argument(
+        "--as-fast-as-possible",
+        action="store_true",
+        help="never sleep; frames and truth are stamped at their due times, so with "
+        "--interface virtual --frames-log the log of a cycle needs no bus",
+    )
     faults = parser.add_argument_group("faults (see the epilog for windows)")
     faults.add_argument("--drop", type=_probability, default=0.0, help="frame loss probability")
     faults.add_argument("--bad-crc", type=_probability, default=0.0, help="bad CRC probability")

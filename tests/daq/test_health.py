@@ -5,9 +5,13 @@ from __future__ import annotations
 import time
 import uuid
 from pathlib import Path
+from typing import Any
 
 import zenoh
 
+from daq.consumer import Consumer
+from daq.frames import RawFrame
+from daq.pipeline import Pipeline
 from daq.runner import bus_factory
 from daq.service import Service, losses, problems, status_line
 from daq.service_config import load_service_config
@@ -20,6 +24,16 @@ from tests.daq.service_support import (
     peer_config,
     subscriber_session,
     write_service_config,
+)
+from tests.daq.test_consumer_coalescing import (
+    CONFIG,
+    DATABASE,
+    SETTINGS,
+    START_S,
+    Collect,
+    FakeClock,
+    ScriptedSource,
+    leg_frames,
 )
 from tests.daq.test_service_live import encoder_for, live_service, sender, zenoh_port
 from tests.daq.test_service_watchdog import wait_until
@@ -87,6 +101,37 @@ def test_messages_zenoh_failed_to_put_are_counted_and_unhealthy(tmp_path: Path) 
     failed = now["dropped"]["publish_failed"]
     assert failed >= 12 and now["healthy"] is False
     assert f"dropped.publish_failed +{failed}" in now["problems"]
+
+
+class FailingPipeline(Pipeline):
+    """A pipeline with a bug: processing the fifth frame of a run raises."""
+
+    def process(self, frame: RawFrame) -> Any:
+        self.seen = getattr(self, "seen", 0) + 1
+        if self.seen == 5:
+            raise ZeroDivisionError("a bug")
+        return super().process(frame)
+
+
+def test_frames_a_bug_cost_are_counted_each_and_make_the_status_unhealthy() -> None:
+    # A batch whose processing raised (a bug) was neither published nor recorded, counted
+    # as one internal_error however many frames it held (up to 4,096), and /status stayed
+    # healthy.
+    clock = FakeClock()
+    frames = leg_frames(12)
+    source = ScriptedSource(clock, [(START_S, frame) for frame in frames])  # one batch
+    collect = Collect(clock)
+    pipeline = FailingPipeline.from_config(CONFIG, DATABASE)
+    consumer = Consumer(
+        pipeline, source, SETTINGS, publisher=collect, monotonic=clock.monotonic, wait=clock.wait
+    )
+    with consumer:
+        assert source.done.wait(timeout=30.0)
+    assert pipeline.bad["internal_error"] == 12 and collect.batches == []
+    before = losses(status(bad={}))
+    now = status(bad=dict(pipeline.bad))
+    found = problems(now, alive=True, lost_before=before, silent_s=0.0, silence_s=1.0)
+    assert found == ["bad.internal_error +12"]
 
 
 def test_the_time_the_service_takes_to_start_is_no_silence(tmp_path: Path) -> None:

@@ -112,3 +112,15 @@ def test_a_file_where_the_directory_goes_is_one_line(
         f"portal-daq: {mine}: it is a file; give init a directory to write into\n"
     )
     assert mine.read_text() == "# mine\n"
+
+
+@pytest.mark.parametrize("command", ["run", "replay"])
+def test_the_commands_that_take_a_config_say_where_one_comes_from(
+    command: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # `run --help` said "service + machine TOML", replay's "machine config (MCAP: default
+    # embedded)": a user with the wheel alone was not told that init writes one, nor
+    # that a CAN log needs it.
+    with pytest.raises(SystemExit):
+        main([command, "--help"])
+    assert "portal-daq init" in " ".join(capsys.readouterr().out.split())
