@@ -38,6 +38,7 @@ from can.io.generic import BinaryIOMessageReader, MessageReader, TextIOMessageRe
 from can.io.player import MESSAGE_READERS
 from cantools.database.can import Database
 
+from daq.blf_log import BlfReader
 from daq.can_batch import recorded_frames
 from daq.candump_text import CandumpReader
 from daq.errors import RecordingError
@@ -296,10 +297,10 @@ def can_log_frames(path: Path, channel: str | None = None) -> Iterator[RawFrame 
     come from more than one (a logger on two buses). A frame without a channel (python-can
     gives none to a candump error frame) is kept whatever ``channel`` is. The times of an
     ASC log with ``timestamps relative`` (each the step since the event before) are
-    summed from its start. A log cut short is read up to its last whole line
-    (:class:`LogLines`) or BLF object (:func:`blf_cut`), with a warning. The frames
-    ``candump -d`` says the kernel dropped (its ``DROPCOUNT`` lines) come as a
-    :class:`~daq.frames.BusEvent` of that loss before the next frame, as live."""
+    summed from its start (:class:`~daq.text_log.AscReader`). A log cut short is read up
+    to its last whole line (:class:`LogLines`) or BLF object (:func:`blf_cut`), with a
+    warning. The frames ``candump -d`` says the kernel dropped (its ``DROPCOUNT`` lines)
+    come as a :class:`~daq.frames.BusEvent` of that loss before the next frame, as live."""
     _readable(path)
     if path.stat().st_size == 0:  # a logger stopped at once (python-can: a BLF "unpack" error)
         return
@@ -310,16 +311,12 @@ def can_log_frames(path: Path, channel: str | None = None) -> Iterator[RawFrame 
         raise RecordingError(path, f"cannot read it as a CAN log: {exc}{hint}") from exc
     count = 0
     channels: set[str] = set()
-    elapsed_s = 0.0
     cut = None
     dropped = 0
     t_s = math.nan
     with reader:
         try:
             for message in reader:
-                if isinstance(reader, can.ASCReader) and reader.timestamps_format == "relative":
-                    elapsed_s += message.timestamp
-                    message.timestamp = elapsed_s
                 if not abs(message.timestamp) < LATEST_S:  # also NaN
                     raise ValueError(
                         f"frame time {message.timestamp!r} is no time (Unix seconds, or a log's "
@@ -352,7 +349,7 @@ def can_log_frames(path: Path, channel: str | None = None) -> Iterator[RawFrame 
                 raise RecordingError(path, f"unreadable after frame {count}: {reason}") from exc
     if isinstance(reader, CandumpReader) and reader.dropped_frames != dropped:  # at the end
         yield _loss(t_s, reader.dropped_frames - dropped)
-    if isinstance(reader, AscReader | TrcReader):
+    if isinstance(reader, AscReader | TrcReader | BlfReader):
         _log_controller_events(path, reader.controller_events, channel)
     if count == 0 and (hint := _what_it_looks_like(path)):  # an ASC reader skips every line
         suffix = _log_suffix(path)[0]
@@ -448,8 +445,9 @@ def blf_cut(path: Path, reader: MessageReader) -> str | None:
 
 
 #: Our readers where python-can's read a suffix wrongly.
-_OWN_READERS: dict[str, type[TextIOMessageReader]] = {
+_OWN_READERS: dict[str, type[MessageReader]] = {
     ".asc": AscReader,
+    ".blf": BlfReader,
     ".csv": CsvReader,
     ".trc": TrcReader,
     ".log": CandumpReader,

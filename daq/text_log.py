@@ -24,6 +24,8 @@ _EVENTS_LINE = re.compile(r"(no)?\s*internal\s+events\s+logged", re.IGNORECASE)
 _ASC_STATUS = re.compile(
     r"\s*(?P<time>\d+\.\d+)\s+CAN\s+(?P<channel>\d+)\s+Status:\s*(?P<state>[^-\n]*[^-\s])"
 )
+#: The time an ASC line begins with (not a header's or a comment's).
+_ASC_TIME = re.compile(r"(?P<indent>\s*)(?P<time>\d+\.\d+)(?=\s)")
 #: A transmit request in an ASC log (classic: ``TIME CH ID TxRq``, FD: ``TIME CANFD CH TxRq``).
 _ASC_TX_REQUEST = re.compile(r"\s*\d+\.\d+\s+(?:\d+\s+\S+|CANFD\s+\d+)\s+TxRq\s", re.IGNORECASE)
 
@@ -93,6 +95,10 @@ class AscReader(can.ASCReader):
       state of a controller that is well) is an error frame of its channel, as SocketCAN
       reports one (candump logs it so), and tallied in :attr:`controller_events`;
       python-can skipped them: a bus-off showed nowhere;
+    - with ``timestamps relative`` (each line's time the step since the line before), a
+      line's time is the sum of the steps of every line up to it: python-can read the
+      steps as times (the log ran back and forth), and summing the frames' alone lost
+      the steps of the lines it skips (a comment, a statistic, a status);
     - a transmit request (``TxRq``: the logging node asked for a frame to be sent; the
       frame itself is its ``Tx`` line) is no frame: python-can read it as one, so every
       frame the logger's node sent came twice (``counter_repeat``, a second estimate).
@@ -104,6 +110,8 @@ class AscReader(can.ASCReader):
         self.controller_events: Counter[tuple[str, str]] = Counter()
         self._lines: object = file
         self._in_header = True  # a line read past the header is read again (and counted once)
+        self._relative = False  # "timestamps relative": summed here (of every line, not
+        self._elapsed_s = 0.0  # of the frames alone: a comment's step counts too)
 
     def __iter__(self) -> Generator[can.Message, None, None]:
         self._lines = lines = self.file
@@ -114,8 +122,12 @@ class AscReader(can.ASCReader):
             self.file = lines
 
     def _event_lines(self, lines: Iterable[str]) -> Iterator[str]:
-        """The lines, a status line as an error frame's line, without transmit requests."""
+        """The lines, a status line as an error frame's line, without transmit requests;
+        with relative timestamps, each line's time the sum of the steps up to it."""
         for line in lines:
+            if self._relative and (timed := _ASC_TIME.match(line)) is not None:
+                self._elapsed_s += float(timed["time"])
+                line = f"{timed['indent']}{self._elapsed_s:.9f}{line[timed.end() :]}"
             if "TxRq" in line and _ASC_TX_REQUEST.match(line):
                 continue
             status = None if self._in_header or "Status:" not in line else _ASC_STATUS.match(line)
@@ -130,6 +142,7 @@ class AscReader(can.ASCReader):
     def _extract_header(self) -> None:
         super()._extract_header()  # reads up to the events line, or one line past the header
         self._in_header = False
+        self._relative = self.timestamps_format == "relative"
         lines = self._lines
         if isinstance(lines, LogLines) and not _EVENTS_LINE.match((lines.last or "").strip()):
             lines.read_again()

@@ -99,6 +99,9 @@ class ReportContent:
     #: Leg -> a step between two estimates longer than this is a gap (and, in the
     #: metrics, adds at most this to the time above the limit).
     gap_after_s: Mapping[str, float]
+    #: Leg -> (times, seconds in all) it had no estimate for longer than its gap time
+    #: (a sensor silent, the log's start or end included); only legs that had one.
+    silences: Mapping[str, tuple[int, float]]
     #: Only with truth in the recording: leg -> matched samples, and the statistics of
     #: their stance (foot on the ground) and swing samples.
     comparisons: Mapping[str, LegComparison]
@@ -121,6 +124,28 @@ def gap_after_s(recording: Recording) -> dict[str, float]:
         else:
             gaps[leg] = GAP_PERIODS * sample_period_s(track.t_s)
     return gaps
+
+
+def silences(recording: Recording, gaps: Mapping[str, float]) -> dict[str, tuple[int, float]]:
+    """Per leg of the recording or its machine: how many times, and for how many seconds in
+    all, it had no estimate for longer than ``gaps[leg]`` (a sensor silent, or not yet or
+    no more heard at the recording's start or end; a leg never heard: once, the whole
+    recording). A forward step of the clock shows as one too: it cannot be told from a
+    gap of the bus."""
+    legs = dict.fromkeys([*(recording.machine.legs if recording.machine else ()), *recording.legs])
+    found: dict[str, tuple[int, float]] = {}
+    for leg in legs:
+        track = recording.legs.get(leg)
+        if track is None or track.t_s.size == 0:
+            found[leg] = (1, recording.duration_s)
+            continue
+        gap_s = gaps.get(leg, math.inf)
+        edges = np.concatenate(([recording.start_t_s], track.t_s, [recording.end_t_s]))
+        steps = np.diff(edges)
+        silent = steps[steps > gap_s]
+        if silent.size:
+            found[leg] = (int(silent.size), float(silent.sum()))
+    return found
 
 
 def analyse(recording: Recording) -> ReportContent:
@@ -150,6 +175,7 @@ def analyse(recording: Recording) -> ReportContent:
         phases=phase_spans(recording.state, recording.end_t_s),
         metrics=metrics,
         gap_after_s=gaps,
+        silences=silences(recording, gaps),
         comparisons=comparisons,
         deviations=deviations,
         swing_deviations={leg: deviation_stats(c, stance=False) for leg, c in comparisons.items()},

@@ -97,11 +97,21 @@ def header_rows(content: ReportContent) -> list[tuple[str, str]]:
         ("frames lost on the bus (by rolling counters)", str(counts.frames_lost)),
         ("leg estimates", f"{counts.estimates} ({source})"),
         ("invalid estimates by reason", _counts(counts.invalid)),
+        ("legs silent (no estimate for longer than the stale time)", _silences(content)),
         ("bus state changes", str(counts.bus_events)),
         ("recording gaps (write errors)", _gaps(counts.recording_gaps, counts.recording_lost_s)),
         ("simulation truth samples", str(counts.truth_samples)),
         ("cycles", str(len(content.cycles))),
     ]
+
+
+def _silences(content: ReportContent) -> str:
+    return (
+        ", ".join(
+            f"{leg} {count}x, {seconds:.2f} s" for leg, (count, seconds) in content.silences.items()
+        )
+        or "none"
+    )
 
 
 def _steps(count: int) -> str:

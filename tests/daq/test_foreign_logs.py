@@ -59,6 +59,29 @@ def test_an_asc_log_with_relative_timestamps_counts_them_from_the_start(tmp_path
     assert [f.t_s for f in can_log_frames(absolute)] == [0.010, 0.010, 0.005]
 
 
+def test_a_relative_asc_logs_times_count_the_steps_of_lines_that_are_no_frame(
+    tmp_path: Path,
+) -> None:
+    """Each time is the step since the line before, a statistic's, a status's, a
+    transmit request's too: summing the frames' steps alone put every frame after such a
+    line early (here by 0.5 s, 0.25 s and 1 us)."""
+    lines = ASC_RELATIVE.splitlines(keepends=True)
+    lines[6:6] = [
+        "   0.500000 2  Statistic: D 100 R 0 XD 0 XR 0 E 0 O 0 B 12.50%\n",
+        "   0.250000 CAN 2 Status:chip status error passive - TxErr: 132 RxErr: 0\n",
+        "   0.000001 2  100             TxRq d 8 00 00 00 00 00 00 00 00\n",
+    ]
+    log = tmp_path / "relative.asc"
+    log.write_text("".join(lines))
+    frames = list(can_log_frames(log))
+    assert [(f.t_s, f.is_error_frame) for f in frames] == [
+        (pytest.approx(0.010, abs=1e-9), False),
+        (pytest.approx(0.760, abs=1e-9), True),
+        (pytest.approx(0.770001, abs=1e-9), False),
+        (pytest.approx(0.775001, abs=1e-9), False),
+    ]
+
+
 def test_candump_error_frames_keep_to_the_channel_asked_and_are_counted(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], caplog: pytest.LogCaptureFixture
 ) -> None:
@@ -681,3 +704,34 @@ def test_an_asc_logs_controller_states_are_error_frames_and_its_tx_requests_no_f
     caplog.clear()
     assert [f.is_error_frame for f in can_log_frames(log, "0")] == [False, True]
     assert "reported receive queue overrun 1: each" in caplog.text
+
+
+def test_a_sensor_silent_for_a_while_or_never_heard_is_in_the_reports_header(
+    tmp_path: Path,
+) -> None:
+    """A transducer silent for 0.4 s (a loose connector, a reboot) left no estimate, and
+    the header said "invalid estimates by reason: none", "frames lost: 0": only a gap in
+    a picture told it. One that never spoke was not named at all."""
+    from daq.report.content import analyse
+    from daq.report.loading import load_recording
+    from daq.report.page import header_rows
+
+    log = sim_log(tmp_path)
+    lines = log.read_text().splitlines()
+    t0 = float(lines[0][1 : lines[0].index(")")])
+
+    def kept(line: str) -> bool:
+        t_s = float(line[1 : line.index(")")]) - t0
+        frame_id = line.split()[2].split("#")[0]
+        return not (frame_id == "102" and 0.3 < t_s < 0.7) and frame_id != "105"
+
+    log.write_text("".join(f"{line}\n" for line in lines if kept(line)))
+    rows = dict(header_rows(analyse(load_recording(log, EXAMPLE_CONFIG))))
+    silent = rows["legs silent (no estimate for longer than the stale time)"]
+    f3, never = silent.split(", SB2_F3 ")
+    assert f3.startswith("SB1_F3 1x, ") and f3.endswith(" s"), silent
+    assert 0.40 <= float(f3.split(", ")[1][:-2]) <= 0.41, silent  # the steps either side
+    assert never == "1x, 0.99 s", silent  # the whole log
+    whole = load_recording(sim_log(tmp_path, "whole.log"), EXAMPLE_CONFIG)
+    whole_rows = dict(header_rows(analyse(whole)))
+    assert whole_rows["legs silent (no estimate for longer than the stale time)"] == "none"
