@@ -60,7 +60,7 @@ def load_database(path: str | Path) -> Database:
 
 def load_database_string(text: str, source: str) -> Database:
     """Load a DBC from its text (e.g. one embedded in a recording); ``source`` names it."""
-    text = _with_extended_flags(text, source)
+    text = _with_attribute_definitions(_with_extended_flags(text, source), source)
     try:
         database = _load(text, source, strict=True)
     except (UnsupportedDatabaseFormatError, ValueError, KeyError) as exc:
@@ -147,6 +147,57 @@ def _with_extended_flags(text: str, source: str) -> str:
     return text
 
 
+#: An attribute's definition, and a value given to one: ``BA_DEF_ BO_ "NAME" ...`` and
+#: ``BA_ "NAME" BO_ 123 10;`` (the network's, a node's, a message's, a signal's ...).
+_DEFINED = re.compile(r'^[ \t]*BA_DEF_[ \t]+(?:(?:BU_|BO_|SG_|EV_)[ \t]+)?"([^"]*)"', re.M)
+_ASSIGNED = re.compile(
+    r'^[ \t]*BA_[ \t]+"(?P<name>[^"]*)"[ \t]+(?:(?P<kind>BU_|BO_|SG_|EV_)[ \t]+)?'
+    r'(?:[^;"]*[ \t])?(?P<value>"[^"]*"|[-+.\w]+)[ \t]*;',
+    re.M,
+)
+#: Vector's frame formats, as its templates define ``VFrameFormat`` (3: J1939).
+VFRAME_FORMATS = (
+    '"StandardCAN","ExtendedCAN","reserved","J1939PG",'
+    + ",".join(['"reserved"'] * 10)
+    + ',"StandardCAN_FD","ExtendedCAN_FD"'
+)
+
+
+def _with_attribute_definitions(text: str, source: str) -> str:
+    """``text`` with a definition for each attribute it gives a value to without
+    defining it (``BA_ "GenMsgCycleTime" BO_ 256 10;`` with no ``BA_DEF_``: a DBC
+    written by hand or by a script), by the values given (a number, a string;
+    ``VFrameFormat`` as Vector defines it), with one warning: cantools refused the whole
+    DBC with the attribute's name alone (``DBC: "'GenMsgCycleTime'"``)."""
+    defined = set(_DEFINED.findall(text))
+    missing: dict[str, tuple[str, list[str]]] = {}
+    for match in _ASSIGNED.finditer(text):
+        if match["name"] not in defined:
+            kind, values = missing.setdefault(match["name"], (match["kind"] or "", []))
+            values.append(match["value"])
+    if not missing:
+        return text
+    definitions = []
+    for name, (kind, values) in missing.items():
+        if name == "VFrameFormat":
+            value_type = f"ENUM {VFRAME_FORMATS}"
+        elif all(value.startswith('"') for value in values):
+            value_type = "STRING"
+        elif all(re.fullmatch(r"[-+]?\d+", value) for value in values):
+            value_type = "INT -2147483648 2147483647"
+        else:
+            value_type = "FLOAT -1e308 1e308"
+        definitions.append(f'BA_DEF_ {kind} "{name}" {value_type};'.replace("  ", " "))
+    logger.warning(
+        "%s: attributes given without a definition (BA_DEF_), defined by their values: %s",
+        source,
+        ", ".join(missing),
+    )
+    first = re.search(r"^[ \t]*BA_(?:DEF_)?[ \t]", text, re.M)
+    at = first.start() if first is not None else len(text)
+    return text[:at] + "\n".join(definitions) + "\n" + text[at:]
+
+
 #: cantools' refusal of a value table or float type naming a signal the DBC does not
 #: have, one ``VAL_ <frame id> <signal>`` line each after the first.
 _ORPHANS = re.compile(r"unused (?:VAL_|SIG_VALTYPE_) entries in DBC:")
@@ -208,8 +259,16 @@ def load_database_bytes(data: bytes, source: str) -> Database:
 _NO_EXTENDED_FLAG = re.compile(r"Standard frame id (0x[0-9a-fA-F]+) is more than 11 bits")
 
 
+#: cantools' words for a statement it could not read from the start of a line: the
+#: one before it did not end (a ``VAL_`` or ``BA_`` without its ``;``, by hand).
+_AT_A_LINES_START = re.compile(r"Invalid syntax at line (\d+), column 1:")
+
+
 def _hint(reason: str) -> str:
     """What to change where cantools' ``reason`` alone does not say it."""
+    start = _AT_A_LINES_START.search(reason)
+    if start is not None and int(start[1]) > 1:
+        return f" (does the statement before line {start[1]} end with its ';'?)"
     match = _NO_EXTENDED_FLAG.search(reason)
     if match is None:
         return ""

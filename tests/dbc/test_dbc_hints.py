@@ -50,3 +50,46 @@ def test_statements_naming_a_29_bit_message_without_its_flag_are_that_messages(
         "vendor.dbc: read as the 29-bit messages they are: the statements naming 419373089 "
         "(BO_ 2566856737) without the extended flag (bit 31)"
     ]
+
+
+def test_attributes_given_without_a_definition_are_defined_by_their_values(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    """A DBC written by a script gives the cycle time, the frame format and the network's
+    protocol (BA_) without defining them (BA_DEF_): cantools refused it whole, 'not a
+    valid DBC: DBC: "'GenMsgCycleTime'"'. Each is defined by its values, so the message
+    is J1939 every 20 ms."""
+    text = (
+        'VERSION ""\nNS_ :\nBS_:\nBU_: Xdcr\n'
+        'BO_ 2566856737 XDCR: 8 Xdcr\n SG_ P : 0|16@1+ (0.01,0) [0|600] "bar" DAQ\n'
+        'BA_DEF_DEF_ "GenMsgCycleTime" 0;\nBA_ "ProtocolType" "J1939";\n'
+        'BA_ "GenMsgCycleTime" BO_ 2566856737 20;\nBA_ "VFrameFormat" BO_ 2566856737 3;\n'
+        'BA_ "GenSigStartValue" SG_ 2566856737 P 1.5;\nBA_ "NodeId" BU_ Xdcr 33;\n'
+    )
+    with caplog.at_level("WARNING", logger="dbc.database"):
+        database = load_database_string(text, "script.dbc")
+    (xdcr,) = database.messages
+    assert (xdcr.cycle_time, xdcr.protocol) == (20, "j1939")
+    assert xdcr.get_signal_by_name("P").dbc.attributes["GenSigStartValue"].value == 1.5
+    assert [r.getMessage() for r in caplog.records] == [
+        "script.dbc: attributes given without a definition (BA_DEF_), defined by their "
+        "values: ProtocolType, GenMsgCycleTime, VFrameFormat, GenSigStartValue, NodeId"
+    ]
+
+
+def test_a_statement_without_its_semicolon_is_pointed_at() -> None:
+    """A value table written by hand without its ';': cantools' reason names the next
+    line, column 1, which is right as it is."""
+    text = dbc_text(
+        'BO_ 256 HUB: 8 Hub\n SG_ Status : 0|2@1+ (1,0) [0|3] "" DAQ\n',
+        'VAL_ 256 Status 0 "ok" 1 "fault"\nBA_ "GenMsgCycleTime" BO_ 256 10;\n',
+    )
+    with pytest.raises(DbcError) as refused:
+        load_database_string(text, "hand.dbc")
+    assert str(refused.value).endswith(
+        'column 1: ">>!<<BA_ "GenMsgCycleTime" BO_ 256 10;"" (does the statement before '
+        "line 13 end with its ';'?)"
+    )
+    with pytest.raises(DbcError) as refused:
+        load_database_string("leg,t,force_N\nA,1.0,2.0\n", "estimates.csv")
+    assert "statement before" not in str(refused.value)
