@@ -48,7 +48,7 @@ from daq.errors import RecordingError
 from daq.frames import BusEvent
 from daq.mcap_file import CountingFile, EncodedBatch, McapFile, RecordBatch, RecordingGap
 from daq.recording_run import run_metadata
-from daq.recover import recover_cut_files
+from daq.recover import hold_while_writing, recover_cut_files
 from daq.service_config import RecordingSettings
 from daq.sim_truth import TruthRecord, truth_payload
 from estimator.machine import MachineSnapshot
@@ -345,6 +345,7 @@ class Recorder(Worker):
             raw = open(path, "xb", buffering=0)  # noqa: SIM115 (closed in _close_file)
         except OSError as exc:
             raise RecordingError(path, f"cannot create it: {exc.strerror or exc}") from exc
+        hold_while_writing(raw, path)
         stream = CountingFile(raw)
         mcap = McapFile(
             stream,

@@ -19,10 +19,13 @@ import zenoh
 from mcap.exceptions import McapError
 from mcap.reader import make_reader
 
+from daq.cli import main
 from daq.mcap_reading import RecordedMessage, RecordingStream
+from daq.recorder import Recorder
 from daq.recover import is_cut_short
+from daq.service_config import RecordingSettings
 from tests.daq.service_support import WAIT_S, free_port, peer_config, write_service_config
-from tests.helpers import ROOT
+from tests.helpers import ROOT, example_machine
 
 SAMPLES = 200
 
@@ -282,7 +285,7 @@ def test_every_cut_file_of_the_machine_is_recovered_at_start_not_the_newest_name
 
     from mcap.writer import Writer
 
-    from daq.recover import recover_cut_files
+    from daq.recover import hold_while_writing, recover_cut_files
 
     def mcap_bytes() -> bytes:
         buffer = io.BytesIO()
@@ -304,10 +307,34 @@ def test_every_cut_file_of_the_machine_is_recovered_at_start_not_the_newest_name
     opened.write_bytes(b"")
     foreign = tmp_path / "other_19700101T000001.000Z.mcap"
     foreign.write_bytes(whole[: len(whole) // 2])
-    recover_cut_files(tmp_path, "pam")
+    writing = tmp_path / "pam_19700101T004513.000Z.mcap"  # another service's, just opened
+    with open(writing, "wb") as held:
+        hold_while_writing(held, writing)
+        recover_cut_files(tmp_path, "pam")
+    assert writing.exists()
     assert not is_cut_short(cut) and complete.read_bytes() == whole
     with open(cut, "rb") as stream:
         assert 0 < len(list(make_reader(stream).iter_messages())) < 200
     assert not opened.exists() and foreign.read_bytes() == whole[: len(whole) // 2]
     assert f"recovered {cut} (cut short by a crash)" in caplog.text
     assert f"removed {opened}: it holds no MCAP record" in caplog.text
+
+
+def test_a_file_a_running_service_writes_is_not_recovered_in_place(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # Replay and report warn that the file being written "ends without its summary"; a
+    # recover in place then replaced it with a copy, and everything the service wrote
+    # after went into the old file, unlinked: lost, while /status said healthy.
+    _, database = example_machine()
+    settings = RecordingSettings(directory=tmp_path / "rec", flush_period_s=0.1)
+    with Recorder(settings, database, machine_id="m") as recorder:
+        (live,) = recorder.paths
+        assert is_cut_short(live)
+        assert main(["recover", str(live)]) == 1
+        (line,) = capsys.readouterr().err.strip().splitlines()
+        assert line.startswith(f"portal-daq: {live}: a running service is writing it"), line
+        assert main(["recover", str(live), "-o", str(tmp_path / "copy.mcap")]) == 3
+        inode = live.stat().st_ino
+    assert live.stat().st_ino == inode and not is_cut_short(live)  # finished, in place
+    assert main(["recover", str(live)]) == 0  # its writer gone, it may be
