@@ -177,8 +177,8 @@ def test_a_sensor_fault_sends_what_the_dbc_names_a_fault(name: str, leg: str, st
     samples in the window carry the fault, the other legs' none."""
     window = FaultWindow(leg, 0.2, 0.1)
     _, _, estimates, _ = played(name, faults=FaultConfig(seed=1, sensor_fault=(window,)))
-    for other, played_estimates in estimates.items():
-        faulty = [e for e, _ in played_estimates if not e.valid]
+    for other, of_leg in estimates.items():
+        faulty = [e for e, _ in of_leg if not e.valid]
         if other != leg:
             assert faulty == []
             continue
