@@ -54,6 +54,7 @@ from daq.can_batch import MAX_FRAMES
 from daq.errors import BusError
 from daq.frames import BUS_ABSENT, BUS_CLOSED, BUS_DOWN, BUS_UP, BusEvent, RawFrame
 from daq.frames import from_can_message as _raw
+from dbc.bus_hints import bus_hint, error_code
 
 logger = logging.getLogger(__name__)
 
@@ -100,33 +101,11 @@ BusFactory = Callable[[], FrameSource]
 LinkProbe = Callable[[], bool | None]
 Inbox = queue.Queue[RawFrame | BusEvent]
 
-_NO_SOCKETCAN = (
-    "this kernel has no SocketCAN: load it (sudo modprobe can-raw; vcan too for a virtual bus), "
-    "or set [bus] interface to another python-can interface"
-)
-_HINTS = {
-    errno.ENETDOWN: "the CAN interface is down; bring it up: ip link set {channel} up",
-    errno.ENODEV: "no such CAN interface; check [bus] channel and `ip link show {channel}`",
-    errno.ENXIO: "no such CAN interface; check [bus] channel and `ip link show {channel}`",
-    errno.EPERM: "not permitted; run the service as a user allowed to open CAN sockets",
-    errno.EACCES: "not permitted; run the service as a user allowed to open CAN sockets",
-    # A kernel without CAN (a laptop's, a container's): retrying will not bring it.
-    errno.EAFNOSUPPORT: _NO_SOCKETCAN,
-    errno.EPROTONOSUPPORT: _NO_SOCKETCAN,
-}
-
-
-def _error_code(exc: BaseException) -> int | None:
-    code = getattr(exc, "error_code", None) or getattr(exc, "errno", None)
-    return code if isinstance(code, int) else None
-
 
 def bus_error(channel: str, exc: BaseException) -> BusError:
     """Translate python-can's or the OS's exception into a :class:`BusError` with a hint."""
-    code = _error_code(exc)
-    hint = _HINTS.get(code, "") if code is not None else ""
     reason = getattr(exc, "strerror", None) or str(exc) or type(exc).__name__
-    return BusError(channel, reason, hint.format(channel=channel))
+    return BusError(channel, reason, bus_hint(exc, channel))
 
 
 def sysfs_link_probe(channel: str) -> LinkProbe:
@@ -291,7 +270,7 @@ class BusReader(Worker):
 
     def _lost(self, exc: BaseException) -> None:
         error = bus_error(self.channel, exc)
-        if _error_code(exc) == errno.ENETDOWN:
+        if error_code(exc) == errno.ENETDOWN:
             # The socket stays bound: frames after the link returns are received.
             self._set_state(BUS_DOWN, str(error), log=logging.WARNING)
             return

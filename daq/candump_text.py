@@ -23,6 +23,7 @@ kept as in a ``-L`` log: the estimator's time rules take it.
 """
 
 import re
+from collections import Counter
 from collections.abc import Generator, Iterator
 from datetime import datetime
 from typing import Any, TextIO, cast
@@ -52,6 +53,19 @@ _DROPCOUNT = re.compile(r"\s*DROPCOUNT: dropped (?P<frames>\d+) CAN frames? on "
 #: ``candump -e``'s description of an error frame, on tab-indented lines after it
 #: (``\tcontroller-problem{rx-error-warning}``, ``\terror-counter-tx-rx{{0}{96}}``).
 _ERROR_DETAIL = re.compile(r"\t[a-z][a-z-]*(?:[{,]|\s*$)")
+#: The classes of a SocketCAN error frame, by their bit in its ID (linux/can/error.h).
+ERROR_CLASSES = {
+    0x001: "tx timeout",
+    0x002: "lost arbitration",
+    0x004: "controller problems",
+    0x008: "protocol violation",
+    0x010: "transceiver status",
+    0x020: "no ack",
+    0x040: "bus off",
+    0x080: "bus error",
+    0x100: "controller restarted",
+    0x200: "error counters",
+}
 #: A ``-L`` line of an error frame: its ID has CAN_ERR_FLAG (bit 29), which no data
 #: frame's 29-bit ID has, and the class bits (bus-off 0x040, controller 0x004, ...).
 _ERROR_ID = re.compile(r"(?P<head>\s*\(\S+\)\s+\S+\s+)(?P<id>[2-9A-Fa-f][0-9A-Fa-f]{7})#")
@@ -87,7 +101,9 @@ class CandumpReader(can.CanutilsLogReader):
     date are ``-td``'s steps. ``candump -d``'s ``DROPCOUNT`` lines (python-can stopped
     at them) are summed in :attr:`dropped_frames`. An error frame of any class is an
     error frame: python-can read only the bus-error class (0x080) as one, any other
-    (bus-off, controller problems, ...) as a data frame of the class's 29-bit ID; the
+    (bus-off, controller problems, ...) as a data frame of the class's 29-bit ID; its
+    classes are tallied in :attr:`controller_events`, and it keeps its interface
+    (python-can gave it no channel, so it was kept whatever channel was replayed); the
     lines ``candump -e`` describes it in are left out (python-can stopped at them)."""
 
     def __init__(self, file: Any, **kwargs: Any) -> None:
@@ -95,12 +111,18 @@ class CandumpReader(can.CanutilsLogReader):
         #: Frames the kernel dropped before candump read them, as its ``DROPCOUNT``
         #: lines read so far say.
         self.dropped_frames = 0
+        #: The error frames read, by (interface, class: bus off, controller problems, ...).
+        self.controller_events: Counter[tuple[str, str]] = Counter()
+        self._error_interface = ""
 
     def __iter__(self) -> Generator[can.Message, None, None]:
         original = self.file
         self.file = cast(TextIO, self._dash_l_lines(original))
         try:
-            yield from super().__iter__()
+            for message in super().__iter__():
+                if message.is_error_frame:  # python-can gives it no channel: its line's
+                    message.channel = self._error_interface
+                yield message
         finally:
             self.file = original
 
@@ -125,6 +147,10 @@ class CandumpReader(can.CanutilsLogReader):
             error = _ERROR_ID.match(converted)
             if error is not None and int(error["id"], 16) & CAN_ERR_FLAG:
                 # python-can keeps neither the class nor the data of an error frame
+                error_class = int(error["id"], 16) & ~CAN_ERR_FLAG
+                self._error_interface = error["head"].split()[1]
+                for state in [name for bit, name in ERROR_CLASSES.items() if error_class & bit]:
+                    self.controller_events[self._error_interface, state] += 1
                 error_id = int(error["id"], 16) | CAN_ERR_BUSERROR
                 converted = f"{error['head']}{error_id:08X}{converted[error.end() - 1 :]}"
             yield converted

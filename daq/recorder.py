@@ -48,7 +48,7 @@ from daq.errors import RecordingError
 from daq.frames import BusEvent
 from daq.mcap_file import CountingFile, EncodedBatch, McapFile, RecordBatch, RecordingGap
 from daq.recording_run import run_metadata
-from daq.recover import is_cut_short, recover_file
+from daq.recover import hold_while_writing, is_cut_short, recover_file
 from daq.service_config import RecordingSettings
 from daq.sim_truth import TruthRecord, truth_payload
 from estimator.machine import MachineSnapshot
@@ -365,6 +365,7 @@ class Recorder(Worker):
             raw = open(path, "xb", buffering=0)  # noqa: SIM115 (closed in _close_file)
         except OSError as exc:
             raise RecordingError(path, f"cannot create it: {exc.strerror or exc}") from exc
+        hold_while_writing(raw, path)
         stream = CountingFile(raw)
         mcap = McapFile(
             stream,

@@ -13,6 +13,7 @@ The recorder runs :func:`recover_file` on the newest file of its machine when it
 starts and finds that file cut short (:func:`is_cut_short`), in place.
 """
 
+import fcntl
 import logging
 import os
 from dataclasses import dataclass
@@ -44,6 +45,29 @@ class Recovered:
     stopped_by: str | None
     #: Chunks skipped in the middle of the file (CRC or compression failed).
     damaged_chunks: int = 0
+
+
+def hold_while_writing(file: IO[bytes], path: Path) -> None:
+    """Mark ``file`` as being written: an exclusive advisory lock (``flock``), released when
+    the file is closed or its process dies (a crash, SIGKILL), so :func:`recover_file`
+    leaves a file alone whose writer is alive, and takes one it left cut."""
+    try:
+        fcntl.flock(file.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError as exc:  # a file system without locks: nothing is kept from recover
+        logger.debug("%s: no lock for writing it: %s", path, exc.strerror or exc)
+
+
+def _refuse_while_written(file: IO[bytes], path: Path) -> None:
+    try:
+        fcntl.flock(file.fileno(), fcntl.LOCK_SH | fcntl.LOCK_NB)
+    except BlockingIOError:
+        raise RecordingError(
+            path,
+            "a running service is writing it (it holds the file's lock): rewritten in place, "
+            "what the service writes after would be lost; -o OUT copies what it holds so far",
+        ) from None
+    except OSError:  # a file system without locks: nobody can tell
+        pass
 
 
 def is_cut_short(path: Path) -> bool:
@@ -146,8 +170,13 @@ def recover_file(path: Path, out: Path | None = None, *, compression: str = "zst
     """
     target = out or path
     try:
-        with open(path, "rb") as source, replacing(target, "wb") as sink:
-            return recover(source, sink, compression=compression, name=str(path))
+        with open(path, "rb") as source:
+            if out is None:
+                # Rewritten under its writer, the file would be replaced by a copy and all
+                # written after would go to the old one, unlinked: lost, nothing said.
+                _refuse_while_written(source, path)
+            with replacing(target, "wb") as sink:
+                return recover(source, sink, compression=compression, name=str(path))
     except OSError as exc:
         # The output's error names the path given, not the .part written beside it.
         where = path if exc.filename in (None, str(path)) else target

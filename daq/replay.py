@@ -349,7 +349,7 @@ def can_log_frames(path: Path, channel: str | None = None) -> Iterator[RawFrame 
                 raise RecordingError(path, f"unreadable after frame {count}: {reason}") from exc
     if isinstance(reader, CandumpReader) and reader.dropped_frames != dropped:  # at the end
         yield _loss(t_s, reader.dropped_frames - dropped)
-    if isinstance(reader, AscReader | TrcReader | BlfReader):
+    if isinstance(reader, AscReader | TrcReader | BlfReader | CandumpReader):
         _log_controller_events(path, reader.controller_events, channel)
     if count == 0 and (hint := _what_it_looks_like(path)):  # an ASC reader skips every line
         suffix = _log_suffix(path)[0]

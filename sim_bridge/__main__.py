@@ -23,6 +23,7 @@ from typing import IO, Any
 import can
 from can.io.generic import MessageWriter
 
+from dbc.bus_hints import bus_hint
 from dbc.decoding import is_fd_message
 from dbc.encoding import FrameEncoder
 from dbc.errors import ConfigError, PortalDaqError
@@ -99,15 +100,16 @@ def _open_bus(interface: str, channel: str, fd: bool) -> can.BusABC:
     try:
         return can.Bus(interface=interface, channel=channel, fd=fd)
     except (can.CanError, OSError, ValueError, ImportError) as exc:
-        hint = ""
-        if interface == "socketcan":
+        hint = bus_hint(exc, channel, channel_option="--channel", interface_option="--interface")
+        if not hint and interface == "socketcan":
             hint = (
-                f"; is {channel} there and up? e.g. sudo ip link add dev {channel} type vcan "
+                f"is {channel} there and up? e.g. sudo ip link add dev {channel} type vcan "
                 f"&& sudo ip link set {channel} up"
             )
-        raise ConfigError(
-            f"--interface {interface} --channel {channel}", "", f"cannot open the bus: {exc}{hint}"
-        ) from exc
+        hint = f"; {hint}" if hint else ""
+        reason = getattr(exc, "strerror", None) or exc
+        option = f"--interface {interface} --channel {channel}"
+        raise ConfigError(option, "", f"cannot open the bus: {reason}{hint}") from exc
 
 
 def _open_output(path: Path, mode: str) -> IO[Any]:

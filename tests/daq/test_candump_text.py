@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from daq.candump_text import dash_l_line
-from daq.replay import replay
+from daq.replay import can_log_frames, replay
 from daq.replay_command import replay_main
 from tests.daq.test_foreign_logs import sim_log
 from tests.helpers import EXAMPLE_CONFIG
@@ -99,8 +99,9 @@ def test_remote_fd_and_dash_l_lines(line: str, expected: str) -> None:
             "writes the frame times a replay needs",
         ),
         (
-            " (000.000000)  can0  100   [1]  00\n (000.010000)  can0  100   [1]  00\n"
-            " (000.000250)  can0  101   [1]  00\n",
+            # frames of no DBC message (a LEG_SB1_F1 of one byte is logged as wrong_dlc)
+            " (000.000000)  can0  7F0   [1]  00\n (000.010000)  can0  7F0   [1]  00\n"
+            " (000.000250)  can0  7F1   [1]  00\n",
             "unreadable after frame 2: frame times go backwards (0.010000 then 0.000250): "
             "candump -td's steps between frames? candump -L (or -ta) writes the frame times",
         ),
@@ -146,3 +147,26 @@ def test_error_frames_of_every_class_are_counted_as_error_frames(
         with caplog.at_level(logging.WARNING):
             assert replay(path, io.StringIO(), EXAMPLE_CONFIG) == 6 * 30
         assert f"{len(lines)} frames, 3 of them not used (error_frame 3)" in caplog.text
+        assert (
+            f"{path}: the CAN controller reported bus off 1, controller problems 1, bus error 1: "
+            "each counted as an error frame" in caplog.text
+        )
+
+
+def test_an_error_frame_is_of_its_interface(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """python-can gave a candump error frame no channel: a bus-off of can1 was counted in
+    a replay of can0."""
+    log = tmp_path / "two.log"
+    log.write_text(
+        "(1750000000.000000) can0 100#461208070000001C\n"
+        "(1750000000.001000) can1 20000040#0000000000000000\n"
+        "(1750000000.002000) can0 20000004#0004000000000060\n"
+    )
+    frames = list(can_log_frames(log, "can0"))
+    assert [(f.arbitration_id, f.is_error_frame) for f in frames] == [(0x100, False), (0, True)]
+    assert "reported controller problems 1: each" in caplog.text and "bus off" not in caplog.text
+    caplog.clear()
+    assert [f.is_error_frame for f in can_log_frames(log, "can1")] == [True]
+    assert "reported bus off 1: each" in caplog.text

@@ -19,10 +19,13 @@ import zenoh
 from mcap.exceptions import McapError
 from mcap.reader import make_reader
 
+from daq.cli import main
 from daq.mcap_reading import RecordedMessage, RecordingStream
+from daq.recorder import Recorder
 from daq.recover import is_cut_short
+from daq.service_config import RecordingSettings
 from tests.daq.service_support import WAIT_S, free_port, peer_config, write_service_config
-from tests.helpers import ROOT
+from tests.helpers import ROOT, example_machine
 
 SAMPLES = 200
 
@@ -269,3 +272,23 @@ def test_a_file_that_holds_no_record_is_refused_as_it_is(
     assert err[0].endswith("nothing to recover"), err
     assert cut.read_bytes() == content
     assert [p.name for p in tmp_path.iterdir()] == [cut.name]
+
+
+def test_a_file_a_running_service_writes_is_not_recovered_in_place(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # Replay and report warn that the file being written "ends without its summary"; a
+    # recover in place then replaced it with a copy, and everything the service wrote
+    # after went into the old file, unlinked: lost, while /status said healthy.
+    _, database = example_machine()
+    settings = RecordingSettings(directory=tmp_path / "rec", flush_period_s=0.1)
+    with Recorder(settings, database, machine_id="m") as recorder:
+        (live,) = recorder.paths
+        assert is_cut_short(live)
+        assert main(["recover", str(live)]) == 1
+        (line,) = capsys.readouterr().err.strip().splitlines()
+        assert line.startswith(f"portal-daq: {live}: a running service is writing it"), line
+        assert main(["recover", str(live), "-o", str(tmp_path / "copy.mcap")]) == 3
+        inode = live.stat().st_ino
+    assert live.stat().st_ino == inode and not is_cut_short(live)  # finished, in place
+    assert main(["recover", str(live)]) == 0  # its writer gone, it may be

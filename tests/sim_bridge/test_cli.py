@@ -1,6 +1,7 @@
 """python -m sim_bridge: plays on a virtual bus, writes truth, fails in one line, obeys SIGTERM."""
 
 import csv
+import errno
 import os
 import re
 import signal
@@ -137,6 +138,23 @@ def test_a_zenoh_option_refused_is_one_line_naming_it(
     (line,) = capsys.readouterr().err.strip().splitlines()
     assert expected in line and ".rs:" not in line and "Single(" not in line, line
     assert len(line) < 500, line
+
+
+def test_a_kernel_without_socketcan_is_told_so(
+    export: list[str], capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # It was told to `ip link add dev vcan0 type vcan`, which such a kernel cannot do.
+    def no_socketcan(**kwargs: object) -> can.BusABC:
+        raise OSError(errno.EAFNOSUPPORT, "Address family not supported by protocol")
+
+    monkeypatch.setattr(can, "Bus", no_socketcan)
+    args = [*virtual("vcan0"), *export, "--as-fast-as-possible"]
+    assert cli(args) == 2
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert "cannot open the bus: Address family not supported by protocol; this kernel has no " \
+        "SocketCAN: load it (sudo modprobe can-raw;" in line, line  # fmt: skip
+    assert line.endswith("or set --interface to another python-can interface"), line
+    assert "ip link add" not in line
 
 
 def test_a_bad_mapping_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
