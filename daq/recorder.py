@@ -48,7 +48,7 @@ from daq.errors import RecordingError
 from daq.frames import BusEvent
 from daq.mcap_file import CountingFile, EncodedBatch, McapFile, RecordBatch, RecordingGap
 from daq.recording_run import run_metadata
-from daq.recover import hold_while_writing, is_cut_short, recover_file
+from daq.recover import hold_while_writing, recover_cut_files
 from daq.service_config import RecordingSettings
 from daq.sim_truth import TruthRecord, truth_payload
 from estimator.machine import MachineSnapshot
@@ -199,28 +199,8 @@ class Recorder(Worker):
             ) from exc
         if self.run_id is None:
             self.run_id = uuid.uuid4().hex
-        self._recover_previous()
+        recover_cut_files(self.directory, self._machine_id, self.settings.compression)
         self._guarded(lambda: self._open(self._now()))
-
-    def _recover_previous(self) -> None:
-        """Complete the newest file of this machine if the last run was cut short (a crash)."""
-        files = sorted(self.directory.glob(f"{self._machine_id}_*.mcap"))
-        if not files:
-            return
-        previous = files[-1]
-        try:
-            if not is_cut_short(previous):
-                return
-            result = recover_file(previous, compression=self.settings.compression)
-        except RecordingError as exc:
-            logger.error("cannot recover %s (cut short): %s", previous, exc.reason)
-            return
-        logger.warning(
-            "recovered %s (cut short by a crash): %d messages, %d attachments kept",
-            previous,
-            result.messages,
-            result.attachments,
-        )
 
     def submit(self, item: Item) -> None:
         """Queue ``item`` for writing; never blocks (a full queue drops and counts)."""

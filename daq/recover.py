@@ -9,8 +9,8 @@ messages in file order, attachments, metadata) is written again through a new
 writer, which adds the chunk and message indexes, the statistics and the summary.
 Nothing after the cut can be had back; what was lost is reported.
 
-The recorder runs :func:`recover_file` on the newest file of its machine when it
-starts and finds that file cut short (:func:`is_cut_short`), in place.
+The recorder runs :func:`recover_cut_files` on its directory when it starts: every file
+of its machine cut short (:func:`is_cut_short`) is recovered in place.
 """
 
 import fcntl
@@ -181,3 +181,42 @@ def recover_file(path: Path, out: Path | None = None, *, compression: str = "zst
         # The output's error names the path given, not the .part written beside it.
         where = path if exc.filename in (None, str(path)) else target
         raise RecordingError(where, f"cannot recover: {exc.strerror}") from exc
+
+
+def recover_cut_files(directory: Path, machine_id: str, compression: str = "zstd") -> None:
+    """Recover in place every file of ``machine_id`` in ``directory`` that a crash cut
+    short, one log line each; remove one that holds no MCAP record (the recorder stopped
+    as it opened it: nothing was recorded in it). Every file, not only the newest by
+    name: a clock stepped back, or a machine without a real-time clock (from 1970 at every
+    start until NTP sets it), names the last file before older ones, and its cut file
+    was never recovered. A file that cannot be recovered is logged and left as it is."""
+    for path in sorted(directory.glob(f"{machine_id}_*.mcap")):
+        try:
+            if not is_cut_short(path):
+                continue
+            if _holds_no_record(path):
+                path.unlink()
+                logger.warning("removed %s: it holds no MCAP record (nothing was recorded)", path)
+                continue
+            result = recover_file(path, compression=compression)
+        except (RecordingError, OSError) as exc:
+            reason = exc.reason if isinstance(exc, RecordingError) else exc.strerror
+            logger.error("cannot recover %s (cut short): %s", path, reason)
+            continue
+        logger.warning(
+            "recovered %s (cut short by a crash): %d messages, %d attachments kept",
+            path,
+            result.messages,
+            result.attachments,
+        )
+
+
+def _holds_no_record(path: Path) -> bool:
+    """``path`` holds no MCAP record (0 bytes, or cut in its header); raises
+    :class:`RecordingError` when it is no MCAP file at all, or a running service writes
+    it (it may have just opened it)."""
+    with open(path, "rb") as stream:
+        _refuse_while_written(stream, path)
+        records = RecordsToTheCut(stream, str(path))
+        next(iter(records), None)
+        return not records.started

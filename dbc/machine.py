@@ -567,6 +567,19 @@ def _chamber(
             f"signal {message.name}.{signal_name} is the message's multiplexer (which page "
             "a frame is), not a pressure",
         )
+    if signal.multiplexer_signal is not None:
+        multiplexer = message.get_signal_by_name(signal.multiplexer_signal)
+        if (multiplexer.scale, multiplexer.offset) != (1, 0):
+            # cantools picks a frame's signals by the multiplexer's scaled value, where the
+            # DBC's pages (m2, SG_MUL_VAL_) are raw: a channel counted from 1, (1,1),
+            # read page 2's frames as page 3's.
+            raise chamber.error(
+                signal_key,
+                f"{message.name}'s multiplexer {multiplexer.name} has factor "
+                f"{multiplexer.scale:g} and offset {multiplexer.offset:g}: its frames' pages "
+                "would be taken by the scaled value, not the raw one the DBC's pages are; "
+                "give it (1,0) in the DBC",
+            )
     if _enumerated(signal):  # with a unit, a 2-bit status was a valid 0..3 bar
         names = ", ".join(f'{raw} "{name}"' for raw, name in sorted((signal.choices or {}).items()))
         raise chamber.error(

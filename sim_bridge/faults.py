@@ -65,8 +65,24 @@ from sim_bridge.senders import message_of
 SOURCE = "fault flags"
 #: Status value-table name that ``--sensor-fault`` sends.
 SENSOR_FAULT_STATUS = "sensor_fault"
-#: Words of a status value naming a fault, for a DBC without ``sensor_fault`` (in order).
-FAULT_WORDS = ("fault", "error", "fail")
+#: Words of a status value naming a fault, for a DBC without ``sensor_fault`` (in order):
+#: J1939 transducers' ``ShortCircuit``/``OpenCircuit``, German DBCs' ``Sensorfehler``,
+#: ``Kabelbruch``, ``Kurzschluss``, French ``Défaut``, ``Erreur``.
+FAULT_WORDS = (
+    "fault",
+    "error",
+    "fail",
+    "short",
+    "open",
+    "broken",
+    "fehler",
+    "defekt",
+    "st\u00f6rung",
+    "kurzschluss",
+    "bruch",
+    "d\u00e9faut",
+    "erreur",
+)
 
 
 def fault_status(names: frozenset[str]) -> str | None:
@@ -76,6 +92,10 @@ def fault_status(names: frozenset[str]) -> str | None:
 
     >>> fault_status(frozenset({"Ok", "Warning", "Error", "NotAvailable"}))
     'Error'
+    >>> fault_status(frozenset({"i.O.", "Kurzschluss", "Kabelbruch", "SNA"}))
+    'Kurzschluss'
+    >>> fault_status(frozenset({"Ok", "OpenCircuit", "ShortCircuit", "NotAvailable"}))
+    'ShortCircuit'
     >>> fault_status(frozenset({"ok", "busy"})) is None
     True
     """
@@ -239,7 +259,7 @@ class FaultInjector:
                     SOURCE,
                     f"--sensor-fault {window}",
                     f"leg {window.target} has no status value naming a fault in the DBC "
-                    f"({SENSOR_FAULT_STATUS!r}, or one with {' or '.join(FAULT_WORDS)} in its "
+                    f"({SENSOR_FAULT_STATUS!r}, or one with {', '.join(FAULT_WORDS)} in its "
                     f"name); its status values: {', '.join(sorted(names)) or 'none'}",
                 )
             self._fault_status[window.target] = status

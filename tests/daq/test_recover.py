@@ -274,6 +274,52 @@ def test_a_file_that_holds_no_record_is_refused_as_it_is(
     assert [p.name for p in tmp_path.iterdir()] == [cut.name]
 
 
+def test_every_cut_file_of_the_machine_is_recovered_at_start_not_the_newest_name_only(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """A machine without a real-time clock starts in 1970 until NTP sets it: a power cut
+    before the clock was set left a cut file named before the complete files of earlier
+    days, and the start recovered only the newest by name. A file the recorder had just
+    opened (0 bytes) is removed; another machine's files are left alone."""
+    import io
+
+    from mcap.writer import Writer
+
+    from daq.recover import hold_while_writing, recover_cut_files
+
+    def mcap_bytes() -> bytes:
+        buffer = io.BytesIO()
+        writer = Writer(buffer, chunk_size=256)
+        writer.start()
+        schema = writer.register_schema("s", "jsonschema", b"{}")
+        channel = writer.register_channel("/t", "json", schema)
+        for k in range(200):
+            writer.add_message(channel, log_time=k, data=b'{"k": %d}' % k, publish_time=k)
+        writer.finish()  # type: ignore[no-untyped-call]
+        return buffer.getvalue()
+
+    whole = mcap_bytes()
+    complete = tmp_path / "pam_20261201T100000.000Z.mcap"
+    complete.write_bytes(whole)
+    cut = tmp_path / "pam_19700101T000012.000Z.mcap"
+    cut.write_bytes(whole[: len(whole) // 2])
+    opened = tmp_path / "pam_19700101T004512.000Z.mcap"
+    opened.write_bytes(b"")
+    foreign = tmp_path / "other_19700101T000001.000Z.mcap"
+    foreign.write_bytes(whole[: len(whole) // 2])
+    writing = tmp_path / "pam_19700101T004513.000Z.mcap"  # another service's, just opened
+    with open(writing, "wb") as held:
+        hold_while_writing(held, writing)
+        recover_cut_files(tmp_path, "pam")
+    assert writing.exists()
+    assert not is_cut_short(cut) and complete.read_bytes() == whole
+    with open(cut, "rb") as stream:
+        assert 0 < len(list(make_reader(stream).iter_messages())) < 200
+    assert not opened.exists() and foreign.read_bytes() == whole[: len(whole) // 2]
+    assert f"recovered {cut} (cut short by a crash)" in caplog.text
+    assert f"removed {opened}: it holds no MCAP record" in caplog.text
+
+
 def test_a_file_a_running_service_writes_is_not_recovered_in_place(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -15,6 +15,7 @@ from daq.pipeline import Pipeline
 from dbc.errors import ConfigError
 from dbc.machine import load_machine_config
 from tests.helpers import FILES
+from tests.sim_bridge.synthetic import small_machine
 
 STRANGER = FILES / "stranger"
 FRONT_ID = 0x18FF0A21  # 29 bit, ExtendedCAN: matched by the whole ID, not as J1939
@@ -109,3 +110,33 @@ def test_a_chamber_on_a_signal_of_several_pages_names_one_of_them(
     with pytest.raises(ConfigError) as refused:
         load_machine_config(tmp_path / "m.toml")
     assert (refused.value.key, refused.value.reason) == (key, reason)
+
+
+#: An I/O module counting its channels from 1: the multiplexer is (1,1), page 0 of the
+#: DBC (``m0``, ``SG_MUL_VAL_ ... 0-3``) reads channel 1.
+FROM_ONE = """
+BO_ 1792 AIN: 8 IOM
+ SG_ Channel M : 0|8@1+ (1,1) [1|4] "" DAQ
+ SG_ Pressure m0 : 8|16@1+ (0.01,0) [0|600] "bar" DAQ
+"""
+FROM_ONE_ATTRIBUTES = 'BA_ "GenMsgCycleTime" BO_ 1792 10;\nSG_MUL_VAL_ 1792 Pressure Channel 0-3;\n'
+FROM_ONE_LEGS = (
+    '[legs.A]\npiston = { signal = "AIN.Pressure", multiplexer = 0 }\n'
+    'rod = { signal = "AIN.Pressure", multiplexer = 1 }\n'
+    '[legs.B]\npiston = { signal = "AIN.Pressure", multiplexer = 2 }\n'
+    'rod = { signal = "AIN.Pressure", multiplexer = 3 }\n'
+)
+
+
+def test_a_scaled_multiplexer_is_refused(tmp_path: Path) -> None:
+    """cantools picks a frame's signals by the multiplexer's scaled value, the DBC's pages
+    are raw: page 2's frames (Channel reads 3) were read as page 3's, and page 3's frames
+    failed to decode; a leg on such a message stops the config."""
+    with pytest.raises(ConfigError) as refused:
+        small_machine(tmp_path, FROM_ONE, FROM_ONE_ATTRIBUTES, FROM_ONE_LEGS)
+    assert (refused.value.key, refused.value.reason) == (
+        "legs.A.piston.signal",
+        "AIN's multiplexer Channel has factor 1 and offset 1: its frames' pages would be "
+        "taken by the scaled value, not the raw one the DBC's pages are; give it (1,0) in "
+        "the DBC",
+    )

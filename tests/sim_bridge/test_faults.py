@@ -194,7 +194,8 @@ def test_a_sensor_fault_needs_a_status_value_naming_a_fault() -> None:
         FaultInjector(FaultConfig(sensor_fault=(W("SB1_F1@1:1"),)), targets)
     assert refused.value.reason == (
         "leg SB1_F1 has no status value naming a fault in the DBC ('sensor_fault', or one "
-        "with fault or error or fail in its name); its status values: busy, ok"
+        "with fault, error, fail, short, open, broken, fehler, defekt, st\u00f6rung, "
+        "kurzschluss, bruch, d\u00e9faut, erreur in its name); its status values: busy, ok"
     )
 
 

@@ -166,6 +166,26 @@ def test_a_rod_message_that_stops_makes_its_legs_samples_invalid() -> None:
     assert all(e.valid for leg in ("SB1_F1", "SB1_F2", "SB1_F3") for e, _ in estimates[leg])
 
 
+@pytest.mark.parametrize(
+    ("name", "leg", "status"),
+    [("iom_channels", "VL", "Sensorfehler"), ("xdcr_two_rates", "A1", "ShortCircuit")],
+)
+def test_a_sensor_fault_sends_what_the_dbc_names_a_fault(name: str, leg: str, status: str) -> None:
+    """--sensor-fault on held-out status tables without 'fault', 'error' or 'fail' in a
+    name (a German I/O module's Sensorfehler, Drahtbruch, Kurzschluss; a J1939
+    transducer's OpenCircuit, ShortCircuit): portal-sim refused the flag; now the leg's
+    samples in the window carry the fault, the other legs' none."""
+    window = FaultWindow(leg, 0.2, 0.1)
+    _, _, estimates, _ = played(name, faults=FaultConfig(seed=1, sensor_fault=(window,)))
+    for other, of_leg in estimates.items():
+        faulty = [e for e, _ in of_leg if not e.valid]
+        if other != leg:
+            assert faulty == []
+            continue
+        assert faulty and {e.reasons for e in faulty} == {(f"status_{status}",)}
+        assert all(0.2 - 1e-6 <= e.t_s - 1000.0 < 0.3 + 0.1 for e in faulty)
+
+
 def test_a_transducer_at_an_address_no_chamber_has_is_named_once(
     caplog: pytest.LogCaptureFixture,
 ) -> None:
