@@ -124,3 +124,16 @@ def test_the_commands_that_take_a_config_say_where_one_comes_from(
     with pytest.raises(SystemExit):
         main([command, "--help"])
     assert "portal-daq init" in " ".join(capsys.readouterr().out.split())
+
+
+@pytest.mark.parametrize("name", ["default", "e2e", "j1939"])
+def test_the_examples_name_nothing_a_wheel_lacks(name: str, tmp_path: Path) -> None:
+    # Their comments sent the user to deploy/examples/..., deploy/demo.sh and
+    # `python -m sim_bridge`: a clone's paths, where init wrote them out of a wheel.
+    assert main(["init", str(tmp_path), "--example", name]) == 0
+    for written in tmp_path.iterdir():
+        if written.suffix == ".dbc":
+            continue
+        text = written.read_text()
+        for clone_only in ("deploy/examples", "deploy/demo.sh", "deploy/portal-daq.example"):
+            assert clone_only not in text, (written.name, clone_only)
