@@ -647,36 +647,52 @@ def _page(
     signal, and a chamber reading every page read four sensors in turn as one."""
     own = _mux_ids(message, signal_name)
     signal = message.get_signal_by_name(signal_name)
+    multiplexer = signal.multiplexer_signal
+    choices: Mapping[int, object] = (
+        message.get_signal_by_name(multiplexer).choices or {} if multiplexer else {}
+    )
     if "multiplexer" not in table:
         if own is not None and len(own) > 1:
             raise table.error(
                 key,
-                f"{message.name}.{signal_name} is sent under {signal.multiplexer_signal} = "
-                f"{', '.join(map(str, own))}, a value on each page: set multiplexer = the "
-                "page of this chamber's",
+                f"{message.name}.{signal_name} is sent under {multiplexer} = "
+                f"{_pages(own, choices)}, a value on each page: set multiplexer = the page of "
+                "this chamber's",
             )
         return own, None
-    if own is None or signal.multiplexer_signal is None:
+    if own is None or multiplexer is None:
         raise table.error("multiplexer", f"{message.name}.{signal_name} is not under a multiplexer")
-    choices: Mapping[int, object] = (
-        message.get_signal_by_name(signal.multiplexer_signal).choices or {}
-    )
     value = table.data["multiplexer"]
     by_name = {str(name): int(raw) for raw, name in choices.items()}
     page = by_name.get(value) if isinstance(value, str) else value
     if isinstance(page, bool) or not isinstance(page, int) or page not in own:
-        names = [f"{raw} ({choices[raw]})" if raw in choices else str(raw) for raw in own]
         raise table.error(
             "multiplexer",
             f"{value!r} is no page of {message.name}.{signal_name}: it is sent under "
-            f"{signal.multiplexer_signal} = {', '.join(names)}",
+            f"{multiplexer} = {_pages(own, choices)}",
         )
     if len(own) == 1:  # the only page it is on: every frame carrying it is that page
         return own, None
     decoded: set[int | str] = {page}
     if page in choices:
         decoded.add(str(choices[page]))
-    return (page,), (signal.multiplexer_signal, frozenset(decoded))
+    return (page,), (multiplexer, frozenset(decoded))
+
+
+def _pages(pages: tuple[int, ...], choices: Mapping[int, object]) -> str:
+    """Multiplexer values for a message, with their value-table names where a few have
+    them (``0 (AIN1), 1 (AIN2)``), else runs of them (``0..255``)."""
+    if len(pages) <= 8 and choices:
+        return ", ".join(
+            f"{page} ({choices[page]})" if page in choices else str(page) for page in pages
+        )
+    runs: list[list[int]] = []
+    for page in sorted(pages):
+        if runs and page == runs[-1][-1] + 1:
+            runs[-1].append(page)
+        else:
+            runs.append([page])
+    return ", ".join(str(run[0]) if len(run) < 3 else f"{run[0]}..{run[-1]}" for run in runs)
 
 
 def _enumerated(signal: Signal) -> bool:

@@ -64,8 +64,8 @@ def test_each_chamber_reads_the_page_it_names() -> None:
         (
             ('multiplexer = "AIN1", ', ""),
             "legs.VL.piston.signal",
-            "IOM_VORNE_AIN.AIN_Druck is sent under Kanal = 0, 1, 2, 3, a value on each page: "
-            "set multiplexer = the page of this chamber's",
+            "IOM_VORNE_AIN.AIN_Druck is sent under Kanal = 0 (AIN1), 1 (AIN2), 2 (AIN3), 3 "
+            "(AIN4), a value on each page: set multiplexer = the page of this chamber's",
         ),
         (
             ('multiplexer = "AIN1"', 'multiplexer = "AIN5"'),
@@ -126,6 +126,20 @@ FROM_ONE_LEGS = (
     '[legs.B]\npiston = { signal = "AIN.Pressure", multiplexer = 2 }\n'
     'rod = { signal = "AIN.Pressure", multiplexer = 3 }\n'
 )
+
+
+def test_the_pages_of_a_chamber_without_one_are_named_in_runs(tmp_path: Path) -> None:
+    """iom_j1939's Channel 0..7 without a value table: the refusal names the run."""
+    shutil.copy(STRANGER / "iom_j1939.dbc", tmp_path)
+    text = (STRANGER / "iom_j1939.toml").read_text()
+    (tmp_path / "m.toml").write_text(text.replace("multiplexer = 0, ", "", 1))
+    with pytest.raises(ConfigError) as refused:
+        load_machine_config(tmp_path / "m.toml")
+    assert (refused.value.key, refused.value.reason) == (
+        "legs.SB1_F1.piston.signal",
+        "IOM_AIN.AIN_Pressure is sent under Channel = 0..7, a value on each page: set "
+        "multiplexer = the page of this chamber's",
+    )
 
 
 def test_a_scaled_multiplexer_is_refused(tmp_path: Path) -> None:
