@@ -79,6 +79,12 @@ def test_leg_table_overrides_leg_defaults(tmp_path: Path) -> None:
         ("median_window = 11", "median_window = 10", "estimator.median_window", "odd"),
         ("contact_off_N = 4000.0", "contact_off_N = 9000.0", "estimator.contact_off_N", "below"),
         ("median_window = 11", "median_windw = 11", "estimator.median_windw", "unknown key"),
+        (
+            "stale_after_cycles = 3.0",
+            "stale_after_cycles = 1.0",
+            "estimator.stale_after_cycles",
+            "stale between two of its frames",
+        ),
         ("l_gb_m = 0.55", "l_gb = 0.55", "leg_defaults.l_gb", "unknown key"),
         ('crc = "SB1_F1_CRC"', 'crc = "SB1_F1_Counter"', "protection.LEG_SB1_F1.crc", "8-bit"),
         ("[legs.SB1_F1]", "[legs.SB1_F1]\nfoot = 1", "legs.SB1_F1.foot", "unknown key"),

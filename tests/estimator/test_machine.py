@@ -66,6 +66,9 @@ def test_every_leg_needs_a_cycle_time() -> None:
         ({"pressure_min_Pa": 5e7}, "pressure_min_Pa"),
         ({"near_constant_window_s": 0.0}, "near_constant_window_s"),
         ({"stale_after_cycles": -1.0}, "stale_after_cycles"),
+        # One cycle or less: every next frame would be an outage (median, metrics restart).
+        ({"stale_after_cycles": 1.0}, "stale_after_cycles must be > 1"),
+        ({"stale_after_cycles": 0.5}, "stale between two of its frames"),
     ],
 )
 def test_settings_refuse_inconsistent_values(kw: dict[str, object], word: str) -> None:
