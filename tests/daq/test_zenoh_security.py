@@ -12,7 +12,7 @@ import pytest
 import zenoh
 from mcap.reader import make_reader
 
-from daq.service_config import ZenohSettings, load_service_config
+from daq.service_config import ServiceConfig, ZenohSettings, load_service_config
 from daq.zenoh_session import config_value, zenoh_config
 from tests.daq.service_support import (
     WAIT_S,
@@ -36,24 +36,30 @@ def connected(session: zenoh.Session) -> None:
         time.sleep(0.05)
 
 
-def test_foreign_puts_are_refused_and_the_local_socket_may_put_truth(tmp_path: Path) -> None:
-    port = free_port()
-    tcp = f"tcp/127.0.0.1:{port}"
-    unix = f"unixsock-stream/{tmp_path / 'zenoh.sock'}"
+def locked_down_service(tmp_path: Path, *more_listen: str) -> tuple[ServiceConfig, str]:
+    """A service config recording truth behind the shipped zenoh.json5's access control,
+    listening on a free TCP port (and ``more_listen``); the config and that endpoint."""
+    tcp = f"tcp/127.0.0.1:{free_port()}"
     path = write_service_config(
         tmp_path,
         channel=f"test-{uuid.uuid4().hex}",
-        port=port,
+        port=int(tcp.rsplit(":", 1)[1]),
         recording=tmp_path / "rec",
         truth=True,
     )
+    listen = ", ".join(f'"{endpoint}"' for endpoint in (tcp, *more_listen))
     text = path.read_text().replace(
         f'listen = ["{tcp}"]',
-        f'config_file = "{ROOT / "deploy" / "zenoh.json5"}"\nlisten = ["{tcp}", "{unix}"]',
+        f'config_file = "{ROOT / "deploy" / "zenoh.json5"}"\nlisten = [{listen}]',
         1,
     )
     path.write_text(text)
-    config = load_service_config(path)
+    return load_service_config(path), tcp
+
+
+def test_foreign_puts_are_refused_and_the_local_socket_may_put_truth(tmp_path: Path) -> None:
+    unix = f"unixsock-stream/{tmp_path / 'zenoh.sock'}"
+    config, tcp = locked_down_service(tmp_path, unix)
     prefix = config.zenoh.key_prefix
     with (
         live_service(config) as service,
@@ -125,18 +131,7 @@ def test_truth_that_never_comes_is_said_once(
 ) -> None:
     # A bench's bridge connected over TCP (the natural way) had its truth dropped by the
     # access control, unseen: the recording had no truth and nobody said why.
-    port = free_port()
-    tcp = f"tcp/127.0.0.1:{port}"
-    path = write_service_config(
-        tmp_path, channel=f"test-{uuid.uuid4().hex}", port=port, recording=tmp_path / "rec",
-        truth=True,
-    )  # fmt: skip
-    text = path.read_text().replace(
-        f'listen = ["{tcp}"]',
-        f'config_file = "{ROOT / "deploy" / "zenoh.json5"}"\nlisten = ["{tcp}"]',
-    )
-    path.write_text(text)
-    config = load_service_config(path)
+    config, tcp = locked_down_service(tmp_path)
     prefix = config.zenoh.key_prefix
     caplog.set_level(logging.WARNING, logger="daq.service")
     with (
