@@ -43,6 +43,7 @@ from daq.can_batch import recorded_frames
 from daq.candump_text import CandumpReader
 from daq.errors import RecordingError
 from daq.frames import BUS_UP, BusEvent, RawFrame, from_can_message
+from daq.leg_restarts import warn_restarting_legs
 from daq.log_kind import FORMATS, looks_like
 from daq.mcap_file import BUS_TOPIC, CONFIG_ATTACHMENT, DBC_ATTACHMENT, RAW_TOPIC
 from daq.mcap_reading import RecordedAttachment, RecordedMessage, RecordingStream
@@ -189,27 +190,6 @@ def replay(
         logger.warning("%s: no CAN frame in it: the CSV has its header only", files[0])
     warn_restarting_legs(pipeline)
     return rows
-
-
-def warn_restarting_legs(pipeline: Pipeline) -> None:
-    """One line per leg whose filter restarted at most of its valid samples (see
-    :meth:`~estimator.machine.MachineEstimator.restarting_legs`): its rows look valid."""
-    estimator = pipeline.estimator
-    for leg, (restarts, samples) in estimator.restarting_legs().items():
-        stale_s = estimator.legs[leg].stale_after_s
-        cycles = estimator.legs[leg].settings.stale_after_cycles
-        logger.warning(
-            "legs.%s: %d of its %d valid samples came more than its stale time (%.3g ms: "
-            "%g x its cycle time, %.3g ms) after the one before, so the filter, contact and "
-            "near-constant window restarted at each (force_N is force_raw_N): is it sent "
-            "less often? set its cycle time ([messages.<MESSAGE>] cycle_time_ms)",
-            leg,
-            restarts,
-            samples,
-            stale_s * 1e3,
-            cycles,
-            stale_s / cycles * 1e3,
-        )
 
 
 def recording_results(

@@ -50,6 +50,7 @@ import zenoh
 from daq.bus_reader import BusFactory, BusReader, LinkProbe
 from daq.consumer import Consumer
 from daq.frames import BusEvent, RawFrame
+from daq.leg_restarts import warn_restarting_legs
 from daq.payloads import JsonObject
 from daq.pipeline import Pipeline
 from daq.publisher import ZenohPublisher
@@ -162,6 +163,8 @@ class Service:
         #: When the first frame was seen (monotonic), for :meth:`_truth_missing`.
         self._first_frame_monotonic: float | None = None
         self._truth_warned = False
+        #: The legs told of restarting their filter at every sample (once each).
+        self._restarting_told: set[str] = set()
         self._started = False
         self._closed = False
 
@@ -276,6 +279,7 @@ class Service:
             if self._first_frame_monotonic is None:
                 self._first_frame_monotonic = now
         self._truth_missing(now)
+        warn_restarting_legs(self.pipeline, self._restarting_told)
         # Read once: the status must show the very count its health was judged on.
         kernel_dropped = self.reader.kernel_dropped
         self._kernel_losses(kernel_dropped)  # logs a rise; health: see problems()

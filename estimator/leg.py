@@ -102,6 +102,11 @@ class LegEstimator:
     def metrics(self) -> SoilMetrics:
         return self._metrics.metrics
 
+    @property
+    def valid_samples(self) -> int:
+        """Valid samples since the start (or :meth:`reset_metrics`)."""
+        return self._metrics.samples
+
     def reset_metrics(self) -> None:
         """Restart the soil metrics (e.g. per movement cycle); the filter keeps its state."""
         self._metrics.reset()

@@ -108,11 +108,12 @@ class MachineEstimator:
         ``GenMsgCycleTime`` per frame where each page comes less often), every sample
         looked like one after an outage: the filter, the contact and the near-constant
         window restarted at each, unseen in the estimates themselves."""
-        return {
-            name: (leg.restarts, leg.metrics.samples)
-            for name, leg in self.legs.items()
-            if leg.restarts > 1 and 2 * leg.restarts > leg.metrics.samples
-        }
+        found = {}
+        for name, leg in self.legs.items():
+            restarts, samples = leg.restarts, leg.valid_samples
+            if restarts > 1 and 2 * restarts > samples:
+                found[name] = (restarts, samples)
+        return found
 
     def metrics(self) -> dict[str, SoilMetrics]:
         """Soil metrics of every leg."""

@@ -62,6 +62,12 @@ class SoilMetricsTracker:
         self._previous: tuple[float, float] | None = None
 
     @property
+    def samples(self) -> int:
+        """Valid samples counted (:attr:`SoilMetrics.samples`, without building it: safe to
+        read from another thread)."""
+        return self._samples
+
+    @property
     def metrics(self) -> SoilMetrics:
         metrics = self._metrics
         if metrics is None:

@@ -159,3 +159,37 @@ def test_the_service_runs_transducers_in_their_own_units_without_dbc_cycle_times
     assert {s["source_address"]: s["signals"]["Pressure"] for s in recorded} == expected_Pa
     assert len(recorded) == len(frames)
     assert status["bad"] == {"unmapped_source": 1}
+
+
+def test_the_service_says_once_which_legs_restart_at_every_sample(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """tests/files/stranger/eight_legs_mux with HUB_VORNE's cycle time set to 5 ms, its
+    pages coming each 20 ms: the four legs on it restarted their median at every sample,
+    their estimates all valid, and nothing said so."""
+    from sim_bridge.__main__ import cli
+
+    log = tmp_path / "hubs.log"
+    args = ["--config", str(STRANGER / "eight_legs_mux.toml"), "--interface", "virtual"]
+    args += ["--channel", f"log-{uuid.uuid4()}", "--as-fast-as-possible", "-q"]
+    assert cli([*args, "--duration", "0.5", "--frames-log", str(log)]) == 0
+    with can.LogReader(log) as reader:
+        messages = list(reader)
+    config, port, channel = held_out_service_config(
+        tmp_path, "eight_legs_mux", tables="[messages.HUB_VORNE]\ncycle_time_ms = 5"
+    )
+    prefix = config.zenoh.key_prefix
+    with zenoh.open(zenoh_config(config.zenoh)) as session:
+        service = Service(config, open_bus=bus_factory(config.bus, []), session=session)
+        with running(service), subscriber_session(port) as subscriber:
+            collector = Collector(subscriber, f"{prefix}/status")
+            collector.wait_for(f"{prefix}/status")
+            send_on(channel, messages)
+            collector.wait_for(
+                f"{prefix}/status", lambda s: s["frames"]["processed"] == len(messages)
+            )
+            seen = len(collector.of(f"{prefix}/status"))
+            collector.wait_until(lambda: len(collector.of(f"{prefix}/status")) >= seen + 2)
+    told = [r.getMessage() for r in caplog.records if r.name == "daq.leg_restarts"]
+    assert [line.split(":")[0] for line in told] == ["legs.VL1", "legs.VL2", "legs.VR1", "legs.VR2"]
+    assert "came more than its stale time (15 ms: 3 x its cycle time, 5 ms)" in told[0]

@@ -74,7 +74,7 @@ def test_replay_says_which_legs_restarted_at_every_sample(
 
     config = tmp_path / "machine.toml"
     config.write_text(EXAMPLE_CONFIG.read_text() + "\n[messages.LEG_SB1_F1]\ncycle_time_ms = 3\n")
-    with caplog.at_level(logging.WARNING, logger="daq.replay"):
+    with caplog.at_level(logging.WARNING, logger="daq.leg_restarts"):
         assert replay(cycle_log, io.StringIO(), config) == 600
     # Its rows look valid; only this line tells the median never filtered anything.
     assert [r.getMessage() for r in caplog.records] == [
