@@ -72,6 +72,8 @@ _NUMBER = re.compile(r"\d+(\.\d+)?")
 HEARTBEAT_MAX_AGE_S = 2.0
 #: A saturated 1 Mbit/s bus: an 8-byte standard frame takes up to ~111 us.
 SATURATED_FRAMES_PER_S = 9000.0
+#: Frames for this many status periods and no truth sample: said once (``[recording] truth``).
+TRUTH_WAIT_PERIODS = 3
 #: ``<prefix>/units`` answers a ``get`` with :func:`units`.
 UNITS_KEY = "units"
 
@@ -157,6 +159,9 @@ class Service:
         self._reported_problems: list[str] = []
         #: The kernel drop count at the previous status (for the log line of a rise).
         self._kernel_dropped_mark = 0
+        #: When the first frame was seen (monotonic), for :meth:`_truth_missing`.
+        self._first_frame_monotonic: float | None = None
+        self._truth_warned = False
         self._started = False
         self._closed = False
 
@@ -268,6 +273,9 @@ class Service:
         self._rate_mark = (now, received)
         if received != mark_received:
             self._last_frame_monotonic = now
+            if self._first_frame_monotonic is None:
+                self._first_frame_monotonic = now
+        self._truth_missing(now)
         # Read once: the status must show the very count its health was judged on.
         kernel_dropped = self.reader.kernel_dropped
         self._kernel_losses(kernel_dropped)  # logs a rise; health: see problems()
@@ -343,6 +351,26 @@ class Service:
         status["healthy"] = not found
         status["problems"] = found
         return status
+
+    def _truth_missing(self, now: float) -> None:
+        """Logs once when ``[recording] truth`` is on and frames have come in for
+        :data:`TRUTH_WAIT_PERIODS` status periods without a truth sample: a bridge that
+        publishes under another machine id, or over a link the access control refuses
+        puts from (TCP: Zenoh drops them unseen), leaves the recording without truth."""
+        first = self._first_frame_monotonic
+        if self.truth is None or self._truth_warned or self.truth.received or first is None:
+            return
+        if now - first < TRUTH_WAIT_PERIODS * self.config.publish.status_period_s:
+            return
+        self._truth_warned = True
+        logger.warning(
+            "[recording] truth is on, but no sample came on %s in %.0f s of frames: is the "
+            "bridge publishing (portal-sim --zenoh) with this config's machine id, connected "
+            "through a listener whose puts the access control lets in (zenoh.json5: a Unix "
+            "socket, not TCP)?",
+            self.truth.key,
+            now - first,
+        )
 
     def _kernel_losses(self, total: int) -> None:
         """Logs the frames the kernel dropped since the previous status (``total`` now)."""

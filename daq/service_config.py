@@ -275,7 +275,7 @@ def _zenoh(table: TomlTable, config_dir: Path, machine_id: str) -> ZenohSettings
     table.reject_unknown(_keys(ZenohSettings))
     config_file = None
     if "config_file" in table:
-        config_file = config_dir / table.string("config_file")
+        config_file = table.file("config_file", config_dir)
         if not config_file.is_file():
             raise table.error("config_file", f"no such file: {config_file}")
     multicast = table.boolean("multicast_scouting") if "multicast_scouting" in table else None
@@ -306,7 +306,7 @@ def _publish(table: TomlTable) -> PublishSettings:
 def _recording(table: TomlTable, config_dir: Path) -> RecordingSettings:
     defaults = RecordingSettings()
     table.reject_unknown(_keys(RecordingSettings))
-    directory = config_dir / table.string("directory") if "directory" in table else None
+    directory = table.file("directory", config_dir) if "directory" in table else None
     if directory is not None and directory.exists() and not directory.is_dir():
         raise table.error("directory", f"{directory} exists and is not a directory")
     chunk_size = _positive_int(table, "chunk_size", defaults.chunk_size)

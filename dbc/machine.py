@@ -337,7 +337,7 @@ def _dbc_path(root: TomlTable, config_dir: Path) -> Path:
     machine = root.table("machine")
     if "dbc" not in machine:
         return DEFAULT_DBC_PATH
-    return config_dir / machine.string("dbc")
+    return machine.file("dbc", config_dir)
 
 
 def parse_machine_config(

@@ -3,6 +3,7 @@
 import math
 import re
 from collections.abc import Callable, Iterable, Mapping
+from pathlib import Path
 from typing import Any, TypeVar
 
 from dbc.errors import ConfigError
@@ -59,6 +60,11 @@ class TomlTable:
         if pattern is not None and not re.fullmatch(pattern, value):
             raise self.error(name, f"{value!r} does not match {pattern}")
         return value
+
+    def file(self, name: str, base_dir: Path) -> Path:
+        """A file or directory path, relative to ``base_dir`` (the config file's) unless absolute;
+        a leading ``~`` is the home directory, as in a shell (``~/recordings``)."""
+        return base_dir / Path(self.string(name)).expanduser()
 
     def boolean(self, name: str, default: Any = _MISSING) -> bool:
         value = self._get(name, default)

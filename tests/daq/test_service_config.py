@@ -6,6 +6,7 @@ import pytest
 
 from daq.service_config import load_service_config
 from daq.zenoh_session import zenoh_config
+from dbc import DEFAULT_DBC_PATH
 from dbc.errors import ConfigError
 from dbc.machine import load_machine_config
 from tests.helpers import ROOT
@@ -122,6 +123,29 @@ def test_relative_paths_are_relative_to_the_config_file(tmp_path: Path) -> None:
     config = load_service_config(path)
     assert config.zenoh.config_file == tmp_path / "z.json5"
     assert config.recording.directory == tmp_path / "rec"
+
+
+def test_a_path_that_starts_with_a_tilde_is_in_the_home_directory(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``~/recordings`` was a directory named ``~`` beside the config file, as the DBC's
+    ``~/dbc/machine.dbc`` ("cannot read it: no such file")."""
+    home = tmp_path / "home"
+    (home / "dbc").mkdir(parents=True)
+    monkeypatch.setenv("HOME", str(home))
+    (home / "dbc" / "machine.dbc").write_bytes(DEFAULT_DBC_PATH.read_bytes())
+    (home / "z.json5").write_text("{ mode: 'peer' }")
+    path = tmp_path / "etc" / "portal-daq.toml"
+    path.parent.mkdir()
+    machine = MACHINE_ONLY.read_text().replace(
+        "[machine]\n", '[machine]\ndbc = "~/dbc/machine.dbc"\n', 1
+    )
+    text = '[zenoh]\nconfig_file = "~/z.json5"\n[recording]\ndirectory = "~/rec"\n'
+    path.write_text(text + machine)
+    config = load_service_config(path)
+    assert config.machine.dbc_path == home / "dbc" / "machine.dbc"
+    assert config.zenoh.config_file == home / "z.json5"
+    assert config.recording.directory == home / "rec"
 
 
 def test_bad_zenoh_file_is_a_config_error(tmp_path: Path) -> None:

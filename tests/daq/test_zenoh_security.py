@@ -3,23 +3,26 @@
 from __future__ import annotations
 
 import json
+import logging
 import time
 import uuid
 from pathlib import Path
 
+import pytest
 import zenoh
 from mcap.reader import make_reader
 
-from daq.service_config import ZenohSettings, load_service_config
+from daq.service_config import ServiceConfig, ZenohSettings, load_service_config
 from daq.zenoh_session import config_value, zenoh_config
 from tests.daq.service_support import (
     WAIT_S,
     Collector,
     free_port,
+    leg_messages,
     peer_config,
     write_service_config,
 )
-from tests.daq.test_service_live import live_service
+from tests.daq.test_service_live import encoder_for, live_service, sender
 from tests.helpers import ROOT
 
 FAKE = b'{"t_unix_s": 1750000000.0, "legs": {"SB1_F1": {"force_true_N": 666.0}}}'
@@ -33,24 +36,30 @@ def connected(session: zenoh.Session) -> None:
         time.sleep(0.05)
 
 
-def test_foreign_puts_are_refused_and_the_local_socket_may_put_truth(tmp_path: Path) -> None:
-    port = free_port()
-    tcp = f"tcp/127.0.0.1:{port}"
-    unix = f"unixsock-stream/{tmp_path / 'zenoh.sock'}"
+def locked_down_service(tmp_path: Path, *more_listen: str) -> tuple[ServiceConfig, str]:
+    """A service config recording truth behind the shipped zenoh.json5's access control,
+    listening on a free TCP port (and ``more_listen``); the config and that endpoint."""
+    tcp = f"tcp/127.0.0.1:{free_port()}"
     path = write_service_config(
         tmp_path,
         channel=f"test-{uuid.uuid4().hex}",
-        port=port,
+        port=int(tcp.rsplit(":", 1)[1]),
         recording=tmp_path / "rec",
         truth=True,
     )
+    listen = ", ".join(f'"{endpoint}"' for endpoint in (tcp, *more_listen))
     text = path.read_text().replace(
         f'listen = ["{tcp}"]',
-        f'config_file = "{ROOT / "deploy" / "zenoh.json5"}"\nlisten = ["{tcp}", "{unix}"]',
+        f'config_file = "{ROOT / "deploy" / "zenoh.json5"}"\nlisten = [{listen}]',
         1,
     )
     path.write_text(text)
-    config = load_service_config(path)
+    return load_service_config(path), tcp
+
+
+def test_foreign_puts_are_refused_and_the_local_socket_may_put_truth(tmp_path: Path) -> None:
+    unix = f"unixsock-stream/{tmp_path / 'zenoh.sock'}"
+    config, tcp = locked_down_service(tmp_path, unix)
     prefix = config.zenoh.key_prefix
     with (
         live_service(config) as service,
@@ -115,3 +124,31 @@ def test_production_example_is_locked_down() -> None:
     assert config_value(zenoh_cfg, "listen/endpoints") == ["tcp/127.0.0.1:7447"]
     assert config_value(zenoh_cfg, "scouting/multicast/enabled") is False
     assert config_value(zenoh_cfg, "access_control/enabled") is True
+
+
+def test_truth_that_never_comes_is_said_once(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    # A bench's bridge connected over TCP (the natural way) had its truth dropped by the
+    # access control, unseen: the recording had no truth and nobody said why.
+    config, tcp = locked_down_service(tmp_path)
+    prefix = config.zenoh.key_prefix
+    caplog.set_level(logging.WARNING, logger="daq.service")
+    with (
+        live_service(config) as service,
+        zenoh.open(peer_config(connect=tcp)) as bridge,
+        sender(config) as bus,
+    ):
+        connected(bridge)
+        for message in leg_messages(encoder_for(config), 3, time.time()):
+            bus.send(message)
+        deadline = time.monotonic() + WAIT_S
+        while "no sample came on" not in caplog.text:
+            assert time.monotonic() < deadline, "no warning"
+            bridge.put(f"{prefix}/sim/truth", REAL)  # refused: TCP
+            time.sleep(0.05)
+        assert service.truth is not None and service.truth.received == 0
+        service.status()
+    warnings = [r.getMessage() for r in caplog.records if "no sample came on" in r.getMessage()]
+    assert len(warnings) == 1 and f"{prefix}/sim/truth" in warnings[0]
+    assert "a Unix socket, not TCP" in warnings[0]
