@@ -200,7 +200,29 @@ def replay(
             "legs silent (no estimate for longer than their stale time): %s",
             ", ".join(f"{leg} {n}x, {seconds:.2f} s" for leg, (n, seconds) in silent.items()),
         )
+    warn_restarting_legs(pipeline)
     return rows
+
+
+def warn_restarting_legs(pipeline: Pipeline) -> None:
+    """One line per leg whose filter restarted at most of its valid samples (see
+    :meth:`~estimator.machine.MachineEstimator.restarting_legs`): its rows look valid."""
+    estimator = pipeline.estimator
+    for leg, (restarts, samples) in estimator.restarting_legs().items():
+        stale_s = estimator.legs[leg].stale_after_s
+        cycles = estimator.legs[leg].settings.stale_after_cycles
+        logger.warning(
+            "legs.%s: %d of its %d valid samples came more than its stale time (%.3g ms: "
+            "%g x its cycle time, %.3g ms) after the one before, so the filter, contact and "
+            "near-constant window restarted at each (force_N is force_raw_N): is it sent "
+            "less often? set its cycle time ([messages.<MESSAGE>] cycle_time_ms)",
+            leg,
+            restarts,
+            samples,
+            stale_s * 1e3,
+            cycles,
+            stale_s / cycles * 1e3,
+        )
 
 
 class _Heard:

@@ -11,6 +11,7 @@ file and key. Sources, later ones winning: ``[leg_defaults]``, then each
 0.33
 """
 
+import logging
 import math
 import re
 import tomllib
@@ -34,6 +35,8 @@ from dbc.toml_table import TomlTable
 from dbc.units import ACCEPTED_PRESSURE_UNITS, angle_factor_to_rad, chamber_unit
 from estimator.geometry import LegGeometry
 from estimator.settings import EstimatorSettings
+
+logger = logging.getLogger(__name__)
 
 #: Standard gravity, for the machine's weight force.
 G_M_S2 = 9.80665
@@ -381,6 +384,7 @@ def parse_machine_config(
         name: _leg(name, table, leg_defaults, database, status_ok, cycle_times_ms)
         for name, table in legs_table.subtables()
     }
+    _contact_below_the_weight_per_leg(estimator, settings, mass_kg, len(legs))
     _across_legs.check_simulated_legs(legs_table, legs)
     _across_legs.check_own_chambers(legs_table, legs)
     sender_cycle_times_ms = _across_legs.sender_cycle_times_ms(legs_table, legs, cycle_times_ms)
@@ -434,6 +438,28 @@ def parse_machine_config(
             lambda ref: angle_factor_to_rad(signal_unit(ref) or ""),
         ),
     )
+
+
+def _contact_below_the_weight_per_leg(
+    table: TomlTable, settings: EstimatorSettings, mass_kg: float, legs: int
+) -> None:
+    """One warning line where ``contact_on_N`` is at least the machine's weight per leg (a
+    light machine, the default 8 kN): with every foot down the mean foot carries that, so
+    some would count as in the air, left out of the weight check, the stability margin
+    and the report's soil pressures (drawn at 0 kPa)."""
+    per_leg_N = mass_kg * G_M_S2 / legs
+    if settings.contact_on_N >= per_leg_N:
+        logger.warning(
+            "%s: %s: %g N is at least the machine's weight per leg, %.0f N (%g kg on %d "
+            "legs): with every foot down some would count as in the air; set contact_on_N "
+            "and contact_off_N below it",
+            table.source,
+            table.key("contact_on_N"),
+            settings.contact_on_N,
+            per_leg_N,
+            mass_kg,
+            legs,
+        )
 
 
 def _find_signal(name: str, database: Database) -> SignalRef | None:

@@ -93,10 +93,15 @@ def parse_stability(
     placed = [leg for base in bases for leg in base.feet_m]
     missing = sorted(set(legs) - set(placed))
     unknown = sorted(set(placed) - set(legs))
-    if missing or unknown:
-        raise bases_table.error(
-            "", f"every leg needs one foot: missing {missing}, not legs {unknown}"
-        )
+    # A foot in both bases: the second base's place was taken for it, silently.
+    twice = sorted({leg for leg in placed if placed.count(leg) > 1})
+    wrong = [
+        f"{what} {names}"
+        for what, names in (("missing", missing), ("not legs", unknown), ("in both bases", twice))
+        if names
+    ]
+    if wrong:
+        raise bases_table.error("", f"every leg needs one foot: {', '.join(wrong)}")
     layout = table.build(
         MachineLayout,
         bases=(bases[0], bases[1]),

@@ -77,6 +77,10 @@ class LegEstimator:
         self._filter = make_filter(settings)
         #: Frame time of the last valid sample (NaN: none since the start or a restart).
         self._last_valid_t_s = NAN
+        #: Samples that came more than :attr:`stale_after_s` past the last valid one, so
+        #: the filter and the contact restarted (outages; at most samples of a leg sent
+        #: less often than its cycle time says: :meth:`MachineEstimator.restarting_legs`).
+        self.restarts = 0
         self._contact = ContactDetector(settings.contact_on_N, settings.contact_off_N)
         self._metrics = SoilMetricsTracker(
             settings.pressure_limit_Pa, settings.near_constant_window_s, self.stale_after_s
@@ -113,6 +117,7 @@ class LegEstimator:
         )
         force_raw_N = foot_force_N(p_piston_Pa, p_rod_Pa, self.leg)
         if t_s - self._last_valid_t_s > self.stale_after_s:  # after an outage
+            self.restarts += 1
             self._filter.clear()
             self._contact.reset()
             self._last_valid_t_s = NAN

@@ -101,6 +101,19 @@ class MachineEstimator:
             stability=stability(estimates.values(), feet_m) if feet_m is not None else None,
         )
 
+    def restarting_legs(self) -> dict[str, tuple[int, int]]:
+        """Legs whose filter restarted at most of their valid samples: (restarts, valid
+        samples). Sent less often than the stale time (its cycle time, from the DBC or the
+        config, shorter than the period it comes at: a multiplexed hub's
+        ``GenMsgCycleTime`` per frame where each page comes less often), every sample
+        looked like one after an outage: the filter, the contact and the near-constant
+        window restarted at each, unseen in the estimates themselves."""
+        return {
+            name: (leg.restarts, leg.metrics.samples)
+            for name, leg in self.legs.items()
+            if leg.restarts > 1 and 2 * leg.restarts > leg.metrics.samples
+        }
+
     def metrics(self) -> dict[str, SoilMetrics]:
         """Soil metrics of every leg."""
         return {name: leg.metrics for name, leg in self.legs.items()}

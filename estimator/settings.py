@@ -25,7 +25,7 @@ class EstimatorSettings:
     hampel_window: int = 7
     #: A sample farther than k x 1.4826 x MAD from the Hampel prediction is replaced.
     hampel_k: float = 3.0
-    #: A leg's frame is stale when none came for this many cycle times.
+    #: A leg's frame is stale when none came for this many cycle times (> 1).
     stale_after_cycles: float = 3.0
     #: Lowest pressure the transducers measure; below it a sample is invalid ("range").
     pressure_min_Pa: float = -1.0e5
@@ -53,7 +53,16 @@ class EstimatorSettings:
         if self.filter not in ("median", "hampel"):
             raise ValueError(f'filter must be "median" or "hampel", got {self.filter!r}')
         check_hampel(self.hampel_window, self.hampel_k)
-        require_positive("stale_after_cycles", self.stale_after_cycles)
+        require_finite("stale_after_cycles", self.stale_after_cycles)
+        if not self.stale_after_cycles > 1.0:
+            # One cycle or less: every regular next frame would come after the stale time,
+            # so the filter, the contact and the near-constant window would restart at
+            # each sample and each step add only the stale time above the limit.
+            raise ValueError(
+                f"stale_after_cycles must be > 1, got {self.stale_after_cycles!r}: a leg "
+                "would be stale between two of its frames, and its median and soil "
+                "metrics restart at each"
+            )
         require_finite("pressure_min_Pa", self.pressure_min_Pa)
         require_finite("pressure_max_Pa", self.pressure_max_Pa)
         if self.pressure_min_Pa >= self.pressure_max_Pa:

@@ -14,8 +14,9 @@ import logging
 import signal
 import sys
 import time
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import ExitStack, contextmanager
+from dataclasses import replace
 from pathlib import Path
 from types import FrameType
 from typing import IO, Any
@@ -28,13 +29,14 @@ from dbc.decoding import is_fd_message
 from dbc.encoding import FrameEncoder
 from dbc.errors import ConfigError, PortalDaqError
 from dbc.machine import MachineConfig, load_machine_config
+from estimator.geometry import LegGeometry
 from sim_bridge._args import BridgeOptions, PlotOptions, SourceOptions, ZenohOptions, parse_args
 from sim_bridge.emitter import Emitter, EmitterStats, end_of_run_ns
 from sim_bridge.faults import FaultConfig, FaultInjector
 from sim_bridge.frames import FrameBuilder
 from sim_bridge.leg_map import leg_map
 from sim_bridge.playout import Playout, fault_targets
-from sim_bridge.result import SimulationResult
+from sim_bridge.result import LEGS, SimulationResult
 from sim_bridge.truth import CsvTruthWriter, McapTruthWriter, TruthSink, ZenohTruthPublisher
 
 logger = logging.getLogger("sim_bridge")
@@ -64,11 +66,8 @@ def load_source(source: SourceOptions, config: MachineConfig) -> SimulationResul
     from sim_bridge.noise import ImpulsiveNoise
     from sim_bridge.params import ModelParams
 
-    geometries = {leg.geometry for leg in config.legs.values()}
     leg = next(iter(config.legs.values())).geometry
-    if len(geometries) > 1:
-        logger.warning("the model has one leg geometry for all feet: using %s's", leg)
-    params = ModelParams(leg=leg)
+    params = ModelParams(leg=leg, legs=column_geometries(config, legs.columns, leg))
     if abs(params.mass_kg - config.mass_kg) > 0.01 * config.mass_kg:
         logger.warning(
             "the model's mass (%.0f kg) differs from the config's (%.0f kg)",
@@ -93,6 +92,38 @@ def load_source(source: SourceOptions, config: MachineConfig) -> SimulationResul
         time.monotonic() - started_s,
     )
     return result
+
+
+def column_geometries(
+    config: MachineConfig, columns: Mapping[str, int], default: LegGeometry
+) -> tuple[LegGeometry, ...]:
+    """Each simulated leg's geometry (by column): that of the config leg played on it
+    (``default`` where none is). Legs of other geometries on one column (more legs than
+    the simulation's) cannot all be met: the first's, with a warning naming them."""
+    played: dict[int, list[str]] = {}
+    for name, column in columns.items():
+        played.setdefault(column, []).append(name)
+    geometries = []
+    for column, simulated in enumerate(LEGS):
+        names = played.get(column, [])
+        geometry = config.legs[names[0]].geometry if names else default
+        # The calibration (force_gain, force_offset_N) is the estimator's, not the design's.
+        others = [
+            name
+            for name in names[1:]
+            if replace(config.legs[name].geometry, force_gain=1.0, force_offset_N=0.0)
+            != replace(geometry, force_gain=1.0, force_offset_N=0.0)
+        ]
+        for other in others:
+            logger.warning(
+                "legs.%s is played as %s with legs.%s, of another geometry: it is sent "
+                "that leg's pressures, so eq. (4) reads other forces than its truth",
+                other,
+                simulated,
+                names[0],
+            )
+        geometries.append(geometry)
+    return tuple(geometries)
 
 
 def _open_bus(interface: str, channel: str, fd: bool) -> can.BusABC:

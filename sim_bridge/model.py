@@ -27,7 +27,7 @@ from scipy.integrate import solve_ivp
 from sim_bridge import cycle
 from sim_bridge.noise import ImpulsiveNoise
 from sim_bridge.params import FOOT_ANGLES_DEG, G_M_S2, ModelParams
-from sim_bridge.result import SimulationResult
+from sim_bridge.result import LEGS, SimulationResult
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -338,13 +338,21 @@ def _outputs(
     # commanded stroke motion. Friction opposes it and shows up in the pressures.
     in_contact = force > 0
     column_rate = np.where(in_contact, -p.hydraulic_stiffness_N_m * deflection_rate, 0.0)
-    cylinder_rate = column_rate / p.hydraulic_stiffness_N_m * leg.force_ratio + stroke_rate
+    # Each leg's own cylinder and levers (per column), so that eq. (4) with the config's
+    # geometry of the leg played there reads its foot force.
+    legs = p.legs or (leg,) * len(LEGS)
+    force_ratio = np.array([g.force_ratio for g in legs])
+    cylinder_rate = column_rate / p.hydraulic_stiffness_N_m * force_ratio + stroke_rate
     friction_N = p.cylinder_viscous_N_s_m * cylinder_rate + p.cylinder_static_friction_N * np.tanh(
         cylinder_rate / p.stribeck_velocity_m_s
     )
-    cylinder_force_N = (force - leg.weight_term_N) / leg.force_ratio + friction_N
+    weight_term_N = np.array([g.weight_term_N for g in legs])
+    cylinder_force_N = (force - weight_term_N) / force_ratio + friction_N
     p_piston, p_rod = _chamber_pressures(
-        cylinder_force_N, leg.A_piston_m2, leg.A_rod_m2, p.rod_back_pressure_Pa
+        cylinder_force_N,
+        np.array([g.A_piston_m2 for g in legs]),
+        np.array([g.A_rod_m2 for g in legs]),
+        p.rod_back_pressure_Pa,
     )
     if noise is not None:
         p_piston = noise.apply(p_piston, t_s)
@@ -383,7 +391,10 @@ def _outputs(
 
 
 def _chamber_pressures(
-    force_N: FloatArray, A_piston_m2: float, A_rod_m2: float, back_pressure_Pa: float
+    force_N: FloatArray,
+    A_piston_m2: float | FloatArray,
+    A_rod_m2: float | FloatArray,
+    back_pressure_Pa: float,
 ) -> tuple[FloatArray, FloatArray]:
     """(piston, rod) chamber pressures of a cylinder pushing with ``force_N`` (pulling
     when negative): the loaded chamber carries the force, the other one sits at the

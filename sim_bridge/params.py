@@ -4,7 +4,7 @@ The paper gives the foot area, the movement cycle and the resulting pressures, n
 machine's drawings; these values are chosen to be physically plausible for an ~18.8 t
 machine with 280 bar hydraulics and to reproduce the paper's figures (see the README,
 "The co-simulation model"). Leg cylinder and lever geometry come from the machine
-configuration, so the model and the estimator share one leg.
+configuration, so the model and the estimator share the legs.
 """
 
 import math
@@ -40,6 +40,11 @@ class ModelParams:
     """Everything the model needs; SI units (angles in the cycle schedule are degrees)."""
 
     leg: LegGeometry = field(default_factory=default_leg)
+    #: Each simulated leg's own geometry, in :data:`sim_bridge.result.LEGS` order (the
+    #: config leg played on it); None: ``leg`` for every one. Its chamber pressures are
+    #: what that leg's cylinder and levers need for the foot force; the dynamics (the oil
+    #: column's stiffness) stay ``leg``'s.
+    legs: tuple[LegGeometry, ...] | None = None
 
     # --- geometry -------------------------------------------------------------------
     #: Distance between the two bases' rotation axes with the bridge unfolded.

@@ -259,10 +259,18 @@ class McapTruthWriter(_Closing):
         self._stream.flush()
 
 
+class MatchingStatus(Protocol):
+    @property
+    def matching(self) -> bool: ...
+
+
 class ZenohPublisher(Protocol):
     def put(self, payload: bytes) -> Any: ...
 
     def undeclare(self) -> Any: ...
+
+    @property
+    def matching_status(self) -> MatchingStatus: ...
 
 
 class ZenohSession(Protocol):
@@ -275,7 +283,8 @@ class ZenohTruthPublisher(_Closing):
     """Puts each sample on ``<prefix>/sim/truth`` and each leg on ``.../sim/truth/<LEG>``.
 
     Publishers are declared on ``__enter__`` and undeclared by ``close()``; the session
-    belongs to the caller.
+    belongs to the caller. ``close()`` says when no subscriber matched any of the keys
+    while it wrote (:attr:`matched`): the truth went nowhere.
     """
 
     def __init__(self, session: ZenohSession, prefix: str, legs: Sequence[str]) -> None:
@@ -285,6 +294,10 @@ class ZenohTruthPublisher(_Closing):
         self._all: ZenohPublisher | None = None
         self._per_leg: dict[str, ZenohPublisher] = {}
         self._closed = False
+        #: Samples written, and whether a subscriber (the service's, a dashboard's) ever
+        #: matched one of the keys while they were.
+        self.written = 0
+        self.matched = False
 
     def __enter__(self) -> Self:
         self._declare()
@@ -307,11 +320,23 @@ class ZenohTruthPublisher(_Closing):
         for leg, publisher in self._per_leg.items():
             publisher.put(json.dumps(head | {"leg": leg} | leg_json(sample.legs[leg])).encode())
         everything.put(json.dumps(sample.as_json()).encode())
+        self.written += 1
+        if not self.matched:
+            publishers = (everything, *self._per_leg.values())
+            self.matched = any(publisher.matching_status.matching for publisher in publishers)
 
     def close(self) -> None:
         if self._closed:
             return
         self._closed = True
+        if self.written and not self.matched:
+            logger.warning(
+                "nobody subscribed to %s while %d truth samples were put: they went nowhere "
+                "(to record them, the service needs [recording] truth = true, the machine id "
+                "in this key, and the bridge connected to it: --connect)",
+                self.key,
+                self.written,
+            )
         for publisher in [*self._per_leg.values(), *([self._all] if self._all else [])]:
             try:
                 publisher.undeclare()

@@ -103,6 +103,9 @@ class ReportContent:
     #: Leg -> (times, seconds in all) it had no estimate for longer than its gap time
     #: (a sensor silent, the log's start or end included); only legs that had one.
     silences: Mapping[str, tuple[int, float]]
+    #: Leg -> its usual step (the median) where that is longer than its gap time: its
+    #: cycle time is shorter than the period it is sent at (:func:`slow_legs`).
+    slow_legs: Mapping[str, float]
     #: Only with truth in the recording: leg -> matched samples, and the statistics of
     #: their stance (foot on the ground) and swing samples.
     comparisons: Mapping[str, LegComparison]
@@ -130,6 +133,23 @@ def silences(recording: Recording, gaps: Mapping[str, float]) -> dict[str, tuple
     legs = recording.machine.legs if recording.machine else ()
     times = {leg: track.t_s for leg, track in recording.legs.items()}
     return leg_silences(times, legs, recording.start_t_s, recording.end_t_s, gaps)
+
+
+def slow_legs(recording: Recording, gaps: Mapping[str, float]) -> dict[str, float]:
+    """Per leg whose samples come, as a rule, further apart than its gap time: its median
+    step. Its cycle time (the DBC's or the config's) is shorter than the period it is sent
+    at, a multiplexed hub's ``GenMsgCycleTime`` given per frame where each page comes
+    less often, say: every step is a silence, and the estimator (live as in the report)
+    restarted its filter, contact and near-constant window at each sample, so the leg
+    was drawn as gaps alone and its metrics were those of single samples."""
+    found: dict[str, float] = {}
+    for leg, track in recording.legs.items():
+        if track.t_s.size < 3:
+            continue
+        step_s = float(np.median(np.diff(track.t_s)))
+        if step_s > gaps.get(leg, math.inf):
+            found[leg] = step_s
+    return found
 
 
 def analyse(recording: Recording) -> ReportContent:
@@ -160,6 +180,7 @@ def analyse(recording: Recording) -> ReportContent:
         metrics=metrics,
         gap_after_s=gaps,
         silences=silences(recording, gaps),
+        slow_legs=slow_legs(recording, gaps),
         comparisons=comparisons,
         deviations=deviations,
         swing_deviations={leg: deviation_stats(c, stance=False) for leg, c in comparisons.items()},

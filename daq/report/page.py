@@ -108,9 +108,31 @@ def header_rows(content: ReportContent) -> list[tuple[str, str]]:
 def _silences(content: ReportContent) -> str:
     return (
         ", ".join(
-            f"{leg} {count}x, {seconds:.2f} s" for leg, (count, seconds) in content.silences.items()
+            f"{leg} {count}x, {seconds:.2f} s{_slow(content, leg)}"
+            for leg, (count, seconds) in content.silences.items()
         )
         or "none"
+    )
+
+
+def _slow(content: ReportContent, leg: str) -> str:
+    """Why a leg sent regularly is silent at every step: its cycle time is too short."""
+    step_s = content.slow_legs.get(leg)
+    machine = content.recording.machine
+    if step_s is None or machine is None or leg not in machine.legs:
+        return ""
+    config = machine.legs[leg]
+    chamber = config.trigger_chamber
+    key = (
+        f"[messages.{chamber.message}] cycle_time_ms"
+        if chamber.source_address is None
+        else f"legs.{leg}.{config.trigger}.cycle_time_ms"
+    )
+    return (
+        f" (at every step: it is sent every {step_s * 1e3:.3g} ms, over its stale time of "
+        f"{content.gap_after_s[leg] * 1e3:.3g} ms, {content.settings.stale_after_cycles:g} x "
+        f"the cycle time of {chamber.message}, {config.cycle_time_s * 1e3:.3g} ms: the "
+        f"median, contact and near-constant window restarted at each sample; set {key})"
     )
 
 
@@ -202,10 +224,10 @@ def render_page(content: ReportContent, pictures: Mapping[str, Picture]) -> str:
         f"{html.escape(recording.name)}</h1>",
         _table(("item", "value"), header_rows(content), text_columns=2),
         "<h2>Contact pressure and ground force per foot</h2>",
-        "<p class=note>Filtered estimates (running median of eq. 4; pressure = force / foot "
-        "area) as recorded; invalid samples and missing frames are gaps. A foot the "
-        "estimator sees off the ground has no soil pressure: drawn at 0 kPa (the force "
-        "picture keeps the cylinder-derived force). Shaded: movement phases"
+        f"<p class=note>Filtered estimates (eq. 4 through the {_live_filter(settings)}; "
+        "pressure = force / foot area) as recorded; invalid samples and missing frames "
+        "are gaps. A foot the estimator sees off the ground has no soil pressure: drawn "
+        "at 0 kPa (the force picture keeps the cylinder-derived force). Shaded: movement phases"
         + (
             "; cycles laid over one another. "
             if content.time.in_cycle

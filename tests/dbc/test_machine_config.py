@@ -1,5 +1,6 @@
 """Machine configuration: the example loads; wrong configs are refused naming file and key."""
 
+import logging
 import re
 from pathlib import Path
 
@@ -79,6 +80,12 @@ def test_leg_table_overrides_leg_defaults(tmp_path: Path) -> None:
         ("median_window = 11", "median_window = 10", "estimator.median_window", "odd"),
         ("contact_off_N = 4000.0", "contact_off_N = 9000.0", "estimator.contact_off_N", "below"),
         ("median_window = 11", "median_windw = 11", "estimator.median_windw", "unknown key"),
+        (
+            "stale_after_cycles = 3.0",
+            "stale_after_cycles = 1.0",
+            "estimator.stale_after_cycles",
+            "stale between two of its frames",
+        ),
         ("l_gb_m = 0.55", "l_gb = 0.55", "leg_defaults.l_gb", "unknown key"),
         ('crc = "SB1_F1_CRC"', 'crc = "SB1_F1_Counter"', "protection.LEG_SB1_F1.crc", "8-bit"),
         ("[legs.SB1_F1]", "[legs.SB1_F1]\nfoot = 1", "legs.SB1_F1.foot", "unknown key"),
@@ -124,3 +131,19 @@ def test_missing_dbc(tmp_path: Path) -> None:
     text = EXAMPLE.replace('# dbc = "portal_sensors.dbc"', 'dbc = "nowhere.dbc"')
     with pytest.raises(DbcError, match="nowhere.dbc: no such file"):
         load_machine_config(write(tmp_path, text))
+
+
+def test_a_contact_threshold_above_the_weight_per_leg_is_warned_of(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    # 1,000 kg on six legs: 1,634 N per foot, never the default 8 kN: every foot "in the
+    # air", the weight check 0 N, the report's pressures 0 kPa, nothing said.
+    path = write(tmp_path, EXAMPLE.replace("mass_kg = 18800.0", "mass_kg = 1000.0", 1))
+    with caplog.at_level(logging.WARNING, logger="dbc.machine"):
+        load_machine_config(path)
+        load_machine_config(EXAMPLE_CONFIG)  # 30.7 kN per leg: nothing to say
+    assert [r.getMessage() for r in caplog.records] == [
+        f"{path}: estimator.contact_on_N: 8000 N is at least the machine's weight per leg, "
+        "1634 N (1000 kg on 6 legs): with every foot down some would count as in the air; "
+        "set contact_on_N and contact_off_N below it"
+    ]

@@ -95,6 +95,20 @@ def test_without_the_table_there_is_no_margin(tmp_path: Path) -> None:
         ),
         ("SB1_F1 = [1.6, 0.0], ", "", "stability.bases", "missing ['SB1_F1']"),
         ("SB1_F1 = [1.6, 0.0]", "SB1_F9 = [1.6, 0.0]", "stability.bases", "not legs ['SB1_F9']"),
+        # Only what is wrong: it said "missing [], not legs [...]".
+        (
+            "SB1_F1 = [1.6, 0.0], ",
+            "SB1_F9 = [1.6, 0.0], SB1_F1 = [1.6, 0.0], ",
+            "stability.bases",
+            "every leg needs one foot: not legs ['SB1_F9']",
+        ),
+        # A foot in both bases: the second base's place was taken, silently.
+        (
+            "SB2_F1 = [1.6, 0.0], ",
+            "SB2_F1 = [1.6, 0.0], SB1_F1 = [9.0, 0.0], ",
+            "stability.bases",
+            "every leg needs one foot: in both bases ['SB1_F1']",
+        ),
         (
             "warning_margin_m = 0.3",
             "warning_margin = 0.3",

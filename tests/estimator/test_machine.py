@@ -66,6 +66,9 @@ def test_every_leg_needs_a_cycle_time() -> None:
         ({"pressure_min_Pa": 5e7}, "pressure_min_Pa"),
         ({"near_constant_window_s": 0.0}, "near_constant_window_s"),
         ({"stale_after_cycles": -1.0}, "stale_after_cycles"),
+        # One cycle or less: every next frame would be an outage (median, metrics restart).
+        ({"stale_after_cycles": 1.0}, "stale_after_cycles must be > 1"),
+        ({"stale_after_cycles": 0.5}, "stale between two of its frames"),
     ],
 )
 def test_settings_refuse_inconsistent_values(kw: dict[str, object], word: str) -> None:
@@ -87,3 +90,27 @@ def test_staleness_is_judged_on_bus_time_across_a_clock_step_back() -> None:
     assert [snapshot.legs[name].valid for name in LEGS] == [True] * 5 + [False]
     assert snapshot.legs["SB2_F3"].reasons == ("stale",)
     assert snapshot.t_s == 95.05
+
+
+def test_a_leg_sent_less_often_than_its_stale_time_is_found_restarting() -> None:
+    # Cycle time 10 ms, stale after 30 ms. SB1_F1 comes every 40 ms (a hub's page each
+    # fourth frame, say): each sample is one after an "outage", the median restarts.
+    leg = LegGeometry(**DEFAULT)
+    m = MachineEstimator(
+        {name: leg for name in LEGS}, EstimatorSettings(), 1.0, {name: 0.01 for name in LEGS}
+    )
+    forces = [30e3, 30e3, 90e3, 30e3, 30e3] * 4  # a spike the median would take out
+    slow = []
+    for i, force in enumerate(forces):
+        sample = LegSample(t_s=1.0 + 0.04 * i, p_piston_Pa=pressures_for(force), p_rod_Pa=1e6)
+        slow.append(m.update("SB1_F1", sample))
+        for k in range(4):  # the others every 10 ms, one outage of 0.5 s in SB1_F2's
+            t_s = 1.0 + 0.04 * i + 0.01 * k + (0.5 if i >= 10 else 0.0)
+            for name in LEGS[1:]:
+                m.update(name, LegSample(t_s, pressures_for(force), 1e6))
+    # Nothing filtered, the spikes pass: the median restarted at each sample.
+    assert [e.force_N for e in slow] == [e.force_raw_N for e in slow]
+    assert max(e.force_N for e in slow) == pytest.approx(90e3)
+    assert m.legs["SB1_F1"].restarts == len(forces) - 1
+    assert m.restarting_legs() == {"SB1_F1": (len(forces) - 1, len(forces))}
+    assert m.legs["SB1_F2"].restarts == 1  # one outage is no pattern

@@ -1,6 +1,7 @@
 """Running median: streaming vs brute force (property tests) and vs the batch path."""
 
 import statistics
+import tracemalloc
 
 import numpy as np
 import pytest
@@ -89,6 +90,28 @@ def test_batch_handles_more_rows_than_one_chunk() -> None:
     median = RunningMedian(9)
     streamed = np.array([median.push(float(v)) for v in values])
     assert np.array_equal(streamed, running_median(values, 9))
+
+
+@pytest.mark.parametrize("window", [29, 31, 33, 35])
+def test_batch_around_its_switch_to_the_streaming_path_is_bit_identical(window: int) -> None:
+    values = np.random.default_rng(window).normal(size=5 * window)
+    median = RunningMedian(window)
+    streamed = np.array([median.push(float(v)) for v in values])
+    assert streamed.tobytes() == running_median(values, window).tobytes()
+
+
+def test_a_large_window_holds_no_row_per_value() -> None:
+    # A (values x window) matrix of rows selected at once: 6,000 values of window 2,001
+    # held 64 MB (10,001 on a recording: gigabytes); the streaming path holds one window.
+    values = np.random.default_rng(3).normal(size=6_000)
+    tracemalloc.start()
+    try:
+        filtered = running_median(values, 2_001)
+        _, peak_bytes = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert peak_bytes < 4_000_000
+    assert filtered[-1] == np.median(values[-2_001:])
 
 
 def test_empty_median_is_nan() -> None:

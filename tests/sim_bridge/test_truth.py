@@ -6,6 +6,7 @@ import json
 import math
 import threading
 from pathlib import Path
+from types import SimpleNamespace
 
 import pytest
 from mcap.reader import make_reader
@@ -128,8 +129,9 @@ def test_the_best_available_compression_is_used() -> None:
 
 
 class FakePublisher:
-    def __init__(self, key: str, log: list[tuple[str, bytes]]) -> None:
+    def __init__(self, key: str, log: list[tuple[str, bytes]], matching: bool = True) -> None:
         self.key, self.log, self.undeclared = key, log, False
+        self.matching_status = SimpleNamespace(matching=matching)
 
     def put(self, payload: bytes) -> None:
         self.log.append((self.key, payload))
@@ -139,13 +141,14 @@ class FakePublisher:
 
 
 class FakeSession:
-    def __init__(self) -> None:
+    def __init__(self, matching: bool = True) -> None:
         self.log: list[tuple[str, bytes]] = []
         self.publishers: list[FakePublisher] = []
+        self.matching = matching
 
     def declare_publisher(self, key_expr: str, *, encoding: str) -> FakePublisher:
         assert encoding == "application/json"
-        publisher = FakePublisher(key_expr, self.log)
+        publisher = FakePublisher(key_expr, self.log, self.matching)
         self.publishers.append(publisher)
         return publisher
 
@@ -165,6 +168,26 @@ def test_zenoh_puts_the_sample_and_each_leg(result: SimulationResult) -> None:
     whole = json.loads(session.log[-1][1])
     assert whole["legs"]["SB2_F2"]["force_true_N"] is None  # NaN is JSON null
     assert all(p.undeclared for p in session.publishers)
+
+
+@pytest.mark.parametrize("matching", [False, True])
+def test_truth_nobody_subscribed_to_is_said_at_the_end(
+    result: SimulationResult, matching: bool, caplog: pytest.LogCaptureFixture
+) -> None:
+    # Truth published under another machine id than the service's, or to a service not
+    # recording truth, or not connected to it, went nowhere with nothing said.
+    with ZenohTruthPublisher(FakeSession(matching), "portal/other", LEGS) as publisher:
+        for sample in samples(result, range(3)):
+            publisher.write(sample)
+    said = [r.getMessage() for r in caplog.records if "nobody subscribed" in r.getMessage()]
+    if matching:
+        assert said == []
+    else:
+        assert said == [
+            "nobody subscribed to portal/other/sim/truth while 3 truth samples were put: they "
+            "went nowhere (to record them, the service needs [recording] truth = true, the "
+            "machine id in this key, and the bridge connected to it: --connect)"
+        ]
 
 
 def test_zenoh_for_real_in_one_session(result: SimulationResult) -> None:
