@@ -27,12 +27,15 @@ import math
 import sqlite3
 import struct
 import tomllib
+from array import array
 from collections import Counter
 from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import IO, TextIO, cast
 
 import can
+import numpy as np
+import numpy.typing as npt
 from can.io.blf import BLFParseError
 from can.io.generic import BinaryIOMessageReader, MessageReader, TextIOMessageReader
 from can.io.player import MESSAGE_READERS
@@ -49,6 +52,7 @@ from daq.mcap_file import BUS_TOPIC, CONFIG_ATTACHMENT, DBC_ATTACHMENT, RAW_TOPI
 from daq.mcap_reading import RecordedAttachment, RecordedMessage, RecordingStream
 from daq.pipeline import FrameResult, Pipeline
 from daq.recording_run import MCAP_SUFFIX, expand, run_files
+from daq.silences import leg_silences
 from daq.text_log import AscReader, CsvReader, LogLines
 from daq.trc_log import TrcReader
 from dbc.database import load_database_bytes
@@ -165,12 +169,13 @@ def replay(
             logger.warning("%s: no CAN frame in it: the CSV has its header only", files[0])
             return write_csv((), out)
         pipeline, items = source
-        rows = write_csv(estimates(pipeline, items, lost), out)
     elif machine is None:
         raise ConfigError(files[0], "", "replaying a CAN log needs --config (the machine config)")
     else:
         pipeline = Pipeline.from_config(*machine)
-        rows = write_csv(estimates(pipeline, chained_log_frames(files, channel), lost), out)
+        items = chained_log_frames(files, channel)
+    heard = _Heard()
+    rows = write_csv(heard.estimates(estimates(pipeline, heard.frames(items), lost)), out)
     if lost.total():
         logger.warning(
             "%d frames lost before they were recorded or logged, not in the file "
@@ -188,8 +193,48 @@ def replay(
         )
     if pipeline.frames == 0:  # an empty log (a logger stopped at once): say so
         logger.warning("%s: no CAN frame in it: the CSV has its header only", files[0])
+        return rows
+    stale_s = {name: leg.stale_after_s for name, leg in pipeline.estimator.legs.items()}
+    silent = leg_silences(heard.times(), stale_s, *heard.span_s, stale_s)
+    for leg in pipeline.estimator.restarting_legs():  # its cycle time is wrong: said below
+        silent.pop(leg, None)
+    if silent:
+        logger.warning(
+            "legs silent (no estimate for longer than their stale time): %s",
+            ", ".join(f"{leg} {n}x, {seconds:.2f} s" for leg, (n, seconds) in silent.items()),
+        )
     warn_restarting_legs(pipeline)
     return rows
+
+
+class _Heard:
+    """The frame times of a replay's first and last frame, and each leg's estimates'
+    times, taken as they go by (for :func:`~daq.silences.leg_silences`)."""
+
+    def __init__(self) -> None:
+        self.span_s = (math.nan, math.nan)
+        self._times: dict[str, array[float]] = {}
+
+    def frames(self, items: Iterable[RawFrame | BusEvent]) -> Iterator[RawFrame | BusEvent]:
+        first_s = math.nan
+        for item in items:
+            if isinstance(item, RawFrame):
+                if first_s != first_s:  # NaN: the first
+                    first_s = item.t_s
+                self.span_s = (first_s, item.t_s)
+            yield item
+
+    def estimates(self, rows: Iterable[LegEstimate]) -> Iterator[LegEstimate]:
+        times = self._times
+        for row in rows:
+            leg_times = times.get(row.leg)
+            if leg_times is None:
+                leg_times = times[row.leg] = array("d")
+            leg_times.append(row.t_s)
+            yield row
+
+    def times(self) -> dict[str, npt.NDArray[np.float64]]:
+        return {leg: np.frombuffer(t_s, dtype=np.float64) for leg, t_s in self._times.items()}
 
 
 def recording_results(

@@ -36,6 +36,7 @@ from daq.report.deviation import (
     sample_period_s,
 )
 from daq.report.tracks import BoolArray, FloatArray, Recording
+from daq.silences import leg_silences, stale_times_s
 from estimator.settings import EstimatorSettings
 
 #: Without a machine configuration, a step longer than this many sample periods of a
@@ -120,35 +121,18 @@ def gap_after_s(recording: Recording) -> dict[str, float]:
     """Per leg: the machine's staleness time, else :data:`GAP_PERIODS` sample periods."""
     machine = recording.machine
     gaps: dict[str, float] = {}
+    stale_s = stale_times_s(machine) if machine is not None else {}
     for leg, track in recording.legs.items():
-        if machine is not None and leg in machine.legs:
-            cycles = machine.estimator.stale_after_cycles
-            gaps[leg] = cycles * machine.legs[leg].cycle_time_s
-        else:
-            gaps[leg] = GAP_PERIODS * sample_period_s(track.t_s)
+        gaps[leg] = stale_s.get(leg, GAP_PERIODS * sample_period_s(track.t_s))
     return gaps
 
 
 def silences(recording: Recording, gaps: Mapping[str, float]) -> dict[str, tuple[int, float]]:
-    """Per leg of the recording or its machine: how many times, and for how many seconds in
-    all, it had no estimate for longer than ``gaps[leg]`` (a sensor silent, or not yet or
-    no more heard at the recording's start or end; a leg never heard: once, the whole
-    recording). A forward step of the clock shows as one too: it cannot be told from a
-    gap of the bus."""
-    legs = dict.fromkeys([*(recording.machine.legs if recording.machine else ()), *recording.legs])
-    found: dict[str, tuple[int, float]] = {}
-    for leg in legs:
-        track = recording.legs.get(leg)
-        if track is None or track.t_s.size == 0:
-            found[leg] = (1, recording.duration_s)
-            continue
-        gap_s = gaps.get(leg, math.inf)
-        edges = np.concatenate(([recording.start_t_s], track.t_s, [recording.end_t_s]))
-        steps = np.diff(edges)
-        silent = steps[steps > gap_s]
-        if silent.size:
-            found[leg] = (int(silent.size), float(silent.sum()))
-    return found
+    """Per leg of the recording or its machine: :func:`daq.silences.leg_silences` of its
+    estimates between the recording's first and last frame."""
+    legs = recording.machine.legs if recording.machine else ()
+    times = {leg: track.t_s for leg, track in recording.legs.items()}
+    return leg_silences(times, legs, recording.start_t_s, recording.end_t_s, gaps)
 
 
 def slow_legs(recording: Recording, gaps: Mapping[str, float]) -> dict[str, float]:

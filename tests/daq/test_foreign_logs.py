@@ -706,12 +706,12 @@ def test_an_asc_logs_controller_states_are_error_frames_and_its_tx_requests_no_f
     assert "reported receive queue overrun 1: each" in caplog.text
 
 
-def test_a_sensor_silent_for_a_while_or_never_heard_is_in_the_reports_header(
-    tmp_path: Path,
+def test_a_sensor_silent_for_a_while_or_never_heard_is_in_the_report_and_the_replay(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
 ) -> None:
     """A transducer silent for 0.4 s (a loose connector, a reboot) left no estimate, and
     the header said "invalid estimates by reason: none", "frames lost: 0": only a gap in
-    a picture told it. One that never spoke was not named at all."""
+    a picture told it; replay said nothing. One that never spoke was not named at all."""
     from daq.report.content import analyse
     from daq.report.loading import load_recording
     from daq.report.page import header_rows
@@ -732,6 +732,11 @@ def test_a_sensor_silent_for_a_while_or_never_heard_is_in_the_reports_header(
     assert f3.startswith("SB1_F3 1x, ") and f3.endswith(" s"), silent
     assert 0.40 <= float(f3.split(", ")[1][:-2]) <= 0.41, silent  # the steps either side
     assert never == "1x, 0.99 s", silent  # the whole log
+    replay(log, io.StringIO(), EXAMPLE_CONFIG)
+    assert f"legs silent (no estimate for longer than their stale time): {silent}" in caplog.text
     whole = load_recording(sim_log(tmp_path, "whole.log"), EXAMPLE_CONFIG)
     whole_rows = dict(header_rows(analyse(whole)))
     assert whole_rows["legs silent (no estimate for longer than the stale time)"] == "none"
+    caplog.clear()
+    replay(tmp_path / "whole.log", io.StringIO(), EXAMPLE_CONFIG)
+    assert "legs silent" not in caplog.text

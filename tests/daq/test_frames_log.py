@@ -161,9 +161,12 @@ def test_a_log_of_two_buses_is_replayed_one_channel_at_a_time(
     rows = list(csv.DictReader(io.StringIO(out.getvalue())))
     assert [float(row["p_piston_Pa"]) for row in rows] == [9e6 + k * 1e5 for k in range(5)]
     assert all(row["valid"] == "1" for row in rows)
-    assert not caplog.records
+    (silent,) = caplog.records  # the log holds LEG_SB1_F1's frames alone
+    assert silent.getMessage().startswith("legs silent (no estimate for longer than their stale")
+    assert "SB1_F1" not in silent.getMessage() and "SB2_F3 1x, 0.04 s" in silent.getMessage()
+    caplog.clear()
     assert replay(log, io.StringIO(), EXAMPLE_CONFIG) == 10
-    warning, unused = caplog.records
+    warning, unused, _ = caplog.records
     assert "more than one channel (can0, can1)" in warning.getMessage()
     assert unused.getMessage() == "10 frames, 5 of them not used (crc 5)"  # can1's
     with pytest.raises(
