@@ -16,6 +16,7 @@ from daq.service_config import load_service_config
 from daq.subcommand import PROG, Subcommand, fail, setup_logging
 from dbc.errors import ConfigError, DbcError
 from dbc.machine import ChamberSignal, MachineConfig, StatusCheck
+from estimator.geometry import LegGeometry
 
 
 def check_main(args: Sequence[str]) -> int:
@@ -49,6 +50,7 @@ def describe(machine: MachineConfig, messages: int) -> str:
         )
         lines.append(f"  piston: {_chamber(leg.piston)}")
         lines.append(f"  rod: {_chamber(leg.rod)}")
+    lines += [_equation(leg.name, leg.geometry) for leg in machine.legs.values()]
     guarded = [
         f"{name} ({', '.join(part for part in (p.counter, p.crc) if part)})"
         for name, p in machine.protection.items()
@@ -56,6 +58,22 @@ def describe(machine: MachineConfig, messages: int) -> str:
     if guarded:
         lines.append(f"protected: {', '.join(guarded)}")
     return "\n".join(lines) + "\n"
+
+
+def _equation(name: str, g: LegGeometry) -> str:
+    """Eq. (4) and (5) of one leg with its constants, to check by hand."""
+    calibrated = (
+        f" (lever {g.force_ratio:.6g} x gain {g.force_gain:g}; leg {g.weight_term_N:.6g} N, "
+        f"offset {g.force_offset_N:g} N)"
+        if (g.force_gain, g.force_offset_N) != (1.0, 0.0)
+        else ""
+    )
+    return (
+        f"eq. (4) {name}: F_zFoot = {g.calibrated_ratio:.6g} x F_cyl "
+        f"{'-' if g.calibrated_term_N < 0 else '+'} {abs(g.calibrated_term_N):.6g} N{calibrated}, "
+        f"F_cyl = p_piston x {g.A_piston_m2:g} m2 - p_rod x {g.A_rod_m2:g} m2; "
+        f"p_ground = F_zFoot / {g.A_foot_m2:g} m2"
+    )
 
 
 def _chamber(chamber: ChamberSignal) -> str:

@@ -39,6 +39,33 @@ def test_each_legs_chambers_are_shown_as_read(capsys: pytest.CaptureFixture[str]
     )
 
 
+def test_each_legs_equation_is_shown_with_its_constants(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # By hand: (0.95 sin 82.5 deg - 0.25 cos 82.5 deg) / 1.2 = 0.757701; 0.65 / 1.2 x
+    # 4905 N = 2656.88 N. Nothing showed the constants a leg of its own geometry got.
+    assert main(["check", "--config", str(FILES / "machine_distinct_legs.toml")]) == 0
+    assert (
+        "eq. (4) SB2_F3: F_zFoot = 0.757701 x F_cyl + 2656.88 N, F_cyl = p_piston x 0.0085 "
+        "m2 - p_rod x 0.004737 m2; p_ground = F_zFoot / 0.33 m2"
+    ) in capsys.readouterr().out.splitlines()
+    text = (
+        (FILES / "machine_distinct_legs.toml")
+        .read_text()
+        .replace(
+            "[legs.SB2_F3]\n", "[legs.SB2_F3]\nforce_gain = 1.1\nforce_offset_N = -3000.0\n", 1
+        )
+    )
+    text = text.replace('dbc = "../../dbc/', f'dbc = "{FILES.parent.parent}/dbc/', 1)
+    (tmp_path / "m.toml").write_text(text)
+    assert main(["check", "--config", str(tmp_path / "m.toml")]) == 0
+    assert (
+        "eq. (4) SB2_F3: F_zFoot = 0.833471 x F_cyl - 343.125 N (lever 0.757701 x gain 1.1; "
+        "leg 2656.88 N, offset -3000 N), F_cyl = p_piston x 0.0085 m2 - p_rod x 0.004737 m2; "
+        "p_ground = F_zFoot / 0.33 m2"
+    ) in capsys.readouterr().out.splitlines()
+
+
 def test_a_service_config_written_by_init_checks(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
