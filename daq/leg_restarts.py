@@ -30,11 +30,12 @@ def warn_restarting_legs(pipeline: Pipeline, told: set[str] | None = None) -> No
             "legs.%s: %d of its %d valid samples came more than its stale time (%.3g ms: "
             "%g x its cycle time, %.3g ms) after the one before, so the filter, contact and "
             "near-constant window restarted at each (force_N is force_raw_N): is it sent "
-            "less often? set its cycle time ([messages.<MESSAGE>] cycle_time_ms)",
+            "less often? set its cycle time (%s)",
             leg,
             restarts,
             samples,
             stale_s * 1e3,
             cycles,
             stale_s / cycles * 1e3,
+            pipeline.sampler.legs[leg].cycle_time_key,
         )

@@ -226,6 +226,14 @@ class LegConfig:
         """The trigger chamber's cycle time: staleness is judged on it."""
         return self.trigger_chamber.cycle_time_s
 
+    @property
+    def cycle_time_key(self) -> str:
+        """Where the config sets that cycle time: the message's, or a J1939 transducer's own."""
+        chamber = self.trigger_chamber
+        if chamber.source_address is None:
+            return f"[messages.{chamber.message}] cycle_time_ms"
+        return f"legs.{self.name}.{self.trigger}.cycle_time_ms"
+
 
 @dataclass(frozen=True)
 class MachineConfig:

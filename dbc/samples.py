@@ -67,6 +67,8 @@ class LegSampler:
     """Picks each leg's chamber pressures and status out of its messages' frames."""
 
     def __init__(self, legs: Mapping[str, LegConfig]) -> None:
+        #: The legs sampled, by name.
+        self.legs = legs
         # The usual case, both chambers in one frame, needs no state (the hot path).
         self._paired: dict[str, list[_Paired]] = {}
         self._routes: dict[str, list[_Route]] = {}

@@ -123,16 +123,12 @@ def _slow(content: ReportContent, leg: str) -> str:
         return ""
     config = machine.legs[leg]
     chamber = config.trigger_chamber
-    key = (
-        f"[messages.{chamber.message}] cycle_time_ms"
-        if chamber.source_address is None
-        else f"legs.{leg}.{config.trigger}.cycle_time_ms"
-    )
     return (
         f" (at every step: it is sent every {step_s * 1e3:.3g} ms, over its stale time of "
         f"{content.gap_after_s[leg] * 1e3:.3g} ms, {content.settings.stale_after_cycles:g} x "
         f"the cycle time of {chamber.message}, {config.cycle_time_s * 1e3:.3g} ms: the "
-        f"median, contact and near-constant window restarted at each sample; set {key})"
+        f"median, contact and near-constant window restarted at each sample; "
+        f"set {config.cycle_time_key})"
     )
 
 

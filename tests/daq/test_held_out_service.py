@@ -193,3 +193,4 @@ def test_the_service_says_once_which_legs_restart_at_every_sample(
     told = [r.getMessage() for r in caplog.records if r.name == "daq.leg_restarts"]
     assert [line.split(":")[0] for line in told] == ["legs.VL1", "legs.VL2", "legs.VR1", "legs.VR2"]
     assert "came more than its stale time (15 ms: 3 x its cycle time, 5 ms)" in told[0]
+    assert all(line.endswith("([messages.HUB_VORNE] cycle_time_ms)") for line in told)

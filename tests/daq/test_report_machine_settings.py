@@ -81,5 +81,5 @@ def test_replay_says_which_legs_restarted_at_every_sample(
         "legs.SB1_F1: 99 of its 100 valid samples came more than its stale time (9 ms: 3 x "
         "its cycle time, 3 ms) after the one before, so the filter, contact and "
         "near-constant window restarted at each (force_N is force_raw_N): is it sent less "
-        "often? set its cycle time ([messages.<MESSAGE>] cycle_time_ms)"
+        "often? set its cycle time ([messages.LEG_SB1_F1] cycle_time_ms)"
     ]

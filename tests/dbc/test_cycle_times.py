@@ -238,3 +238,12 @@ def test_a_transducers_counter_resynchronises_on_its_own_cycle_time() -> None:
             assert decoded is not None
             faults[(source, t_s)] = decoded.faults
     assert faults[(0x30, 1.0)] == () and faults[(0x31, 1.0)] == ("counter",)
+
+
+def test_a_legs_cycle_time_is_set_where_its_trigger_chamber_takes_it() -> None:
+    """What the report and the restart warning tell the user to set: a message's cycle
+    time, or a J1939 transducer's own (one sender of a shared PGN)."""
+    example, _ = load_machine_config(ROOT / "dbc" / "machine.example.toml")
+    assert example.legs["SB1_F1"].cycle_time_key == "[messages.LEG_SB1_F1] cycle_time_ms"
+    j1939, _ = load_machine_config(STRANGER / "xdcr_two_rates.toml")
+    assert j1939.legs["A1"].cycle_time_key == "legs.A1.piston.cycle_time_ms"
