@@ -6,7 +6,7 @@ draws the cycle (``--help`` on each). Argument parsing lives in :mod:`sim_bridge
 the truth files, the Zenoh session) is opened here and handed to the pieces that use
 it. SIGINT and SIGTERM stop the run after the current instant and close everything
 (the MCAP file gets its footer). An error the project raises on purpose
-(:class:`~daq.errors.PortalDaqError`) ends the program with one line on stderr and
+(:class:`~dbc.errors.PortalDaqError`) ends the program with one line on stderr and
 exit status 2; so does bad usage (argparse).
 """
 
