@@ -46,5 +46,7 @@ def leg_silences(
 
 def stale_times_s(machine: MachineConfig) -> dict[str, float]:
     """Per leg of ``machine``: its stale time (``stale_after_cycles`` of its cycle time)."""
-    cycles = machine.estimator.stale_after_cycles
-    return {leg: cycles * config.cycle_time_s for leg, config in machine.legs.items()}
+    settings = machine.estimator
+    return {
+        leg: settings.stale_after_s(config.cycle_time_s) for leg, config in machine.legs.items()
+    }

@@ -69,7 +69,7 @@ def estimate_leg_series(
     latest_valid_index = np.maximum.accumulate(np.where(valid, index, -1))
     before = np.concatenate(([-1], latest_valid_index))[: t.size]
     t_before = np.where(before >= 0, t[np.maximum(before, 0)], np.nan)
-    segment = np.cumsum((t - t_before) > settings.stale_after_cycles * cycle_time_s)
+    segment = np.cumsum((t - t_before) > settings.stale_after_s(cycle_time_s))
     valid_segment = segment[valid]
     starts = np.flatnonzero(np.diff(valid_segment)) + 1
     filtered = np.concatenate(

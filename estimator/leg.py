@@ -73,7 +73,7 @@ class LegEstimator:
         self.leg = leg
         self.settings = settings
         #: No frame for longer than this makes the leg's estimate stale.
-        self.stale_after_s = settings.stale_after_cycles * cycle_time_s
+        self.stale_after_s = settings.stale_after_s(cycle_time_s)
         self._filter = make_filter(settings)
         #: Frame time of the last valid sample (NaN: none since the start or a restart).
         self._last_valid_t_s = NAN

@@ -79,3 +79,8 @@ class EstimatorSettings:
             )
         require_positive("pressure_limit_Pa", self.pressure_limit_Pa)
         require_positive("near_constant_window_s", self.near_constant_window_s)
+
+    def stale_after_s(self, cycle_time_s: float) -> float:
+        """How long a leg sent every ``cycle_time_s`` may go without a sample before it is
+        stale (and the next sample starts its filter afresh): ``stale_after_cycles`` of it."""
+        return self.stale_after_cycles * cycle_time_s

@@ -106,10 +106,9 @@ def read_instants(paths: Sequence[Path], machine: Machine, channel: str | None =
     phases: dict[str, None] = {}
     config = machine[0]
     meanings = _phase_meanings(machine)
-    # A leg is stale as in the service: after stale_after_cycles of its cycle times.
-    stale_s = config.estimator.stale_after_cycles * max(
-        leg.cycle_time_s for leg in config.legs.values()
-    )
+    # A leg is stale as in the service: after stale_after_cycles of its cycle times (the
+    # slowest leg's, one time for the snapshots of all).
+    stale_s = config.estimator.stale_after_s(max(leg.cycle_time_s for leg in config.legs.values()))
     for files in recordings(paths):
         snaps, states = _replayed(files, machine, channel, stale_s)
         if not len(snaps.t_s):
