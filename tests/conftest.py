@@ -6,6 +6,7 @@ runs pytest inside User-Mode Linux with ``vcan0`` up, and ``./dev test`` uses it
 """
 
 import logging
+import os
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -14,8 +15,12 @@ from hypothesis import settings
 
 # Hypothesis's per-example deadline (200 ms) is a timed assert: on a shared, loaded machine
 # it fails correct code. Speed is measured in bench/, never in tests.
-settings.register_profile("portal-daq", deadline=None)
-settings.load_profile("portal-daq")
+# The default profile draws the same examples every run (derandomize): a test run, and CI
+# above all, passes or fails on the code, not on the draw. HYPOTHESIS_PROFILE=explore draws
+# fresh examples, ten times as many, to look for what the fixed draw does not reach.
+settings.register_profile("portal-daq", deadline=None, derandomize=True)
+settings.register_profile("explore", deadline=None, max_examples=1000)
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "portal-daq"))
 
 # --- vcan: skip the real-SocketCAN tests where vcan0 is missing ---------------
 # (If another pytest_collection_modifyitems is ever needed in this file, merge
