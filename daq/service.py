@@ -29,13 +29,14 @@ bus, and while the bus is down or being reopened (the service repairs that
 itself, so a restart by systemd would not help); the consumer's loop turns at
 least every 0.1 s, and stops turning only when it hangs on a frame.
 
-Healthy, on the status topic and STATUS= (:func:`problems`): alive, and during the
-last status period the recorder was recording, nothing was lost anywhere (every
-key of ``dropped``, ``dropped.kernel`` and ``dropped.publish_failed`` included,
-``bad.internal_error`` and ``recording.failed_items``: :func:`losses`), every configured
-Zenoh ``connect`` endpoint was reached, and frames came in (none for a whole period, or
-for the legs' stale time when that is longer, is a problem). ``problems`` lists what is wrong, one
-short text each. None of these stops the watchdog (a restart would not help).
+Healthy, on the status topic and STATUS= (:func:`problems`): alive, the bus neither down
+nor absent, and during the last status period the recorder was recording, nothing was
+lost anywhere (every key of ``dropped``, ``dropped.kernel`` and ``dropped.publish_failed``
+included, ``bad.internal_error`` and ``recording.failed_items``: :func:`losses`), every
+configured Zenoh ``connect`` endpoint was reached, and frames of the DBC came in (none
+for a whole period, or for the legs' stale time when that is longer, is a problem).
+``problems`` lists what is wrong, one short text each. None of these stops the watchdog
+(a restart would not help).
 """
 
 import logging
@@ -49,7 +50,7 @@ import zenoh
 
 from daq.bus_reader import BusFactory, BusReader, LinkProbe
 from daq.consumer import Consumer
-from daq.frames import BusEvent, RawFrame
+from daq.frames import BUS_ABSENT, BUS_DOWN, BusEvent, RawFrame
 from daq.leg_restarts import warn_restarting_legs
 from daq.payloads import JsonObject
 from daq.pipeline import Pipeline, decoded_frames
@@ -467,6 +468,9 @@ def problems(
     ['no frame of the DBC for 3.0 s, only frames it does not use (see bad)']
     """
     found = [] if alive else ["a service thread hangs or died"]
+    bus = status.get("bus") or {}
+    if bus.get("state") in (BUS_DOWN, BUS_ABSENT):  # no frame can come in
+        found.append(f"bus {bus['state']}: {bus['reason']}")
     recording = status.get("recording")
     if recording is not None and recording.get("failing"):
         found.append("recording stopped (write error)")

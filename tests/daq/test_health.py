@@ -2,12 +2,17 @@
 
 from __future__ import annotations
 
+import errno
+import os
+import threading
 import time
 import uuid
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import can
+import pytest
 import zenoh
 
 from daq.consumer import Consumer
@@ -250,3 +255,52 @@ def test_a_flood_of_error_frames_and_unknown_ids_is_no_sensor_talking(tmp_path: 
     (silence,) = [p for p in status["problems"] if p.startswith("no frame")]
     assert silence.startswith("no frame of the DBC for ")
     assert silence.endswith(" s, only frames it does not use (see bad)")
+
+
+class DownOnce:
+    """A bus whose interface is set down once (``ENETDOWN``, as a SocketCAN socket
+    reports it once), then quiet."""
+
+    kernel_dropped = 0
+    rcvbuf_bytes = None
+
+    def __init__(self) -> None:
+        self._reported = False
+        self._quiet = threading.Event()
+
+    def recv(self, timeout_s: float) -> RawFrame | None:
+        if not self._reported:
+            self._reported = True
+            raise OSError(errno.ENETDOWN, os.strerror(errno.ENETDOWN))
+        self._quiet.wait(timeout_s)  # a quiet bus: no frame within the timeout
+        return None
+
+    def shutdown(self) -> None:
+        pass
+
+
+def never_opens() -> DownOnce:
+    raise OSError(errno.ENODEV, os.strerror(errno.ENODEV))
+
+
+@pytest.mark.parametrize(
+    ("open_bus", "state", "reason"),
+    [(DownOnce, "down", "Network is down"), (never_opens, "absent", "No such device")],
+)
+def test_a_bus_down_or_absent_is_unhealthy_at_once(
+    tmp_path: Path, open_bus: Callable[[], DownOnce], state: str, reason: str
+) -> None:
+    # A bus set down or gone was healthy until the silence rule caught up (a period or
+    # the stale time later), and even then the problem said only "no frame for 1.0 s".
+    path = write_service_config(
+        tmp_path, channel=f"test-{uuid.uuid4().hex}", port=free_port(), status_period_s=3600.0
+    )
+    config = load_service_config(path)
+    with zenoh.open(zenoh_config(config.zenoh)) as session:
+        with Service(config, open_bus=open_bus, session=session) as service:
+            wait_until(lambda: service.reader.state == state)
+            now = service.status()
+    assert now["bus"]["state"] == state and now["healthy"] is False
+    (problem,) = [p for p in now["problems"] if p.startswith("bus ")]
+    assert problem == f"bus {state}: {now['bus']['reason']}"
+    assert problem.startswith(f"bus {state}: CAN bus {config.bus.channel!r}: {reason}")
