@@ -29,13 +29,14 @@ bus, and while the bus is down or being reopened (the service repairs that
 itself, so a restart by systemd would not help); the consumer's loop turns at
 least every 0.1 s, and stops turning only when it hangs on a frame.
 
-Healthy, on the status topic and STATUS= (:func:`problems`): alive, and during the
-last status period the recorder was recording, nothing was lost anywhere (every
-key of ``dropped``, ``dropped.kernel`` and ``dropped.publish_failed`` included,
-``bad.internal_error`` and ``recording.failed_items``: :func:`losses`), every configured
-Zenoh ``connect`` endpoint was reached, and frames came in (none for a whole period, or
-for the legs' stale time when that is longer, is a problem). ``problems`` lists what is wrong, one
-short text each. None of these stops the watchdog (a restart would not help).
+Healthy, on the status topic and STATUS= (:func:`problems`): alive, the bus neither down
+nor absent, and during the last status period the recorder was recording, nothing was
+lost anywhere (every key of ``dropped``, ``dropped.kernel`` and ``dropped.publish_failed``
+included, ``bad.internal_error`` and ``recording.failed_items``: :func:`losses`), every
+configured Zenoh ``connect`` endpoint was reached, and frames of the DBC came in (none
+for a whole period, or for the legs' stale time when that is longer, is a problem).
+``problems`` lists what is wrong, one short text each. None of these stops the watchdog
+(a restart would not help).
 """
 
 import logging
@@ -49,10 +50,10 @@ import zenoh
 
 from daq.bus_reader import BusFactory, BusReader, LinkProbe
 from daq.consumer import Consumer
-from daq.frames import BusEvent, RawFrame
+from daq.frames import BUS_ABSENT, BUS_DOWN, BusEvent, RawFrame
 from daq.leg_restarts import warn_restarting_legs
 from daq.payloads import JsonObject
-from daq.pipeline import Pipeline
+from daq.pipeline import Pipeline, decoded_frames
 from daq.publisher import ZenohPublisher
 from daq.recorder import Recorder
 from daq.recorder_process import RecorderProcess
@@ -154,7 +155,10 @@ class Service:
         self._started_monotonic = time.monotonic()
         self._rate_mark = (time.monotonic(), 0)
         self._frames_per_s = 0.0
-        self._last_frame_monotonic = time.monotonic()
+        #: When frames of the DBC (:func:`~daq.pipeline.decoded_frames`) last came in, and
+        #: any frame at all (monotonic); their count at the previous status.
+        self._last_frame_monotonic = self._last_heard_monotonic = time.monotonic()
+        self._decoded_mark = 0
         #: :func:`losses` at the previous status: what rose since is a problem.
         self._lost_mark: dict[str, int] = {}
         self._reported_problems: list[str] = []
@@ -190,7 +194,7 @@ class Service:
         self.reader.start()
         # Silence is judged from now: starting (the recorder's process takes ~0.5 s to
         # spawn) is no time a frame could have come in.
-        self._last_frame_monotonic = time.monotonic()
+        self._last_frame_monotonic = self._last_heard_monotonic = time.monotonic()
 
     def close(self) -> None:
         """Stop receiving, drain the queues, finish the recording. Idempotent."""
@@ -275,15 +279,23 @@ class Service:
             self._frames_per_s = (received - mark_received) / (now - mark_t)
         self._rate_mark = (now, received)
         if received != mark_received:
-            self._last_frame_monotonic = now
+            self._last_heard_monotonic = now
             if self._first_frame_monotonic is None:
                 self._first_frame_monotonic = now
+        # Frames before their kinds: a frame counted in both is never taken for decoded.
+        processed = self.pipeline.frames
+        bad = dict(self.pipeline.bad)
+        # Silence is of the DBC's frames: error frames of a bus-off controller or a
+        # foreign peer's flood of unknown IDs are no sensor talking.
+        decoded = decoded_frames(processed, bad)
+        if decoded > self._decoded_mark:
+            self._decoded_mark = decoded
+            self._last_frame_monotonic = now
         self._truth_missing(now)
         warn_restarting_legs(self.pipeline, self._restarting_told)
         # Read once: the status must show the very count its health was judged on.
         kernel_dropped = self.reader.kernel_dropped
         self._kernel_losses(kernel_dropped)  # logs a rise; health: see problems()
-        bad = dict(self.pipeline.bad)
         recorder = self.recorder
         status: JsonObject = {
             "t": self._now(),
@@ -301,7 +313,7 @@ class Service:
             "frames_lost": self.pipeline.frames_lost,
             "frames": {
                 "received": received,
-                "processed": self.pipeline.frames,
+                "processed": processed,
                 "unknown": bad.get("unknown_id", 0),
                 "bad": sum(bad.values()),
                 "dropped": self.reader.dropped + kernel_dropped,
@@ -342,6 +354,7 @@ class Service:
             alive=self.alive(),
             lost_before=self._lost_mark,
             silent_s=now - self._last_frame_monotonic,
+            heard_s=now - self._last_heard_monotonic,
             silence_s=self.silence_s,
         )
         self._lost_mark = losses(status)
@@ -439,17 +452,25 @@ def problems(
     alive: bool,
     lost_before: dict[str, int],
     silent_s: float,
+    heard_s: float,
     silence_s: float,
 ) -> list[str]:
     """What makes ``status`` unhealthy (see the module docstring); empty when healthy.
-    ``lost_before`` is :func:`losses` of the previous status.
+    ``lost_before`` is :func:`losses` of the previous status; ``silent_s`` the time since
+    a frame of the DBC came in, ``heard_s`` since any frame did.
 
     >>> problems({"dropped": {"rx": 5, "kernel": 2}, "recording": None,
     ...           "zenoh": {"unreached": []}}, alive=True, lost_before={"dropped.rx": 5},
-    ...          silent_s=0.1, silence_s=1.0)
+    ...          silent_s=0.1, heard_s=0.1, silence_s=1.0)
     ['dropped.kernel +2']
+    >>> problems({"dropped": {}, "recording": None, "zenoh": {"unreached": []}},
+    ...          alive=True, lost_before={}, silent_s=3.0, heard_s=0.0, silence_s=1.0)
+    ['no frame of the DBC for 3.0 s, only frames it does not use (see bad)']
     """
     found = [] if alive else ["a service thread hangs or died"]
+    bus = status.get("bus") or {}
+    if bus.get("state") in (BUS_DOWN, BUS_ABSENT):  # no frame can come in
+        found.append(f"bus {bus['state']}: {bus['reason']}")
     recording = status.get("recording")
     if recording is not None and recording.get("failing"):
         found.append("recording stopped (write error)")
@@ -458,7 +479,11 @@ def problems(
             found.append(f"{name} +{count - lost_before.get(name, 0)}")
     found += [f"zenoh connect {endpoint} not reached" for endpoint in status["zenoh"]["unreached"]]
     if silent_s >= silence_s:
-        found.append(f"no frame for {silent_s:.1f} s")
+        found.append(
+            f"no frame for {silent_s:.1f} s"
+            if heard_s >= silent_s
+            else f"no frame of the DBC for {silent_s:.1f} s, only frames it does not use (see bad)"
+        )
     return found
 
 

@@ -2,11 +2,17 @@
 
 from __future__ import annotations
 
+import errno
+import os
+import threading
 import time
 import uuid
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+import can
+import pytest
 import zenoh
 
 from daq.consumer import Consumer
@@ -49,13 +55,16 @@ def status(**changes: object) -> dict:  # type: ignore[type-arg]
 
 
 def test_healthy_when_nothing_is_wrong() -> None:
-    assert problems(status(), alive=True, lost_before={}, silent_s=0.0, silence_s=1.0) == []
+    assert (
+        problems(status(), alive=True, lost_before={}, silent_s=0.0, heard_s=0.0, silence_s=1.0)
+        == []
+    )
 
 
 def test_any_drop_in_the_period_is_a_problem_whatever_its_key() -> None:
     now = status(dropped={"rx": 3, "publish": 0, "record": 7, "kernel": 2})
     before = {"dropped.rx": 3, "dropped.publish": 0, "dropped.record": 5}
-    found = problems(now, alive=True, lost_before=before, silent_s=0.0, silence_s=1.0)
+    found = problems(now, alive=True, lost_before=before, silent_s=0.0, heard_s=0.0, silence_s=1.0)
     assert found == ["dropped.record +2", "dropped.kernel +2"]
 
 
@@ -63,7 +72,7 @@ def test_failing_recorder_hung_thread_unreached_endpoint_and_silence() -> None:
     now = status(
         recording={"failing": True, "failed_items": 0}, zenoh={"unreached": ["tcp/10.0.0.9:7447"]}
     )
-    found = problems(now, alive=False, lost_before={}, silent_s=2.5, silence_s=1.0)
+    found = problems(now, alive=False, lost_before={}, silent_s=2.5, heard_s=2.5, silence_s=1.0)
     assert found == [
         "a service thread hangs or died",
         "recording stopped (write error)",
@@ -77,9 +86,12 @@ def test_an_item_the_recorder_skipped_is_a_loss_as_a_drop_is() -> None:
     # status healthy: the item is missing from the file as surely as a dropped one.
     before = losses(status(recording={"failing": False, "failed_items": 2}))
     now = status(recording={"failing": False, "failed_items": 5})
-    found = problems(now, alive=True, lost_before=before, silent_s=0.0, silence_s=1.0)
+    found = problems(now, alive=True, lost_before=before, silent_s=0.0, heard_s=0.0, silence_s=1.0)
     assert found == ["recording.failed_items +3"]
-    assert problems(now, alive=True, lost_before=losses(now), silent_s=0.0, silence_s=1.0) == []
+    assert (
+        problems(now, alive=True, lost_before=losses(now), silent_s=0.0, heard_s=0.0, silence_s=1.0)
+        == []
+    )
 
 
 def test_messages_zenoh_failed_to_put_are_counted_and_unhealthy(tmp_path: Path) -> None:
@@ -130,7 +142,7 @@ def test_frames_a_bug_cost_are_counted_each_and_make_the_status_unhealthy() -> N
     assert pipeline.bad["internal_error"] == 12 and collect.batches == []
     before = losses(status(bad={}))
     now = status(bad=dict(pipeline.bad))
-    found = problems(now, alive=True, lost_before=before, silent_s=0.0, silence_s=1.0)
+    found = problems(now, alive=True, lost_before=before, silent_s=0.0, heard_s=0.0, silence_s=1.0)
     assert found == ["bad.internal_error +12"]
 
 
@@ -206,3 +218,89 @@ def test_unreached_connect_endpoint_is_reported_until_it_comes_up(tmp_path: Path
             assert len(up["zenoh"]["peers"]) == 2
             assert not [p for p in up["problems"] if p.startswith("zenoh")]
         assert service.connect == [endpoint]
+
+
+def test_a_flood_of_error_frames_and_unknown_ids_is_no_sensor_talking(tmp_path: Path) -> None:
+    # A controller gone bus-off reports error frames, a foreign peer floods an ID of no
+    # message: any frame counted as "frames came in", so /status stayed healthy while no
+    # sensor was heard and every leg was stale.
+    path = write_service_config(
+        tmp_path, channel=f"test-{uuid.uuid4().hex}", port=free_port(), status_period_s=0.2
+    )
+    config = load_service_config(path)
+    prefix = config.zenoh.key_prefix
+    t0 = time.time()
+    flood = [
+        can.Message(timestamp=t0, arbitration_id=0x7AB, data=bytes(8), is_extended_id=False)
+        for _ in range(2000)
+    ] + [
+        can.Message(timestamp=t0, arbitration_id=0x80, is_error_frame=True, dlc=8, data=bytes(8))
+        for _ in range(2000)
+    ]
+    with live_service(config), subscriber_session(zenoh_port(config)) as session:
+        collector = Collector(session, f"{prefix}/status")
+        collector.wait_for(f"{prefix}/status")
+        with sender(config) as bus:
+            for message in flood:
+                bus.send(message)
+        status = collector.wait_for(
+            f"{prefix}/status",
+            lambda s: (
+                s["frames"]["processed"] == 4000
+                and any(p.startswith("no frame") for p in s["problems"])
+            ),
+        )
+    assert status["bad"] == {"unknown_id": 2000, "error_frame": 2000}
+    assert status["healthy"] is False
+    (silence,) = [p for p in status["problems"] if p.startswith("no frame")]
+    assert silence.startswith("no frame of the DBC for ")
+    assert silence.endswith(" s, only frames it does not use (see bad)")
+
+
+class DownOnce:
+    """A bus whose interface is set down once (``ENETDOWN``, as a SocketCAN socket
+    reports it once), then quiet."""
+
+    kernel_dropped = 0
+    rcvbuf_bytes = None
+
+    def __init__(self) -> None:
+        self._reported = False
+        self._quiet = threading.Event()
+
+    def recv(self, timeout_s: float) -> RawFrame | None:
+        if not self._reported:
+            self._reported = True
+            raise OSError(errno.ENETDOWN, os.strerror(errno.ENETDOWN))
+        self._quiet.wait(timeout_s)  # a quiet bus: no frame within the timeout
+        return None
+
+    def shutdown(self) -> None:
+        pass
+
+
+def never_opens() -> DownOnce:
+    raise OSError(errno.ENODEV, os.strerror(errno.ENODEV))
+
+
+@pytest.mark.parametrize(
+    ("open_bus", "state", "reason"),
+    [(DownOnce, "down", "Network is down"), (never_opens, "absent", "No such device")],
+)
+def test_a_bus_down_or_absent_is_unhealthy_at_once(
+    tmp_path: Path, open_bus: Callable[[], DownOnce], state: str, reason: str
+) -> None:
+    # A bus set down or gone was healthy until the silence rule caught up (a period or
+    # the stale time later), and even then the problem said only "no frame for 1.0 s".
+    path = write_service_config(
+        tmp_path, channel=f"test-{uuid.uuid4().hex}", port=free_port(), status_period_s=3600.0
+    )
+    config = load_service_config(path)
+    with zenoh.open(zenoh_config(config.zenoh)) as session:
+        with Service(config, open_bus=open_bus, session=session) as service:
+            wait_until(lambda: service.reader.state == state)
+            now = service.status()
+    assert now["bus"]["state"] == state and now["healthy"] is False
+    (problem,) = [p for p in now["problems"] if p.startswith("bus ")]
+    assert problem == f"bus {state}: {now['bus']['reason']}"
+    assert problem.startswith(f"bus {state}: CAN bus {config.bus.channel!r}: {reason}")
