@@ -60,13 +60,13 @@ def check_own_chambers(legs_table: TomlTable, legs: Mapping[str, "LegConfig"]) -
 def check_not_protection(
     legs_table: TomlTable, legs: Mapping[str, "LegConfig"], protection: Mapping[str, "Protection"]
 ) -> None:
-    """No chamber reads its message's rolling counter or CRC (a copied signal name, given
-    a unit): the counter's 0..15 read as a valid pressure, and the bridge wrote the
-    counter over the simulated one."""
+    """No chamber reads its message's rolling counter, CRC or data ID nibble (a copied
+    signal name, given a unit): the counter's 0..15 read as a valid pressure, and the
+    bridge wrote the counter over the simulated one."""
     for leg in legs.values():
         for key, chamber in _chambers(leg):
             guard = protection.get(chamber.message)
-            for role in ("counter", "crc"):
+            for role in ("counter", "crc", "data_id_nibble"):
                 if guard is not None and getattr(guard, role) == chamber.signal:
                     raise legs_table.table(leg.name).error(
                         key,

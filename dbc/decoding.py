@@ -167,7 +167,11 @@ class _MessageCodec:
         # A CRC under a multiplexer value is in (and checked on) those frames only; so is a
         # counter, which then counts them.
         self._multiplexed_crc: str | None = None
+        # Profile 1 in data ID mode nibble: (the nibble's signal, the value it must carry).
+        self._nibble: tuple[str, int] | None = None
         if protection is not None:
+            if protection.data_id_nibble is not None:
+                self._nibble = (protection.data_id_nibble, protection.nibble_value)
             self.crc = protection.crc_check(message, compiled=compiled)
             self.counter_signal = protection.counter
             if protection.crc is not None:
@@ -207,7 +211,10 @@ class _MessageCodec:
         if (
             crc is not None
             and (self._multiplexed_crc is None or self._multiplexed_crc in signals)
-            and not crc.matches(data, counter_value)
+            and (
+                not crc.matches(data, counter_value)
+                or (self._nibble is not None and signals.get(self._nibble[0]) != self._nibble[1])
+            )
         ):
             # The counter of a corrupted frame is not trusted: judge the next good frame
             # as a first one, so one bad CRC costs exactly one sample.

@@ -28,7 +28,13 @@ from dbc.decoding import is_j1939, j1939_destination, j1939_pgn
 from dbc.errors import ConfigError
 from dbc.machine_signals import NO_SIGNALS, MachineSignals, parse_signals
 from dbc.names import did_you_mean, messages_with
-from dbc.protection import CRC_ALGORITHMS, DEFAULT_CRC_ALGORITHM, Protection, counter_modulo
+from dbc.protection import (
+    CRC_ALGORITHMS,
+    DEFAULT_CRC_ALGORITHM,
+    P1_DATA_ID_MODES,
+    Protection,
+    counter_modulo,
+)
 from dbc.signal_range import decoded_bounds, named_values, value_range
 from dbc.stability_config import StabilityConfig, angle_signal, parse_stability
 from dbc.toml_table import TomlTable
@@ -74,7 +80,15 @@ CHAMBER_KEYS = (
     "status_ok",
     "cycle_time_ms",
 )
-PROTECTION_KEYS = ("counter", "crc", "crc_algorithm", "data_id", "max_delta_counter")
+PROTECTION_KEYS = (
+    "counter",
+    "crc",
+    "crc_algorithm",
+    "data_id",
+    "data_id_mode",
+    "data_id_nibble",
+    "max_delta_counter",
+)
 #: Keys of ``[messages.<MESSAGE>]``: what the config says of a message the DBC leaves out.
 MESSAGE_KEYS = ("cycle_time_ms",)
 #: The shortest cycle time a config may give: an 8-byte frame takes ~0.11 ms at 1 Mbit/s
@@ -1018,9 +1032,16 @@ def _protection(
         if signal.start // 8 + algorithm.width_bytes > message.length:
             raise table.error("crc", f"{crc} lies outside the {message.length}-byte frame")
     data_id = _data_id(table, algorithm.data_id_layout)
+    if isinstance(data_id, tuple) and counter is None:
+        raise table.error(
+            "data_id", "a DataIDList is picked by the counter's value: name the counter too"
+        )
+    data_id_mode, data_id_nibble = _data_id_mode(
+        table, algorithm_name, message, database, (counter, crc)
+    )
     max_delta = table.integer("max_delta_counter", 2)
     if counter is not None:
-        modulo = counter_modulo(message, counter)
+        modulo = counter_modulo(message, counter, algorithm_name)
         if not 1 <= max_delta < modulo:
             raise table.error(
                 "max_delta_counter", f"must be 1..{modulo - 1} for {counter}, got {max_delta}"
@@ -1031,6 +1052,8 @@ def _protection(
         crc=crc,
         crc_algorithm=algorithm_name,
         data_id=data_id,
+        data_id_mode=data_id_mode,
+        data_id_nibble=data_id_nibble,
         max_delta_counter=max_delta,
         cycle_time_s=cycle_times_ms[name] / 1000.0 if name in cycle_times_ms else None,
         sender_cycle_times_s=tuple(
@@ -1057,6 +1080,44 @@ def _data_id(table: TomlTable, layout: str) -> int | tuple[int, ...]:
     if not _is_id(value, limit):
         raise table.error("data_id", f"must be a number 0..{limit:#x}, got {value!r}")
     return int(value)
+
+
+def _data_id_mode(
+    table: TomlTable,
+    algorithm_name: str,
+    message: Message,
+    database: Database,
+    counter_crc: tuple[str | None, str | None],
+) -> tuple[str, str | None]:
+    """AUTOSAR E2E profile 1's DataIDMode and, in mode nibble, the signal of the nibble."""
+    if "data_id_mode" in table and algorithm_name != "e2e_p1":
+        raise table.error("data_id_mode", "only e2e_p1 has a data ID mode")
+    mode = table.string("data_id_mode", "both")
+    if mode not in P1_DATA_ID_MODES:
+        raise table.error("data_id_mode", f"unknown {mode!r}; one of {', '.join(P1_DATA_ID_MODES)}")
+    if mode == "alt" and counter_crc[0] is None:
+        raise table.error(
+            "data_id_mode",
+            "alt takes the data ID's low or high byte by the counter's value: name the counter",
+        )
+    if mode != "nibble":
+        if "data_id_nibble" in table:
+            raise table.error("data_id_nibble", 'only with data_id_mode = "nibble"')
+        return mode, None
+    if "data_id_nibble" not in table:
+        raise table.error(
+            "data_id_nibble",
+            "missing: data_id_mode nibble sends the data ID's high nibble in the frame: "
+            "name its 4-bit signal",
+        )
+    nibble = table.string("data_id_nibble")
+    if nibble not in {signal.name for signal in message.signals}:
+        raise table.error("data_id_nibble", _no_signal(nibble, message, database))
+    if message.get_signal_by_name(nibble).length != 4 or nibble in counter_crc:
+        raise table.error(
+            "data_id_nibble", f"{nibble} must be a 4-bit signal of its own (the data ID nibble)"
+        )
+    return mode, nibble
 
 
 def _is_id(value: object, limit: int) -> bool:

@@ -11,7 +11,7 @@ from typing import Any
 import pytest
 from cantools.autosar.end_to_end import compute_profile2_crc, compute_profile5_crc
 from cantools.j1939 import frame_id_pack
-from crccheck.crc import Crc8SaeJ1850
+from crccheck.crc import Crc
 
 from daq.frames import RawFrame
 from daq.pipeline import Pipeline
@@ -444,7 +444,7 @@ def test_e2e_profile5_frames_from_the_encoder_check_and_bad_ones_fail() -> None:
 
 @pytest.mark.parametrize(
     ("algorithm", "check"),
-    [("crc8_sae_j1850", 0x4B), ("e2e_p1", 0x4B), ("e2e_p2", 0xDF), ("e2e_p5", 0x29B1)],
+    [("crc8_sae_j1850", 0x4B), ("e2e_p1", 0x37), ("e2e_p2", 0xDF), ("e2e_p5", 0x29B1)],
 )
 def test_each_crc_algorithm_has_its_published_check_value(algorithm: str, check: int) -> None:
     configuration = CRC_ALGORITHMS[algorithm].configuration
@@ -460,9 +460,11 @@ def test_e2e_profiles_against_independent_implementations() -> None:
     assert p2_list.compute(payload, 5) == compute_profile2_crc(payload, 0x15)
     p5 = CrcCheck(CRC_ALGORITHMS["e2e_p5"], 0, data_id=0xBEEF)
     assert p5.compute(payload) == compute_profile5_crc(payload, 0xBEEF)
-    # Profile 1 (data ID mode both): CRC-8 SAE J1850 over ID low, ID high, data w/o CRC byte.
+    # Profile 1 (data ID mode both): SAE J1850's polynomial from 0x00, no final XOR, over
+    # ID low, ID high, data w/o CRC byte (each mode against AUTOSAR's vectors:
+    # tests/dbc/test_e2e_profile1.py).
     p1 = CrcCheck(CRC_ALGORITHMS["e2e_p1"], 7, data_id=0x0123)
-    expected = Crc8SaeJ1850.calc(bytes([0x23, 0x01]) + payload[:7])
+    expected = Crc(8, 0x1D).calc(bytes([0x23, 0x01]) + payload[:7])
     assert p1.compute(payload) == expected
     # A CRC anywhere: profile 5 in bytes 6-7, Motorola (high byte first).
     moved = CrcCheck(CRC_ALGORITHMS["e2e_p5"], 6, big_endian=True, data_id=0xBEEF)

@@ -20,7 +20,10 @@ DBC signal of the simulation's (the truth's), each foot force within what that a
 - ``abs_vehicle``: absolute transmitters ("bar (abs)", "PSIA") in a vehicle DBC that
   cantools reads only without its checks;
 - ``iom_j1939``: two J1939 I/O modules on one PGN, eight inputs each in turn, each
-  chamber named by source address and page.
+  chamber named by source address and page;
+- ``e2e_p1_modes``: AUTOSAR E2E profile 1 in each DataIDMode (both, alt, low, nibble),
+  counters and CRCs under German and vendor names, a Motorola leg, the machine state
+  profile 2 with a DataIDList.
 """
 
 import logging
@@ -62,6 +65,7 @@ PAIRS = (
     "split_rates",
     "abs_vehicle",
     "iom_j1939",
+    "e2e_p1_modes",
 )
 PLAYED_S = 0.5
 
