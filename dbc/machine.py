@@ -582,6 +582,15 @@ def _written(text: str, database: Database) -> str:
     return ""
 
 
+def _comment_of(signal: Signal) -> str:
+    """The DBC's comment on ``signal``, on one line, to end a refusal with: a vendor's DBC
+    often says a transducer's unit only there (``CM_ SG_ ... "Rod pressure in bar"``)."""
+    comment = " ".join(str(signal.comment or "").split())
+    if not comment:
+        return ""
+    return f" (the DBC's comment on it: {comment[:120] + ('...' if len(comment) > 120 else '')!r})"
+
+
 def _no_signal(signal: str, message: Message, database: Database) -> str:
     """Why ``signal`` is not ``message``'s: the messages that do have it, else the names
     it has that are close."""
@@ -643,7 +652,7 @@ def _chamber(
         raise chamber.error(
             where,
             f"signal {message.name}.{signal_name} has unit {unit!r}, not a pressure unit; "
-            f"set unit = one of {ACCEPTED_PRESSURE_UNITS}",
+            f"set unit = one of {ACCEPTED_PRESSURE_UNITS}{_comment_of(signal)}",
         )
     if signal.scale == 0:  # cantools takes it: a constant, published as a valid pressure
         raise chamber.error(
@@ -781,7 +790,14 @@ def _source_address(table: TomlTable, message: Message, database: Database) -> i
         )
     address = table.integer("source_address")
     if not 0 <= address <= 253:
-        raise table.error("source_address", f"must be a J1939 address 0..253, got {address}")
+        # 254 and 255 are no sender's: J1939-81's null address (a node that could not
+        # claim one may send only its Cannot Claim from it) and the global destination.
+        special = {254: " (0xFE: the null address, a node without a claimed one)"}
+        special[255] = " (0xFF: the global address, a destination, no sender)"
+        raise table.error(
+            "source_address",
+            f"must be a J1939 address 0..253, got {address}{special.get(address, '')}",
+        )
     message.protocol = "j1939"
     pgn = j1939_pgn(message.frame_id)
     for other in database.messages:

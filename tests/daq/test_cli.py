@@ -256,6 +256,24 @@ def test_replay_of_a_can_log_needs_a_config(tmp_path: Path) -> None:
     assert_one_line_error(run_cli("replay", str(log)), 2, "needs --config")
 
 
+def test_an_access_control_zenoh_refuses_is_one_line_naming_the_file(tmp_path: Path) -> None:
+    # Zenoh checks a policy's subjects when the session opens: it was exit 1, blamed on
+    # a taken port ("check [zenoh] listen/connect ...: is the port taken ...?").
+    assert run_cli("init", str(tmp_path)).returncode == 0
+    config, zenoh_file = tmp_path / "portal-daq.toml", tmp_path / "zenoh.json5"
+    text = zenoh_file.read_text().replace("tcp/127.0.0.1:7447", f"tcp/127.0.0.1:{free_port()}")
+    assert 'subjects: ["anyone"] }' in text
+    zenoh_file.write_text(text.replace('subjects: ["anyone"] }', 'subjects: ["anyon"] }'))
+    result = run_cli("run", "--config", str(config))
+    assert_one_line_error(
+        result,
+        2,
+        f"{zenoh_file}: access_control: Subject 'anyon' in policy #0 does not exist in "
+        "subjects list",
+    )
+    assert "is the port taken" not in result.stderr
+
+
 def service_process(config: Path, notify: str | None = None) -> subprocess.Popen[str]:
     """``portal-daq run`` in a session of its own (so that a signal to its process group,
     as a terminal or systemd sends it, reaches the service and its recorder only)."""

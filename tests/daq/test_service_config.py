@@ -62,8 +62,11 @@ def refused(tmp_path: Path, text: str) -> ConfigError:
         ('[bus]\nreceive_buffer_bytes = "4M"', "bus.receive_buffer_bytes", "integer"),
         ('[zenoh]\nmode = "peers"', "zenoh.mode", "must be one of"),
         ('[zenoh]\nconnect = "tcp/1.2.3.4:7447"', "zenoh.connect", "list of non-empty strings"),
-        ('[zenoh]\nkey_prefix = "portal/*"', "zenoh.key_prefix", "does not match"),
-        ('[zenoh]\nkey_prefix = "/portal"', "zenoh.key_prefix", "does not match"),
+        ('[zenoh]\nkey_prefix = "portal/*"', "zenoh.key_prefix", "has '*' (wildcards,"),
+        ('[zenoh]\nkey_prefix = "/portal"', "zenoh.key_prefix", "has an empty chunk"),
+        ('[zenoh]\nkey_prefix = "portal/pam 1"', "zenoh.key_prefix", "has ' ' (wildcards,"),
+        # A verbatim chunk: neither the access control's portal/** nor portal/* matched it.
+        ('[zenoh]\nkey_prefix = "portal/@pam"', "zenoh.key_prefix", "starts with '@'"),
         ('[zenoh]\nconfig_file = "absent.json5"', "zenoh.config_file", "no such file"),
         ("[publish]\nground_rate_hz = -1", "publish.ground_rate_hz", "> 0"),
         ('[publish]\nsignals = "yes"', "publish.signals", "true or false"),
