@@ -146,20 +146,34 @@ class EncodedBatch:
         return cls(raw, len(frames), frames[0].t_s if frames else 0.0, estimates, signals)
 
     def split(self, t_s: float) -> tuple["EncodedBatch", "EncodedBatch"]:
-        """What came before frame time ``t_s``, and the rest (frames are in time order)."""
+        """What came before the first frame at or after frame time ``t_s``, and the rest,
+        cut there and never sorted: after a clock stepped back within the batch, the
+        frames after the step (earlier by their time) stay behind the frame they followed
+        (sorted by time, they went into the file before it, and replay read them out of
+        order). Estimates and signals are cut at their first at or after ``t_s``.
+
+        >>> frames = [RawFrame(t, 0x100, False, b"") for t in (9.0, 10.0, 3.0)]
+        >>> head, tail = EncodedBatch._of_frames(frames, [], []).split(10.0)
+        >>> [f.t_s for f in can_batch.decode(head.raw)], [f.t_s for f in can_batch.decode(tail.raw)]
+        ([9.0], [10.0, 3.0])
+        """
         frames = list(can_batch.decode(self.raw)) if self.raw else []
+        cut = _first_at([frame.t_s for frame in frames], t_s)
+        cut_estimates = _first_at([estimate[1] for estimate in self.estimates], t_s)
+        cut_signals = _first_at([signal[1] for signal in self.signals], t_s)
         return (
             self._of_frames(
-                [f for f in frames if f.t_s < t_s],
-                [e for e in self.estimates if e[1] < t_s],
-                [s for s in self.signals if s[1] < t_s],
+                frames[:cut], self.estimates[:cut_estimates], self.signals[:cut_signals]
             ),
             self._of_frames(
-                [f for f in frames if f.t_s >= t_s],
-                [e for e in self.estimates if e[1] >= t_s],
-                [s for s in self.signals if s[1] >= t_s],
+                frames[cut:], self.estimates[cut_estimates:], self.signals[cut_signals:]
             ),
         )
+
+
+def _first_at(times: Sequence[float], t_s: float) -> int:
+    """Index of the first of ``times`` at or after ``t_s``; their number if none is."""
+    return next((i for i, t in enumerate(times) if t >= t_s), len(times))
 
 
 def encoded_estimates(result: FrameResult) -> list[tuple[str, float, bytes]]:

@@ -258,7 +258,7 @@ class Recorder(Worker):
         if isinstance(item, EncodedBatch) and item.frame_count:
             # A batch spanning the file's duration: its later frames begin the next file.
             head, tail = item.split(self._rotation_t_s(item.first_t_s))
-            if tail.frame_count:
+            if head.frame_count and tail.frame_count:
                 self._write_to_file(head)
                 self._write(tail)
                 return

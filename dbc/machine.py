@@ -31,7 +31,6 @@ from dbc.names import did_you_mean, messages_with
 from dbc.protection import (
     CRC_ALGORITHMS,
     DEFAULT_CRC_ALGORITHM,
-    P1_DATA_ID_MODES,
     Protection,
     counter_modulo,
 )
@@ -582,6 +581,15 @@ def _written(text: str, database: Database) -> str:
     return ""
 
 
+def _comment_of(signal: Signal) -> str:
+    """The DBC's comment on ``signal``, on one line, to end a refusal with: a vendor's DBC
+    often says a transducer's unit only there (``CM_ SG_ ... "Rod pressure in bar"``)."""
+    comment = " ".join(str(signal.comment or "").split())
+    if not comment:
+        return ""
+    return f" (the DBC's comment on it: {comment[:120] + ('...' if len(comment) > 120 else '')!r})"
+
+
 def _no_signal(signal: str, message: Message, database: Database) -> str:
     """Why ``signal`` is not ``message``'s: the messages that do have it, else the names
     it has that are close."""
@@ -643,7 +651,7 @@ def _chamber(
         raise chamber.error(
             where,
             f"signal {message.name}.{signal_name} has unit {unit!r}, not a pressure unit; "
-            f"set unit = one of {ACCEPTED_PRESSURE_UNITS}",
+            f"set unit = one of {ACCEPTED_PRESSURE_UNITS}{_comment_of(signal)}",
         )
     if signal.scale == 0:  # cantools takes it: a constant, published as a valid pressure
         raise chamber.error(
@@ -781,7 +789,14 @@ def _source_address(table: TomlTable, message: Message, database: Database) -> i
         )
     address = table.integer("source_address")
     if not 0 <= address <= 253:
-        raise table.error("source_address", f"must be a J1939 address 0..253, got {address}")
+        # 254 and 255 are no sender's: J1939-81's null address (a node that could not
+        # claim one may send only its Cannot Claim from it) and the global destination.
+        special = {254: " (0xFE: the null address, a node without a claimed one)"}
+        special[255] = " (0xFF: the global address, a destination, no sender)"
+        raise table.error(
+            "source_address",
+            f"must be a J1939 address 0..253, got {address}{special.get(address, '')}",
+        )
     message.protocol = "j1939"
     pgn = j1939_pgn(message.frame_id)
     for other in database.messages:
@@ -1090,11 +1105,14 @@ def _data_id_mode(
     counter_crc: tuple[str | None, str | None],
 ) -> tuple[str, str | None]:
     """AUTOSAR E2E profile 1's DataIDMode and, in mode nibble, the signal of the nibble."""
-    if "data_id_mode" in table and algorithm_name != "e2e_p1":
-        raise table.error("data_id_mode", "only e2e_p1 has a data ID mode")
-    mode = table.string("data_id_mode", "both")
-    if mode not in P1_DATA_ID_MODES:
-        raise table.error("data_id_mode", f"unknown {mode!r}; one of {', '.join(P1_DATA_ID_MODES)}")
+    modes = CRC_ALGORITHMS[algorithm_name].data_id_modes
+    if "data_id_mode" in table and not modes:
+        raise table.error("data_id_mode", "only e2e_p1 and e2e_p11 have a data ID mode")
+    mode = table.string("data_id_mode", modes[0] if modes else "both")
+    if modes and mode not in modes:
+        raise table.error(
+            "data_id_mode", f"unknown {mode!r} for {algorithm_name}; one of {', '.join(modes)}"
+        )
     if mode == "alt" and counter_crc[0] is None:
         raise table.error(
             "data_id_mode",
