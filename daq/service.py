@@ -45,7 +45,7 @@ import math
 import queue
 import re
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 
 import zenoh
 
@@ -297,7 +297,7 @@ class Service:
         bad = dict(self.pipeline.bad)
         # Silence is of the DBC's frames: error frames of a bus-off controller or a
         # foreign peer's flood of unknown IDs are no sensor talking.
-        decoded = decoded_frames(processed, bad)
+        decoded = decoded_for_sure(processed, bad)
         if decoded > self._decoded_mark:
             self._decoded_mark = decoded
             self._last_frame_monotonic = now
@@ -469,6 +469,28 @@ def losses(status: JsonObject) -> dict[str, int]:
     if recording is not None:
         found["recording.failed_items"] = recording["failed_items"]
     return found
+
+
+#: Frames the consumer may have counted as processed and not yet by kind when a status
+#: reads the counters: the one it is processing (the pipeline counts a frame, then its
+#: kind once decoding has refused it).
+IN_FLIGHT_FRAMES = 1
+
+
+def decoded_for_sure(processed: int, bad: Mapping[str, int]) -> int:
+    """Of ``processed`` frames, those of the DBC's messages for sure, the counters read
+    while the consumer runs (:func:`~daq.pipeline.decoded_frames` less the frame it may
+    be in the middle of). Read as they were, a foreign frame counted and not yet refused
+    was taken for a sensor's: during a flood of unknown IDs or error frames, a status now
+    and then judged the bus talking, and the next ones said "no frame for 0.3 s" where
+    "no frame of the DBC" was meant (and healthy, when no other problem was).
+
+    >>> decoded_for_sure(4001, {"unknown_id": 4000})  # the 4001st not refused yet
+    0
+    >>> decoded_for_sure(4012, {"unknown_id": 4000})
+    11
+    """
+    return max(0, decoded_frames(processed, bad) - IN_FLIGHT_FRAMES)
 
 
 def problems(
