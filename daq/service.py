@@ -146,11 +146,18 @@ class Service:
         self.session = session
         #: The endpoints the session connects to (``[zenoh] connect`` or the JSON5 file).
         self.connect = connect_endpoints(config.zenoh, config.source)
-        #: No frame for this long is a problem: the legs' stale time (at least a period).
-        self.silence_s = max(
-            config.publish.status_period_s,
-            config.machine.estimator.stale_after_cycles
-            * max((leg.cycle_time_s for leg in config.machine.legs.values()), default=0.0),
+        #: No frame for this long is a problem: the legs' stale time (at least a period),
+        #: and the poll period, for which frames wait in the socket before they are taken:
+        #: without it, statuses between two wake-ups 250 ms apart said "no frame for 0.1 s".
+        longest_cycle_s = max(
+            (leg.cycle_time_s for leg in config.machine.legs.values()), default=0.0
+        )
+        self.silence_s = (
+            max(
+                config.publish.status_period_s,
+                config.machine.estimator.stale_after_s(longest_cycle_s),
+            )
+            + config.service.poll_period_s
         )
         self._started_monotonic = time.monotonic()
         self._rate_mark = (time.monotonic(), 0)

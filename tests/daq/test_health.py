@@ -304,3 +304,23 @@ def test_a_bus_down_or_absent_is_unhealthy_at_once(
     (problem,) = [p for p in now["problems"] if p.startswith("bus ")]
     assert problem == f"bus {state}: {now['bus']['reason']}"
     assert problem.startswith(f"bus {state}: CAN bus {config.bus.channel!r}: {reason}")
+
+
+def test_frames_held_for_the_poll_period_are_no_silence(tmp_path: Path) -> None:
+    # With [service] poll_period_ms = 250 the frames are taken every 250 ms; statuses every
+    # 50 ms between two wake-ups found no new frame and said "no frame for 0.1 s", the
+    # status flapping between healthy and not on a bus that never paused.
+    path = write_service_config(
+        tmp_path,
+        channel=f"test-{uuid.uuid4().hex}",
+        port=free_port(),
+        status_period_s=0.05,
+        extra="[service]\npoll_period_ms = 250\n",
+    )
+    config = load_service_config(path)
+    estimator = config.machine.estimator
+    stale_s = max(estimator.stale_after_s(leg.cycle_time_s) for leg in config.machine.legs.values())
+    with zenoh.open(zenoh_config(config.zenoh)) as session:
+        service = Service(config, open_bus=bus_factory(config.bus, []), session=session)
+    # A wake-up every 250 ms is seen by a status at most one period later.
+    assert service.silence_s == max(0.05, stale_s) + 0.25
