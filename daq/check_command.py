@@ -18,7 +18,7 @@ from daq.service_config import load_service_config
 from daq.subcommand import PROG, Subcommand, fail, setup_logging
 from dbc.errors import ConfigError, DbcError
 from dbc.machine import ChamberSignal, MachineConfig, StatusCheck
-from dbc.protection import DEFAULT_CRC_ALGORITHM, Protection, counter_modulo
+from dbc.protection import CRC_ALGORITHMS, DEFAULT_CRC_ALGORITHM, Protection, counter_modulo
 from estimator.geometry import LegGeometry
 
 
@@ -74,7 +74,7 @@ def _protection(p: Protection, message: Message) -> str:
             crc += f", data ID list {', '.join(f'0x{i:02X}' for i in p.data_id)} by counter"
         elif p.crc_algorithm != DEFAULT_CRC_ALGORITHM:
             crc += f", data ID 0x{p.data_id:04X}"
-        if p.crc_algorithm == "e2e_p1":
+        if CRC_ALGORITHMS[p.crc_algorithm].data_id_modes:
             mode = f"nibble in {p.data_id_nibble}" if p.data_id_nibble else p.data_id_mode
             crc += f" ({mode})"
         parts.append(crc)

@@ -63,7 +63,7 @@ from daq.service_config import ServiceConfig
 from daq.sim_truth import TRUTH_KEY, TruthSubscriber
 from daq.socketcan import RCVBUF_BYTES_PER_FRAME
 from daq.stop_signal import Stop
-from daq.zenoh_links import zenoh_status
+from daq.zenoh_links import Outages, zenoh_status
 from daq.zenoh_session import connect_endpoints
 
 logger = logging.getLogger(__name__)
@@ -146,6 +146,8 @@ class Service:
         self.session = session
         #: The endpoints the session connects to (``[zenoh] connect`` or the JSON5 file).
         self.connect = connect_endpoints(config.zenoh, config.source)
+        #: Times they went unreached, and for how long.
+        self._outages = Outages()
         #: No frame for this long is a problem: the legs' stale time (at least a period),
         #: and the poll period, for which frames wait in the socket before they are taken:
         #: without it, statuses between two wake-ups 250 ms apart said "no frame for 0.1 s".
@@ -354,7 +356,7 @@ class Service:
             "leg_faults": {
                 leg: dict(faults) for leg, faults in sorted(self.pipeline.leg_faults.items())
             },
-            "zenoh": zenoh_status(self.session, self.connect),
+            "zenoh": zenoh_status(self.session, self.connect, self._outages, now),
         }
         found = problems(
             status,

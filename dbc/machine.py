@@ -31,7 +31,6 @@ from dbc.names import did_you_mean, messages_with
 from dbc.protection import (
     CRC_ALGORITHMS,
     DEFAULT_CRC_ALGORITHM,
-    P1_DATA_ID_MODES,
     Protection,
     counter_modulo,
 )
@@ -1106,11 +1105,14 @@ def _data_id_mode(
     counter_crc: tuple[str | None, str | None],
 ) -> tuple[str, str | None]:
     """AUTOSAR E2E profile 1's DataIDMode and, in mode nibble, the signal of the nibble."""
-    if "data_id_mode" in table and algorithm_name != "e2e_p1":
-        raise table.error("data_id_mode", "only e2e_p1 has a data ID mode")
-    mode = table.string("data_id_mode", "both")
-    if mode not in P1_DATA_ID_MODES:
-        raise table.error("data_id_mode", f"unknown {mode!r}; one of {', '.join(P1_DATA_ID_MODES)}")
+    modes = CRC_ALGORITHMS[algorithm_name].data_id_modes
+    if "data_id_mode" in table and not modes:
+        raise table.error("data_id_mode", "only e2e_p1 and e2e_p11 have a data ID mode")
+    mode = table.string("data_id_mode", modes[0] if modes else "both")
+    if modes and mode not in modes:
+        raise table.error(
+            "data_id_mode", f"unknown {mode!r} for {algorithm_name}; one of {', '.join(modes)}"
+        )
     if mode == "alt" and counter_crc[0] is None:
         raise table.error(
             "data_id_mode",

@@ -12,7 +12,9 @@ name           width  poly   init     xor out  data ID
 ============== ====== ====== ======== ======== ===================================
 crc8_sae_j1850 8      0x1D   0xFF     0xFF     none (the project's own DBC)
 e2e_p1         8      0x1D   0x00     0x00     16 bit before, by data ID mode (below)
+e2e_p11        8      0x1D   0x00     0x00     as e2e_p1 (modes both, nibble)
 e2e_p2         8      0x2F   0xFF     0xFF     8 bit after; or a list of 16, by counter
+e2e_p22        8      0x2F   0xFF     0xFF     as e2e_p2
 e2e_p5         16     0x1021 0xFFFF   0x0000   16 bit, low then high byte, after
 ============== ====== ====== ======== ======== ===================================
 
@@ -23,6 +25,9 @@ profile 1's, 0x37). Its data ID goes in by ``DataIDMode``: ``both`` (low byte, t
 high), ``low`` (low byte only), ``alt`` (low byte where the counter is even, high
 where odd) or ``nibble`` (low byte, then 0; the high byte's low nibble is sent in the
 frame, :attr:`Protection.data_id_nibble`); its 4-bit counter counts 0..14.
+``e2e_p11`` is profile 11, profile 1's successor for CAN: the same CRC and counter,
+data ID modes ``both`` and ``nibble``; ``e2e_p22`` profile 22, profile 2's, the same
+CRC over the data and ``DataIDList[counter]``.
 ``e2e_p2`` profile 2 (CRC-8H2F, DataIDList), ``e2e_p5`` profile 5
 (CRC-16/CCITT-FALSE); a 16-bit CRC is stored low byte first for an Intel signal,
 high byte first for a Motorola one. The parameter sets come from the ``crc``
@@ -53,30 +58,32 @@ class CrcAlgorithm:
     #: "none", "before" (16-bit ID, low byte first), "after8" (one byte, or a list of
     #: 16 by counter) or "after16" (16-bit ID, low byte first).
     data_id_layout: str
+    #: The DataIDModes the profile takes ("before" only; the first is the default).
+    data_id_modes: tuple[str, ...] = ()
+    #: The values a 4-bit counter of the profile takes, where fewer than 16.
+    counter_modulo: int | None = None
 
     @property
     def width_bytes(self) -> int:
         return self.configuration.width // 8
 
 
+#: AUTOSAR E2E profile 1's ways of putting its 16-bit data ID into the CRC (DataIDMode).
+P1_DATA_ID_MODES = ("both", "alt", "low", "nibble")
+_P1_CRC = Configuration(8, 0x1D, init_value=0x00, final_xor_value=0x00)
 CRC_ALGORITHMS: dict[str, CrcAlgorithm] = {
     algorithm.name: algorithm
     for algorithm in (
         CrcAlgorithm("crc8_sae_j1850", Crc8.SAEJ1850.value, "none"),
-        CrcAlgorithm(
-            "e2e_p1",
-            Configuration(8, 0x1D, init_value=0x00, final_xor_value=0x00),
-            "before",
-        ),
+        # Profile 1's counter takes 0..14 (15 is no counter value); so does 11's.
+        CrcAlgorithm("e2e_p1", _P1_CRC, "before", P1_DATA_ID_MODES, counter_modulo=15),
+        CrcAlgorithm("e2e_p11", _P1_CRC, "before", ("both", "nibble"), counter_modulo=15),
         CrcAlgorithm("e2e_p2", Crc8.AUTOSAR.value, "after8"),
+        CrcAlgorithm("e2e_p22", Crc8.AUTOSAR.value, "after8"),
         CrcAlgorithm("e2e_p5", Crc16.IBM_3740.value, "after16"),
     )
 }
 DEFAULT_CRC_ALGORITHM = "crc8_sae_j1850"
-#: AUTOSAR E2E profile 1's ways of putting its 16-bit data ID into the CRC (DataIDMode).
-P1_DATA_ID_MODES = ("both", "alt", "low", "nibble")
-#: Profile 1's counter takes 0..14 (15 is no counter value): its modulus.
-P1_COUNTER_MODULO = 15
 
 #: CRC of a byte string, by one implementation or the other.
 Checksum = Callable[[bytes], int]
@@ -311,8 +318,8 @@ def counter_modulo(
     """How many values the rolling counter ``counter`` of ``message`` takes: all its bits
     can hold, or fewer where the DBC declares a range ``[0|max]`` below that, so the wrap
     from max to 0 is one step. AUTOSAR E2E profile 1's 4-bit counter counts 0..14 whatever
-    the DBC declares (CANdb++ fills in ``[0|15]``): a real sender's wrap 14 -> 0 was a
-    lost frame, and its 15 a valid value.
+    the DBC declares (CANdb++ fills in ``[0|15]``), as profile 11's does: a real
+    sender's wrap 14 -> 0 was a lost frame, and its 15 a valid value.
 
     >>> from cantools.database import load_string
     >>> db = load_string('BO_ 1 M: 1 A\\n SG_ C : 0|4@1+ (1,0) [0|14] "" A\\n', "dbc")
@@ -325,8 +332,9 @@ def counter_modulo(
     """
     signal = message.get_signal_by_name(counter)
     modulo: int = 2**signal.length
-    if crc_algorithm == "e2e_p1" and signal.length == 4:
-        return P1_COUNTER_MODULO
+    profile_modulo = CRC_ALGORITHMS[crc_algorithm].counter_modulo
+    if profile_modulo is not None and signal.length == 4:
+        return profile_modulo
     low, high = signal.minimum, signal.maximum
     if (
         low == 0
@@ -355,7 +363,8 @@ class Protection:
     crc_algorithm: str = DEFAULT_CRC_ALGORITHM
     #: The profile's data ID; a tuple of 16 is e2e_p2's DataIDList (by counter value).
     data_id: int | tuple[int, ...] = 0
-    #: How ``e2e_p1`` puts the data ID into the CRC: one of :data:`P1_DATA_ID_MODES`.
+    #: How ``e2e_p1`` (``e2e_p11``) puts the data ID into the CRC: one of
+    #: :data:`P1_DATA_ID_MODES` (``both``, ``nibble``).
     data_id_mode: str = "both"
     #: ``e2e_p1`` in data ID mode ``nibble``: the 4-bit signal that carries the data
     #: ID's high byte's low nibble (a frame with another is a CRC fault: another sender's).

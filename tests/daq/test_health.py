@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import errno
+import logging
 import os
 import threading
 import time
@@ -324,3 +325,41 @@ def test_frames_held_for_the_poll_period_are_no_silence(tmp_path: Path) -> None:
         service = Service(config, open_bus=bus_factory(config.bus, []), session=session)
     # A wake-up every 250 ms is seen by a status at most one period later.
     assert service.silence_s == max(0.05, stale_s) + 0.25
+
+
+def test_an_outage_of_a_connect_endpoint_is_counted_after_it(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """A site router that restarts: the statuses while it is away reach nobody through
+    it, and the ones after said nothing of it (healthy, unreached []): a fleet could not
+    tell a machine that was cut off for a while from one that never was."""
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    path = write_service_config(
+        tmp_path, channel=f"test-{uuid.uuid4().hex}", port=free_port(), status_period_s=0.2
+    )
+    path.write_text(
+        path.read_text().replace(
+            "multicast_scouting = false", f'multicast_scouting = false\nconnect = ["{endpoint}"]', 1
+        )
+    )
+    config = load_service_config(path)
+    prefix = config.zenoh.key_prefix
+    key = f"{prefix}/status"
+    caplog.set_level(logging.INFO, logger="daq.zenoh_links")
+    with live_service(config), subscriber_session(zenoh_port(config)) as session:
+        collector = Collector(session, key)
+        with zenoh.open(peer_config(listen=endpoint)):  # the router, up
+            before = collector.wait_for(key, lambda s: not s["zenoh"]["unreached"])
+            started = time.monotonic()  # before it goes (it may have been away at start)
+        down = collector.wait_for(key, lambda s: s["zenoh"]["unreached"] == [endpoint])
+        assert down["zenoh"]["outages"] == before["zenoh"]["outages"] + 1
+        assert down["healthy"] is False
+        with zenoh.open(peer_config(listen=endpoint)):  # back, on the same address
+            up = collector.wait_for(key, lambda s: not s["zenoh"]["unreached"])
+            span_s = time.monotonic() - started
+    assert up["zenoh"]["outages"] == down["zenoh"]["outages"]  # shown after, too
+    lasted_s = up["zenoh"]["unreached_s"] - before["zenoh"]["unreached_s"]
+    assert 0.0 < lasted_s < span_s
+    again = [r.getMessage() for r in caplog.records if "reached again" in r.getMessage()]
+    assert again[-1].startswith(f"zenoh connect {endpoint} reached again after ")
+    assert again[-1].endswith(" s: what was published meanwhile went nowhere through it")

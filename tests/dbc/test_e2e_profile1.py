@@ -5,6 +5,7 @@ AUTOSAR's chained start value: init 0x00, no final XOR) in each DataIDMode, the 
 import tomllib
 
 import pytest
+from cantools.autosar.end_to_end import compute_profile2_crc
 from crccheck.crc import Crc
 
 from daq.frames import RawFrame
@@ -21,17 +22,25 @@ P1_CRC = Crc(8, 0x1D, initvalue=0x00, reflect_input=False, reflect_output=False,
 
 
 @pytest.mark.parametrize(
-    ("mode", "crc_counter_0", "crc_counter_1"),
-    [("both", 0xCC, 0x91), ("alt", 0xCE, 0x02), ("low", 0xCE, 0x93), ("nibble", 0x2A, 0x77)],
+    ("profile", "mode", "crc_counter_0", "crc_counter_1"),
+    [
+        ("e2e_p1", "both", 0xCC, 0x91),
+        ("e2e_p1", "alt", 0xCE, 0x02),
+        ("e2e_p1", "low", 0xCE, 0x93),
+        ("e2e_p1", "nibble", 0x2A, 0x77),
+        ("e2e_p11", "both", 0xCC, 0x91),
+        ("e2e_p11", "nibble", 0x2A, 0x77),
+    ],
 )
 def test_each_data_id_mode_gives_the_reference_crcs(
-    mode: str, crc_counter_0: int, crc_counter_1: int
+    profile: str, mode: str, crc_counter_0: int, crc_counter_1: int
 ) -> None:
     """The vectors of the autosar-e2e package's tests (its C implementation of AUTOSAR's
-    E2E_P01): data ID 0x123, 8 bytes, CRC in byte 0, counter in byte 1's low nibble, the
-    nibble mode's 0x1 in its high nibble. The CRC-8 SAE J1850 with its 0xFF init and final
-    XOR gave 0xB0 for the first (every frame of a real sender a CRC fault)."""
-    check = CrcCheck(CRC_ALGORITHMS["e2e_p1"], 0, data_id=0x123, data_id_mode=mode)
+    E2E_P01 and E2E_P11, one CRC): data ID 0x123, 8 bytes, CRC in byte 0, counter in byte
+    1's low nibble, the nibble mode's 0x1 in its high nibble. The CRC-8 SAE J1850 with its
+    0xFF init and final XOR gave 0xB0 for the first (every frame of a real sender a CRC
+    fault)."""
+    check = CrcCheck(CRC_ALGORITHMS[profile], 0, data_id=0x123, data_id_mode=mode)
     nibble = 0x10 if mode == "nibble" else 0x00
     first = bytes([crc_counter_0, nibble | 0]) + bytes(6)
     second = bytes([crc_counter_1, nibble | 1]) + bytes(6)
@@ -84,6 +93,32 @@ def test_a_counter_of_15_and_another_senders_nibble_are_faults() -> None:
     assert pipeline.bad == {"crc": 2}
 
 
+def test_profiles_11_and_22_read_what_their_senders_send() -> None:
+    """HR as profile 11 (nibble) and the machine state as profile 22 (DataIDList): the
+    frames of a real sender valid, the 14 -> 0 wrap one step; the state's CRC as
+    cantools.autosar computes profile 2's with the list's ID for the counter."""
+    text = TOML.replace(
+        'crc = "ZYL_HR_CRC"\ncrc_algorithm = "e2e_p1"',
+        'crc = "ZYL_HR_CRC"\ncrc_algorithm = "e2e_p11"',
+    ).replace('crc_algorithm = "e2e_p2"', 'crc_algorithm = "e2e_p22"')
+    assert text.count("e2e_p11") == 1 and text.count("e2e_p22") == 1
+    config, database = machine_from_toml(tomllib.loads(text), "m.toml", STRANGER)
+    pipeline = Pipeline.from_config(config, database)
+    got = estimates(pipeline, sender_frames([*range(15), 0]))
+    assert len(got) == 32 and all(reasons == () for _, reasons in got)
+    for counter in (3, 15):
+        data = bytearray([0, counter, 2, 7, 0, 40, 0, 0])
+        data[0] = compute_profile2_crc(bytes(data), 0x60 + counter)
+        pipeline.process(RawFrame(2.0 + counter, 0x200, False, bytes(data)))
+    assert pipeline.bad == {} and pipeline.frames_lost == 0
+    with pytest.raises(ConfigError, match="unknown 'alt' for e2e_p11; one of both, nibble"):
+        machine_from_toml(
+            tomllib.loads(text.replace('data_id_mode = "nibble"', 'data_id_mode = "alt"')),
+            "m.toml",
+            STRANGER,
+        )
+
+
 @pytest.mark.parametrize(
     ("old", "new", "key", "reason"),
     [
@@ -91,7 +126,7 @@ def test_a_counter_of_15_and_another_senders_nibble_are_faults() -> None:
             'data_id = 0x0056\ndata_id_mode = "low"',
             'data_id = 0x0056\ndata_id_mode = "lo"',
             "ZYL_HL.data_id_mode",
-            "unknown 'lo'; one of both, alt, low, nibble",
+            "unknown 'lo' for e2e_p1; one of both, alt, low, nibble",
         ),
         ('counter = "ZYL_VR_AliveCounter"\n', "", "ZYL_VR.data_id_mode", "name the counter"),
         ('data_id_nibble = "ZYL_HR_DataIDNibble"\n', "", "ZYL_HR.data_id_nibble", "missing"),
@@ -117,7 +152,7 @@ def test_a_counter_of_15_and_another_senders_nibble_are_faults() -> None:
             'crc_algorithm = "e2e_p2"',
             'crc_algorithm = "e2e_p2"\ndata_id_mode = "alt"',
             "MASCHINE_ZUSTAND.data_id_mode",
-            "only e2e_p1 has a data ID mode",
+            "only e2e_p1 and e2e_p11 have a data ID mode",
         ),
         ('counter = "MZ_Zaehler"\n', "", "MASCHINE_ZUSTAND.data_id", "name the counter too"),
     ],

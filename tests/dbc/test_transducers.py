@@ -444,7 +444,14 @@ def test_e2e_profile5_frames_from_the_encoder_check_and_bad_ones_fail() -> None:
 
 @pytest.mark.parametrize(
     ("algorithm", "check"),
-    [("crc8_sae_j1850", 0x4B), ("e2e_p1", 0x37), ("e2e_p2", 0xDF), ("e2e_p5", 0x29B1)],
+    [
+        ("crc8_sae_j1850", 0x4B),
+        ("e2e_p1", 0x37),
+        ("e2e_p11", 0x37),
+        ("e2e_p2", 0xDF),
+        ("e2e_p22", 0xDF),
+        ("e2e_p5", 0x29B1),
+    ],
 )
 def test_each_crc_algorithm_has_its_published_check_value(algorithm: str, check: int) -> None:
     configuration = CRC_ALGORITHMS[algorithm].configuration
