@@ -315,15 +315,18 @@ class Recorder(Worker):
             action()
         except (OSError, RecordingError) as exc:
             self.errors += 1
-            self._abandon_file()
             self._retry_at = time.monotonic() + RETRY_AFTER_S
-            if self.stopped_t_s is None:
+            stopping = self.stopped_t_s is None
+            if stopping:
                 self.stopped_t_s = self._now()
                 self._dropped_at_stop = self.dropped
+            lost = self._abandon_file()  # counted as dropped, in this gap
+            if stopping:
                 logger.error(
-                    "recording stopped: %s; check free space and the rights on %s; "
-                    "retrying every %.0f s",
+                    "recording stopped: %s; %d items lost with the chunk being written; "
+                    "check free space and the rights on %s; retrying every %.0f s",
                     _one_line(exc),
+                    lost,
                     self.directory,
                     RETRY_AFTER_S,
                 )
@@ -400,18 +403,29 @@ class Recorder(Worker):
             mcap.close()
         except Exception as exc:  # noqa: BLE001 -- close runs on shutdown: log, never raise
             self.errors += 1
-            logger.error("cannot finish %s: %s", self.paths[-1], _one_line(exc))
+            self.dropped += mcap.unwritten
+            logger.error(
+                "cannot finish %s: %s; %d items lost with its last chunk",
+                self.paths[-1],
+                _one_line(exc),
+                mcap.unwritten,
+            )
         finally:
             stream.close()
 
-    def _abandon_file(self) -> None:
-        stream = self._stream
+    def _abandon_file(self) -> int:
+        """Give the file up after a write error; what the chunk it was building held
+        is lost, and counted as dropped (returned)."""
+        mcap, stream = self._file, self._stream
         self._file = self._stream = None
+        lost = mcap.unwritten if mcap is not None else 0
+        self.dropped += lost
         if stream is not None:
             try:
                 stream.close()
             except OSError:
                 pass
+        return lost
 
 
 def _first_frame_t_s(item: Item) -> float | None:

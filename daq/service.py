@@ -152,11 +152,18 @@ class Service:
         self.connect = connect_endpoints(config.zenoh, config.source)
         #: Times they went unreached, and for how long.
         self._outages = Outages()
-        #: No frame for this long is a problem: the legs' stale time (at least a period).
-        self.silence_s = max(
-            config.publish.status_period_s,
-            config.machine.estimator.stale_after_cycles
-            * max((leg.cycle_time_s for leg in config.machine.legs.values()), default=0.0),
+        #: No frame for this long is a problem: the legs' stale time (at least a period),
+        #: and the poll period, for which frames wait in the socket before they are taken:
+        #: without it, statuses between two wake-ups 250 ms apart said "no frame for 0.1 s".
+        longest_cycle_s = max(
+            (leg.cycle_time_s for leg in config.machine.legs.values()), default=0.0
+        )
+        self.silence_s = (
+            max(
+                config.publish.status_period_s,
+                config.machine.estimator.stale_after_s(longest_cycle_s),
+            )
+            + config.service.poll_period_s
         )
         self._started_monotonic = time.monotonic()
         self._rate_mark = (time.monotonic(), 0)
@@ -165,6 +172,8 @@ class Service:
         #: any frame at all (monotonic); their count at the previous status.
         self._last_frame_monotonic = self._last_heard_monotonic = time.monotonic()
         self._decoded_mark = 0
+        #: The pipeline's error frames by kind at the previous status: a rise is a problem.
+        self._error_frames_mark: dict[str, int] = {}
         #: :func:`losses` at the previous status: what rose since is a problem.
         self._lost_mark: dict[str, int] = {}
         self._reported_problems: list[str] = []
@@ -361,15 +370,22 @@ class Service:
             | {"same_prefix": self.owners.others()},
         }
         self._tell_other_owners(status["zenoh"]["same_prefix"])
+        error_frames = dict(self.pipeline.error_frame_kinds)
         found = problems(
             status,
             alive=self.alive(),
+            error_frames={
+                kind: n - self._error_frames_mark.get(kind, 0)
+                for kind, n in error_frames.items()
+                if n > self._error_frames_mark.get(kind, 0)
+            },
             lost_before=self._lost_mark,
             silent_s=now - self._last_frame_monotonic,
             heard_s=now - self._last_heard_monotonic,
             silence_s=self.silence_s,
         )
         self._lost_mark = losses(status)
+        self._error_frames_mark = error_frames
         kinds = [_NUMBER.sub("N", problem) for problem in found]  # "dropped.rx +N"
         if kinds != self._reported_problems:
             if found:
@@ -501,10 +517,12 @@ def problems(
     silent_s: float,
     heard_s: float,
     silence_s: float,
+    error_frames: Mapping[str, int] = {},
 ) -> list[str]:
     """What makes ``status`` unhealthy (see the module docstring); empty when healthy.
     ``lost_before`` is :func:`losses` of the previous status; ``silent_s`` the time since
-    a frame of the DBC came in, ``heard_s`` since any frame did.
+    a frame of the DBC came in, ``heard_s`` since any frame did; ``error_frames`` what
+    the error frames of the period reported, by kind (a CAN bus in order has none).
 
     >>> problems({"dropped": {"rx": 5, "kernel": 2}, "recording": None,
     ...           "zenoh": {"unreached": []}}, alive=True, lost_before={"dropped.rx": 5},
@@ -513,6 +531,10 @@ def problems(
     >>> problems({"dropped": {}, "recording": None, "zenoh": {"unreached": []}},
     ...          alive=True, lost_before={}, silent_s=3.0, heard_s=0.0, silence_s=1.0)
     ['no frame of the DBC for 3.0 s, only frames it does not use (see bad)']
+    >>> problems({"dropped": {}, "recording": None, "zenoh": {"unreached": []}},
+    ...          alive=True, lost_before={}, silent_s=0.0, heard_s=0.0, silence_s=1.0,
+    ...          error_frames={"rx overflow": 2, "bus off": 1})
+    ['CAN controller: rx overflow +2, bus off +1 (error frames)']
     """
     found = [] if alive else ["a service thread hangs or died"]
     bus = status.get("bus") or {}
@@ -524,6 +546,9 @@ def problems(
     for name, count in losses(status).items():
         if count > lost_before.get(name, 0):
             found.append(f"{name} +{count - lost_before.get(name, 0)}")
+    if error_frames:
+        reported = ", ".join(f"{kind} +{n}" for kind, n in error_frames.items())
+        found.append(f"CAN controller: {reported} (error frames)")
     found += [f"zenoh connect {endpoint} not reached" for endpoint in status["zenoh"]["unreached"]]
     found += [
         f"another service publishes under this key prefix (zenoh session {zid})"

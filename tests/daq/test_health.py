@@ -326,6 +326,26 @@ def test_a_bus_down_or_absent_is_unhealthy_at_once(
     assert problem.startswith(f"bus {state}: CAN bus {config.bus.channel!r}: {reason}")
 
 
+def test_frames_held_for_the_poll_period_are_no_silence(tmp_path: Path) -> None:
+    # With [service] poll_period_ms = 250 the frames are taken every 250 ms; statuses every
+    # 50 ms between two wake-ups found no new frame and said "no frame for 0.1 s", the
+    # status flapping between healthy and not on a bus that never paused.
+    path = write_service_config(
+        tmp_path,
+        channel=f"test-{uuid.uuid4().hex}",
+        port=free_port(),
+        status_period_s=0.05,
+        extra="[service]\npoll_period_ms = 250\n",
+    )
+    config = load_service_config(path)
+    estimator = config.machine.estimator
+    stale_s = max(estimator.stale_after_s(leg.cycle_time_s) for leg in config.machine.legs.values())
+    with zenoh.open(zenoh_config(config.zenoh)) as session:
+        service = Service(config, open_bus=bus_factory(config.bus, []), session=session)
+    # A wake-up every 250 ms is seen by a status at most one period later.
+    assert service.silence_s == max(0.05, stale_s) + 0.25
+
+
 def test_an_outage_of_a_connect_endpoint_is_counted_after_it(
     tmp_path: Path, caplog: pytest.LogCaptureFixture
 ) -> None:
@@ -438,3 +458,36 @@ class Lines(logging.Handler):
             yield
         finally:
             logger.removeHandler(self)
+
+
+def test_error_frames_make_their_period_unhealthy_naming_what_they_report(
+    tmp_path: Path,
+) -> None:
+    # The controller's error frames (a bus-off, an overflow of its receive buffer: frames
+    # lost before the socket) were counted in bad.error_frame and nothing else: /status
+    # stayed healthy, no line said what happened.
+    path = write_service_config(
+        tmp_path, channel=f"test-{uuid.uuid4().hex}", port=free_port(), status_period_s=0.2
+    )
+    config = load_service_config(path)
+    prefix = config.zenoh.key_prefix
+    t0 = time.time()
+    overflow_and_bus_off = can.Message(
+        timestamp=t0, arbitration_id=0x044, is_error_frame=True, dlc=8, data=bytes([0, 1, 0, 0])
+    )
+    frames = [overflow_and_bus_off, *leg_messages(encoder_for(config), 2, t0)]
+    with live_service(config), subscriber_session(zenoh_port(config)) as session:
+        collector = Collector(session, f"{prefix}/status")
+        collector.wait_for(f"{prefix}/status")
+        with sender(config) as bus:
+            for message in frames:
+                bus.send(message)
+        reported = collector.wait_for(
+            f"{prefix}/status", lambda s: any(p.startswith("CAN controller") for p in s["problems"])
+        )
+        after = collector.wait_for(f"{prefix}/status", lambda s: s["frames"]["processed"] == 13)
+    assert "CAN controller: rx overflow +1, bus off +1 (error frames)" in reported["problems"]
+    assert reported["healthy"] is False
+    # The next period has no error frame: the problem is gone.
+    assert not [p for p in after["problems"] if p.startswith("CAN controller")]
+    assert after["bad"] == {"error_frame": 1}

@@ -20,8 +20,8 @@ from daq.report.loading import load_recording
 from daq.runner import recording_attachments
 from daq.service_config import RecordingSettings, load_service_config
 from tests.daq.service_support import free_port, write_service_config
-from tests.daq.test_recording import results
-from tests.helpers import example_machine
+from tests.daq.test_recording import results, wait_drained
+from tests.helpers import example_machine, recorded_raw_frames
 
 WAIT_S = 20.0
 
@@ -59,10 +59,10 @@ def fill(disk: Path) -> Path:
     return filler
 
 
-def recorder_on(disk: Path, tmp_path: Path) -> Recorder:
+def recorder_on(disk: Path, tmp_path: Path, flush_period_s: float = 0.02) -> Recorder:
     config, database = example_machine()
     path = write_service_config(tmp_path, port=free_port())
-    settings = RecordingSettings(directory=disk, chunk_size=4096, flush_period_s=0.02)
+    settings = RecordingSettings(directory=disk, chunk_size=4096, flush_period_s=flush_period_s)
     return Recorder(
         settings,
         database,
@@ -150,3 +150,36 @@ def test_disk_full_at_start_leaves_no_file_and_recovers(
     (path,) = mcap_files(small_disk)
     with open(path, "rb") as file:
         assert make_reader(file).get_summary() is not None
+
+
+def test_the_chunk_a_full_disk_cut_is_counted_as_dropped(
+    small_disk: Path, tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    # The messages of the chunk being written when the disk filled (up to chunk_size or
+    # flush_period_s of frames) were lost from the file, which reads back to its last
+    # complete chunk, and counted nowhere: /status said every other frame was recorded.
+    # Chunks go out when full (4 KiB), never by time: the disk fills under a chunk of
+    # messages for certain.
+    feed = results(100_000, t0=1_750_000_000.0)
+    recorder = recorder_on(small_disk, tmp_path, flush_period_s=3600.0)
+    submitted = 0
+
+    def submit_until(condition) -> None:  # type: ignore[no-untyped-def]
+        nonlocal submitted
+        deadline = time.monotonic() + WAIT_S
+        while not condition():
+            assert time.monotonic() < deadline, "condition not reached"
+            recorder.submit(RecordBatch.of([next(feed)], signals=False))
+            submitted += 1
+            time.sleep(0.005)
+
+    with recorder:
+        filler = fill(small_disk)
+        submit_until(lambda: recorder.failing)
+        filler.unlink()
+        submit_until(lambda: not recorder.failing)
+        wait_drained(recorder)
+    recorded = sum(len(recorded_raw_frames(path)) for path in mcap_files(small_disk))
+    (stopped,) = one_line_logs(caplog, "recording stopped")
+    lost = int(stopped.split("; ")[1].split()[0])  # "; 17 items lost with the chunk ..."
+    assert lost > 0 and recorded + recorder.dropped == submitted
