@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import errno
+import io
 import json
 import logging
 import subprocess
@@ -16,6 +17,7 @@ from mcap.reader import make_reader
 import daq.recorder
 from daq.mcap_file import RecordBatch
 from daq.recorder import Recorder
+from daq.replay import replay
 from daq.report.loading import load_recording
 from daq.runner import recording_attachments
 from daq.service_config import RecordingSettings, load_service_config
@@ -183,3 +185,6 @@ def test_the_chunk_a_full_disk_cut_is_counted_as_dropped(
     (stopped,) = one_line_logs(caplog, "recording stopped")
     lost = int(stopped.split("; ")[1].split()[0])  # "; 17 items lost with the chunk ..."
     assert lost > 0 and recorded + recorder.dropped == submitted
+    # What was recorded, the cut file's complete chunks too, is replayed as one run.
+    out = io.StringIO()
+    assert replay([small_disk], out) == recorded
