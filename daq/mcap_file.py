@@ -34,6 +34,7 @@ recording replays without the files it was made with, and a metadata record
 """
 
 import json
+import os
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import IO, Any, cast
@@ -213,6 +214,11 @@ class CountingFile:
     def tell(self) -> int:
         return self.count
 
+    @property
+    def deleted(self) -> bool:
+        """The file has no name left (deleted while written: what goes in is lost)."""
+        return os.fstat(self._raw.fileno()).st_nlink == 0
+
     def flush(self) -> None:
         self._raw.flush()
 
@@ -267,6 +273,8 @@ class McapFile:
         #: What the messages not yet in a chunk on the stream hold (frames of a batch, 1
         #: for any other item): lost with the chunk if writing it fails (a full disk).
         self.unwritten = 0
+        #: What every message added holds, counted as :attr:`unwritten` is.
+        self.items = 0
 
     def __enter__(self) -> "McapFile":
         return self
@@ -382,6 +390,7 @@ class McapFile:
     def _add(self, channel: int, t_ns: int, data: bytes, items: int) -> None:
         """Add a message holding ``items`` (see :attr:`unwritten`)."""
         self.unwritten += items
+        self.items += items
         at = self._stream.tell()
         self._writer.add_message(channel_id=channel, log_time=t_ns, publish_time=t_ns, data=data)
         if self._stream.tell() != at:  # it filled the chunk, which went out with it
@@ -425,6 +434,10 @@ class McapFile:
         )
         self._channels[topic] = channel
         return channel
+
+    def lost(self) -> None:
+        """The file is gone (deleted while written): all it holds counts as unwritten."""
+        self.unwritten = self.items
 
     def flush(self) -> None:
         """Write out the chunk being built, so that a crash cannot lose it."""

@@ -323,7 +323,7 @@ class Recorder(Worker):
             lost = self._abandon_file()  # counted as dropped, in this gap
             if stopping:
                 logger.error(
-                    "recording stopped: %s; %d items lost with the chunk being written; "
+                    "recording stopped: %s; %d items lost from the file; "
                     "check free space and the rights on %s; retrying every %.0f s",
                     _one_line(exc),
                     lost,
@@ -335,10 +335,18 @@ class Recorder(Worker):
 
     def _flush(self) -> None:
         self._last_flush = time.monotonic()
-        if self._file is not None:
-            self._file.flush()
+        mcap, stream = self._file, self._stream
+        if mcap is not None and stream is not None:
+            mcap.flush()
+            if stream.deleted:  # writing on would lose everything, unseen
+                mcap.lost()
+                raise RecordingError(self.paths[-1], "deleted while it was being written")
 
     def _open(self, t_s: float) -> None:
+        try:  # a directory removed while recording is made again
+            self.directory.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise RecordingError(self.directory, f"cannot create it: {exc.strerror}") from exc
         path = self.directory / file_name(self._machine_id, t_s)
         serial = 0
         while path in self.paths or path.exists():
@@ -399,19 +407,23 @@ class Recorder(Worker):
         self._file = self._stream = None
         if mcap is None or stream is None:
             return
+        path = self.paths[-1]
         try:
             mcap.close()
         except Exception as exc:  # noqa: BLE001 -- close runs on shutdown: log, never raise
-            self.errors += 1
-            self.dropped += mcap.unwritten
-            logger.error(
-                "cannot finish %s: %s; %d items lost with its last chunk",
-                self.paths[-1],
-                _one_line(exc),
-                mcap.unwritten,
-            )
+            self._lose_unwritten(mcap, f"cannot finish {path}: {_one_line(exc)}")
+        else:
+            if stream.deleted:
+                mcap.lost()
+                self._lose_unwritten(mcap, f"{path} was deleted while it was being written")
         finally:
             stream.close()
+
+    def _lose_unwritten(self, mcap: McapFile, what: str) -> None:
+        """Count what ``mcap`` did not get onto the disk as dropped, with one line."""
+        self.errors += 1
+        self.dropped += mcap.unwritten
+        logger.error("%s; %d items lost from the file", what, mcap.unwritten)
 
     def _abandon_file(self) -> int:
         """Give the file up after a write error; what the chunk it was building held
