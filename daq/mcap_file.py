@@ -34,6 +34,7 @@ recording replays without the files it was made with, and a metadata record
 """
 
 import json
+import os
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import IO, Any, cast
@@ -213,6 +214,11 @@ class CountingFile:
     def tell(self) -> int:
         return self.count
 
+    @property
+    def deleted(self) -> bool:
+        """The file has no name left (deleted while written: what goes in is lost)."""
+        return os.fstat(self._raw.fileno()).st_nlink == 0
+
     def flush(self) -> None:
         self._raw.flush()
 
@@ -264,6 +270,11 @@ class McapFile:
         self.message_count = 0
         #: Frame time (ns) of the first message, for rotation by duration.
         self.first_log_time_ns: int | None = None
+        #: What the messages not yet in a chunk on the stream hold (frames of a batch, 1
+        #: for any other item): lost with the chunk if writing it fails (a full disk).
+        self.unwritten = 0
+        #: What every message added holds, counted as :attr:`unwritten` is.
+        self.items = 0
 
     def __enter__(self) -> "McapFile":
         return self
@@ -297,7 +308,7 @@ class McapFile:
         encoded = batch if isinstance(batch, EncodedBatch) else EncodedBatch.of(batch)
         if encoded.frame_count:
             channel = self._channels.get(RAW_TOPIC) or self._raw_channel()
-            self._add(channel, _ns(encoded.first_t_s), encoded.raw)
+            self._add(channel, _ns(encoded.first_t_s), encoded.raw, encoded.frame_count)
         # One message per leg and batch: mcap's add_message costs more than encoding an
         # estimate, and the batch is only the published bytes joined.
         by_leg: dict[str, list[tuple[float, bytes]]] = {}
@@ -310,13 +321,13 @@ class McapFile:
             )
             joined = b",".join(data for _, data in estimates)
             payload = b'{"leg":' + orjson.dumps(leg) + b',"estimates":[' + joined + b"]}"
-            self._add(channel, _ns(estimates[0][0]), payload)
+            self._add(channel, _ns(estimates[0][0]), payload, 0)  # counted with the frames
         for message, t_s, data in encoded.signals:
             topic = SIGNALS_TOPIC.format(message=message)
             channel = self._channels.get(topic) or self._json_channel(
                 topic, f"portal.signals.{message}", None
             )
-            self._add(channel, _ns(t_s), data)
+            self._add(channel, _ns(t_s), data, 0)
 
     def write_result(self, result: FrameResult, *, signals: bool = True) -> None:
         """One processed frame as a batch of its own (offline writers and tests; the
@@ -374,10 +385,16 @@ class McapFile:
         payload: payloads.JsonObject,
     ) -> None:
         channel = self._channels.get(topic) or self._json_channel(topic, schema_name, schema)
-        self._add(channel, t_ns, payloads.json_bytes(payload))
+        self._add(channel, t_ns, payloads.json_bytes(payload), 1)
 
-    def _add(self, channel: int, t_ns: int, data: bytes) -> None:
+    def _add(self, channel: int, t_ns: int, data: bytes, items: int) -> None:
+        """Add a message holding ``items`` (see :attr:`unwritten`)."""
+        self.unwritten += items
+        self.items += items
+        at = self._stream.tell()
         self._writer.add_message(channel_id=channel, log_time=t_ns, publish_time=t_ns, data=data)
+        if self._stream.tell() != at:  # it filled the chunk, which went out with it
+            self.unwritten = 0
         self.message_count += 1
         if self.first_log_time_ns is None:
             self.first_log_time_ns = t_ns
@@ -418,10 +435,15 @@ class McapFile:
         self._channels[topic] = channel
         return channel
 
+    def lost(self) -> None:
+        """The file is gone (deleted while written): all it holds counts as unwritten."""
+        self.unwritten = self.items
+
     def flush(self) -> None:
         """Write out the chunk being built, so that a crash cannot lose it."""
         if self._started and not self._closed:
             self._writer.flush()  # type: ignore[no-untyped-call]
+            self.unwritten = 0
 
     def close(self) -> None:
         """Finish the file: last chunk, indexes and summary. Idempotent."""
@@ -431,3 +453,4 @@ class McapFile:
         if self._started:
             self._writer.finish()  # type: ignore[no-untyped-call]
             self._stream.flush()
+            self.unwritten = 0

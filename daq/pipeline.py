@@ -13,7 +13,7 @@ from functools import partial
 
 from cantools.database.can import Database
 
-from daq.frames import RawFrame
+from daq.frames import RawFrame, error_frame_kinds
 from daq.pose import PoseTracker
 from dbc.decoding import DecodedFrame, FrameDecoder, is_j1939
 from dbc.errors import ErrorFrameError, FrameError, FrameLengthError, RemoteFrameError
@@ -95,6 +95,9 @@ class Pipeline:
         self.leg_faults: defaultdict[str, Counter[str]] = defaultdict(Counter)
         #: Frames lost on the way, as the rolling counters of the frames after them tell.
         self.frames_lost = 0
+        #: What the error frames reported (:func:`~daq.frames.error_frame_kinds`: bus off,
+        #: rx overflow, ...), by kind.
+        self.error_frame_kinds: Counter[str] = Counter()
         # The unmapped senders seen (message, source address): each is logged once.
         self._unmapped: set[tuple[str, int | None]] = set()
         # The messages and lengths of the wrong_dlc frames seen: each is logged once.
@@ -130,6 +133,7 @@ class Pipeline:
         self.estimator.observe(frame.t_s)
         try:
             if frame.is_error_frame:
+                self.error_frame_kinds.update(error_frame_kinds(frame))
                 raise ErrorFrameError(frame.arbitration_id, "CAN error frame")
             if frame.is_remote_frame:
                 raise RemoteFrameError(frame.arbitration_id, "remote frame, no data")

@@ -334,3 +334,27 @@ def test_copies_and_files_given_twice_count_once(
         f"{cut}: claims file 0 of the run as {run} does, with other bytes "
         "(a recovered copy of a cut file, say): give one of the two"
     )
+
+
+def test_recordings_of_one_name_in_two_folders_are_two(tmp_path: Path) -> None:
+    """Named by their file names alone, ``day1/recording.mcap`` and ``day2/recording.mcap``
+    were one recording: the page said "1 recordings" and "1 more recordings hold nothing
+    ...: left out", and the table could not tell their rows apart."""
+    from daq.report.command import report_main
+
+    for day, seconds in (("day1", 1.0), ("day2", 3.0)):
+        (tmp_path / day).mkdir()
+        record(tmp_path / day / "recording.mcap", seconds=seconds)
+    out = tmp_path / "out"
+    given = [str(tmp_path / "day1"), str(tmp_path / "day2")]
+    assert report_main(["--campaign", *given, "--workers", "1", "--out", str(out)]) == 0
+    with open(out / "campaign.csv") as table:
+        rows = list(csv.DictReader(table))
+    per_recording = {
+        name: [r for r in rows if r["recording"] == name]
+        for name in ("day1/recording.mcap", "day2/recording.mcap")
+    }
+    assert len(rows) == sum(len(found) for found in per_recording.values())
+    assert [len(found) for found in per_recording.values()] == [6, 6 * 2]  # 1 and 2 cycles
+    page = (out / "campaign.html").read_text()
+    assert "Campaign report: 2 recordings" in page and "hold nothing" not in page
