@@ -36,11 +36,12 @@ parameters (:class:`TableCrc`).
 """
 
 import math
+import re
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Literal
 
-from cantools.database.can import Message
+from cantools.database.can import Message, Signal
 from crc import Calculator, Configuration, Crc8, Crc16
 
 #: Counter faults, as they appear in an estimate's ``reasons``.
@@ -345,6 +346,39 @@ def counter_modulo(
     ):
         return int(high) + 1
     return modulo
+
+
+#: Words of a signal name that call it a rolling counter or a CRC, as vendors write them
+#: (English, German, abbreviated): ``AliveCounter``, ``MsgCntr``, ``Zaehler``, ``BZ``
+#: (Botschaftszaehler), ``SQC``; ``Checksum``, ``CHK``, ``Pruefsumme``, ``CRC8``.
+_ROLE_WORDS = {
+    "counter": frozenset(
+        "counter cntr cnt ctr zaehler zähler alive rollingcounter msgcntr msgcnt bz sqc seq".split()
+    ),
+    "crc": frozenset("crc checksum chksum chks chk pruefsumme prüfsumme".split()),
+}
+_WORD_BREAKS = re.compile(
+    r"[^0-9A-Za-zÄÖÜäöüß]+|(?<=[a-zäöüß])(?=[A-ZÄÖÜ])|(?<=\D)(?=\d)|(?<=\d)(?=\D)"
+)
+
+
+def protection_role(signal: Signal) -> str | None:
+    """``"counter"`` or ``"crc"`` where ``signal``'s name calls it one (a word of it, by
+    ``_`` and case: ``ZYL_VL_Zaehler``, ``MsgCntr``, ``HUB_CRC8``) and its bits fit one
+    (an unscaled integer of 2..16 bits; a CRC of 8 or 16); else None.
+
+    >>> from cantools.database.can import Signal
+    >>> [protection_role(Signal(n, 0, 8)) for n in ("MsgCntr", "Pruefsumme", "CycleCount")]
+    ['counter', 'crc', None]
+    """
+    if signal.is_float or (signal.scale, signal.offset) != (1, 0):
+        return None
+    words = {word.lower() for word in _WORD_BREAKS.split(signal.name) if word}
+    if words & _ROLE_WORDS["crc"] and signal.length in (8, 16):
+        return "crc"
+    if words & _ROLE_WORDS["counter"] and 2 <= signal.length <= 16:
+        return "counter"
+    return None
 
 
 @dataclass(frozen=True, slots=True)
