@@ -31,7 +31,7 @@ from typing import Any, TextIO, cast
 import can
 from can.io.canutils import CAN_ERR_BUSERROR, CAN_ERR_FLAG
 
-from daq.frames import DATED_FROM_S
+from daq.frames import DATED_FROM_S, ERROR_CLASSES
 
 #: A readable candump line: time, interface, ``-x``'s direction columns, ID, [length], rest.
 _READABLE = re.compile(
@@ -53,19 +53,6 @@ _DROPCOUNT = re.compile(r"\s*DROPCOUNT: dropped (?P<frames>\d+) CAN frames? on "
 #: ``candump -e``'s description of an error frame, on tab-indented lines after it
 #: (``\tcontroller-problem{rx-error-warning}``, ``\terror-counter-tx-rx{{0}{96}}``).
 _ERROR_DETAIL = re.compile(r"\t[a-z][a-z-]*(?:[{,]|\s*$)")
-#: The classes of a SocketCAN error frame, by their bit in its ID (linux/can/error.h).
-ERROR_CLASSES = {
-    0x001: "tx timeout",
-    0x002: "lost arbitration",
-    0x004: "controller problems",
-    0x008: "protocol violation",
-    0x010: "transceiver status",
-    0x020: "no ack",
-    0x040: "bus off",
-    0x080: "bus error",
-    0x100: "controller restarted",
-    0x200: "error counters",
-}
 #: A ``-L`` line of an error frame: its ID has CAN_ERR_FLAG (bit 29), which no data
 #: frame's 29-bit ID has, and the class bits (bus-off 0x040, controller 0x004, ...).
 _ERROR_ID = re.compile(r"(?P<head>\s*\(\S+\)\s+\S+\s+)(?P<id>[2-9A-Fa-f][0-9A-Fa-f]{7})#")

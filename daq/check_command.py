@@ -12,10 +12,13 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
+from cantools.database.can import Database, Message
+
 from daq.service_config import load_service_config
 from daq.subcommand import PROG, Subcommand, fail, setup_logging
 from dbc.errors import ConfigError, DbcError
 from dbc.machine import ChamberSignal, MachineConfig, StatusCheck
+from dbc.protection import CRC_ALGORITHMS, DEFAULT_CRC_ALGORITHM, Protection, counter_modulo
 from estimator.geometry import LegGeometry
 
 
@@ -33,15 +36,16 @@ def check_main(args: Sequence[str]) -> int:
         config = load_service_config(options.config)
     except (ConfigError, DbcError) as exc:
         return fail(exc, 2)
-    sys.stdout.write(describe(config.machine, len(config.database.messages)))
+    sys.stdout.write(describe(config.machine, config.database))
     return 0
 
 
-def describe(machine: MachineConfig, messages: int) -> str:
-    """What ``machine``'s legs read, a line per leg and chamber."""
+def describe(machine: MachineConfig, database: Database) -> str:
+    """What ``machine``'s legs read, a line per leg and chamber, and how each protected
+    message is checked."""
     lines = [
         f"{machine.source}: machine {machine.machine_id}, {len(machine.legs)} legs, "
-        f"DBC {machine.dbc_path} ({messages} messages)"
+        f"DBC {machine.dbc_path} ({len(database.messages)} messages)"
     ]
     for leg in machine.legs.values():
         lines.append(
@@ -51,13 +55,30 @@ def describe(machine: MachineConfig, messages: int) -> str:
         lines.append(f"  piston: {_chamber(leg.piston)}")
         lines.append(f"  rod: {_chamber(leg.rod)}")
     lines += [_equation(leg.name, leg.geometry) for leg in machine.legs.values()]
-    guarded = [
-        f"{name} ({', '.join(part for part in (p.counter, p.crc) if part)})"
-        for name, p in machine.protection.items()
+    lines += [
+        _protection(p, database.get_message_by_name(name)) for name, p in machine.protection.items()
     ]
-    if guarded:
-        lines.append(f"protected: {', '.join(guarded)}")
     return "\n".join(lines) + "\n"
+
+
+def _protection(p: Protection, message: Message) -> str:
+    """How ``message``'s frames are checked: the counter's values and steps, the CRC's
+    algorithm and data ID (profile 1: its mode)."""
+    parts = []
+    if p.counter is not None:
+        last = counter_modulo(message, p.counter, p.crc_algorithm) - 1
+        parts.append(f"counter {p.counter} 0..{last} (steps up to {p.max_delta_counter})")
+    if p.crc is not None:
+        crc = f"CRC {p.crc} {p.crc_algorithm}"
+        if isinstance(p.data_id, tuple):
+            crc += f", data ID list {', '.join(f'0x{i:02X}' for i in p.data_id)} by counter"
+        elif p.crc_algorithm != DEFAULT_CRC_ALGORITHM:
+            crc += f", data ID 0x{p.data_id:04X}"
+        if CRC_ALGORITHMS[p.crc_algorithm].data_id_modes:
+            mode = f"nibble in {p.data_id_nibble}" if p.data_id_nibble else p.data_id_mode
+            crc += f" ({mode})"
+        parts.append(crc)
+    return f"protected {p.message}: {', '.join(parts)}"
 
 
 def _equation(name: str, g: LegGeometry) -> str:

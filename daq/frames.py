@@ -50,6 +50,48 @@ def from_can_message(message: can.Message) -> RawFrame:
     )
 
 
+#: The classes of a SocketCAN error frame, by their bit in its ID (linux/can/error.h).
+ERROR_CLASSES = {
+    0x001: "tx timeout",
+    0x002: "lost arbitration",
+    0x004: "controller problems",
+    0x008: "protocol violation",
+    0x010: "transceiver status",
+    0x020: "no ack",
+    0x040: "bus off",
+    0x080: "bus error",
+    0x100: "controller restarted",
+    0x200: "error counters",
+}
+#: The controller problems (``CAN_ERR_CRTL``) by their bit in the error frame's byte 1.
+CONTROLLER_PROBLEMS = {
+    0x01: "rx overflow",
+    0x02: "tx overflow",
+    0x04: "rx warning",
+    0x08: "tx warning",
+    0x10: "rx passive",
+    0x20: "tx passive",
+    0x40: "error active again",
+}
+
+
+def error_frame_kinds(frame: RawFrame) -> list[str]:
+    """What an error frame reports, by name: its classes, a controller problem by its
+    detail (``rx overflow``: frames lost in the controller); ``error frame`` when its ID
+    names no class (an interface that gives none).
+
+    >>> error_frame_kinds(RawFrame(0.0, 0x044, True, bytes([0, 0x11, 0, 0]), True))
+    ['rx overflow', 'rx passive', 'bus off']
+    """
+    kinds = []
+    for bit, name in ERROR_CLASSES.items():
+        if frame.arbitration_id & bit:
+            details = frame.data[1] if bit == 0x004 and len(frame.data) > 1 else 0
+            found = [problem for b, problem in CONTROLLER_PROBLEMS.items() if details & b]
+            kinds += found or [name]
+    return kinds or ["error frame"]
+
+
 #: Bus states reported on the status topic.
 BUS_UP = "up"
 BUS_DOWN = "down"

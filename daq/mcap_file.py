@@ -34,6 +34,7 @@ recording replays without the files it was made with, and a metadata record
 """
 
 import json
+import os
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import IO, Any, cast
@@ -146,20 +147,34 @@ class EncodedBatch:
         return cls(raw, len(frames), frames[0].t_s if frames else 0.0, estimates, signals)
 
     def split(self, t_s: float) -> tuple["EncodedBatch", "EncodedBatch"]:
-        """What came before frame time ``t_s``, and the rest (frames are in time order)."""
+        """What came before the first frame at or after frame time ``t_s``, and the rest,
+        cut there and never sorted: after a clock stepped back within the batch, the
+        frames after the step (earlier by their time) stay behind the frame they followed
+        (sorted by time, they went into the file before it, and replay read them out of
+        order). Estimates and signals are cut at their first at or after ``t_s``.
+
+        >>> frames = [RawFrame(t, 0x100, False, b"") for t in (9.0, 10.0, 3.0)]
+        >>> head, tail = EncodedBatch._of_frames(frames, [], []).split(10.0)
+        >>> [f.t_s for f in can_batch.decode(head.raw)], [f.t_s for f in can_batch.decode(tail.raw)]
+        ([9.0], [10.0, 3.0])
+        """
         frames = list(can_batch.decode(self.raw)) if self.raw else []
+        cut = _first_at([frame.t_s for frame in frames], t_s)
+        cut_estimates = _first_at([estimate[1] for estimate in self.estimates], t_s)
+        cut_signals = _first_at([signal[1] for signal in self.signals], t_s)
         return (
             self._of_frames(
-                [f for f in frames if f.t_s < t_s],
-                [e for e in self.estimates if e[1] < t_s],
-                [s for s in self.signals if s[1] < t_s],
+                frames[:cut], self.estimates[:cut_estimates], self.signals[:cut_signals]
             ),
             self._of_frames(
-                [f for f in frames if f.t_s >= t_s],
-                [e for e in self.estimates if e[1] >= t_s],
-                [s for s in self.signals if s[1] >= t_s],
+                frames[cut:], self.estimates[cut_estimates:], self.signals[cut_signals:]
             ),
         )
+
+
+def _first_at(times: Sequence[float], t_s: float) -> int:
+    """Index of the first of ``times`` at or after ``t_s``; their number if none is."""
+    return next((i for i, t in enumerate(times) if t >= t_s), len(times))
 
 
 def encoded_estimates(result: FrameResult) -> list[tuple[str, float, bytes]]:
@@ -198,6 +213,11 @@ class CountingFile:
 
     def tell(self) -> int:
         return self.count
+
+    @property
+    def deleted(self) -> bool:
+        """The file has no name left (deleted while written: what goes in is lost)."""
+        return os.fstat(self._raw.fileno()).st_nlink == 0
 
     def flush(self) -> None:
         self._raw.flush()
@@ -250,6 +270,11 @@ class McapFile:
         self.message_count = 0
         #: Frame time (ns) of the first message, for rotation by duration.
         self.first_log_time_ns: int | None = None
+        #: What the messages not yet in a chunk on the stream hold (frames of a batch, 1
+        #: for any other item): lost with the chunk if writing it fails (a full disk).
+        self.unwritten = 0
+        #: What every message added holds, counted as :attr:`unwritten` is.
+        self.items = 0
 
     def __enter__(self) -> "McapFile":
         return self
@@ -283,7 +308,7 @@ class McapFile:
         encoded = batch if isinstance(batch, EncodedBatch) else EncodedBatch.of(batch)
         if encoded.frame_count:
             channel = self._channels.get(RAW_TOPIC) or self._raw_channel()
-            self._add(channel, _ns(encoded.first_t_s), encoded.raw)
+            self._add(channel, _ns(encoded.first_t_s), encoded.raw, encoded.frame_count)
         # One message per leg and batch: mcap's add_message costs more than encoding an
         # estimate, and the batch is only the published bytes joined.
         by_leg: dict[str, list[tuple[float, bytes]]] = {}
@@ -296,13 +321,13 @@ class McapFile:
             )
             joined = b",".join(data for _, data in estimates)
             payload = b'{"leg":' + orjson.dumps(leg) + b',"estimates":[' + joined + b"]}"
-            self._add(channel, _ns(estimates[0][0]), payload)
+            self._add(channel, _ns(estimates[0][0]), payload, 0)  # counted with the frames
         for message, t_s, data in encoded.signals:
             topic = SIGNALS_TOPIC.format(message=message)
             channel = self._channels.get(topic) or self._json_channel(
                 topic, f"portal.signals.{message}", None
             )
-            self._add(channel, _ns(t_s), data)
+            self._add(channel, _ns(t_s), data, 0)
 
     def write_result(self, result: FrameResult, *, signals: bool = True) -> None:
         """One processed frame as a batch of its own (offline writers and tests; the
@@ -360,10 +385,16 @@ class McapFile:
         payload: payloads.JsonObject,
     ) -> None:
         channel = self._channels.get(topic) or self._json_channel(topic, schema_name, schema)
-        self._add(channel, t_ns, payloads.json_bytes(payload))
+        self._add(channel, t_ns, payloads.json_bytes(payload), 1)
 
-    def _add(self, channel: int, t_ns: int, data: bytes) -> None:
+    def _add(self, channel: int, t_ns: int, data: bytes, items: int) -> None:
+        """Add a message holding ``items`` (see :attr:`unwritten`)."""
+        self.unwritten += items
+        self.items += items
+        at = self._stream.tell()
         self._writer.add_message(channel_id=channel, log_time=t_ns, publish_time=t_ns, data=data)
+        if self._stream.tell() != at:  # it filled the chunk, which went out with it
+            self.unwritten = 0
         self.message_count += 1
         if self.first_log_time_ns is None:
             self.first_log_time_ns = t_ns
@@ -404,10 +435,15 @@ class McapFile:
         self._channels[topic] = channel
         return channel
 
+    def lost(self) -> None:
+        """The file is gone (deleted while written): all it holds counts as unwritten."""
+        self.unwritten = self.items
+
     def flush(self) -> None:
         """Write out the chunk being built, so that a crash cannot lose it."""
         if self._started and not self._closed:
             self._writer.flush()  # type: ignore[no-untyped-call]
+            self.unwritten = 0
 
     def close(self) -> None:
         """Finish the file: last chunk, indexes and summary. Idempotent."""
@@ -417,3 +453,4 @@ class McapFile:
         if self._started:
             self._writer.finish()  # type: ignore[no-untyped-call]
             self._stream.flush()
+            self.unwritten = 0

@@ -13,11 +13,12 @@ from functools import partial
 
 from cantools.database.can import Database
 
-from daq.frames import RawFrame
+from daq.frames import RawFrame, error_frame_kinds
 from daq.pose import PoseTracker
 from dbc.decoding import DecodedFrame, FrameDecoder, is_j1939
 from dbc.errors import ErrorFrameError, FrameError, FrameLengthError, RemoteFrameError
 from dbc.machine import MachineConfig
+from dbc.protection import COUNTER_JUMP, COUNTER_REPEAT, CRC_FAULT
 from dbc.samples import LegSampler
 from dbc.signal_range import value_range
 from estimator.leg import LegEstimate
@@ -29,6 +30,22 @@ logger = logging.getLogger(__name__)
 
 #: Frames of a leg message from a J1939 source address no chamber is mapped to.
 UNMAPPED_SOURCE = "unmapped_source"
+#: The kinds of :attr:`Pipeline.bad` counted for frames that were decoded (a message of
+#: the DBC from a sender it maps: its protection failed); every other kind is a frame
+#: refused (see :func:`decoded_frames`).
+DECODED_FAULTS = frozenset({CRC_FAULT, COUNTER_JUMP, COUNTER_REPEAT})
+
+
+def decoded_frames(frames: int, bad: Mapping[str, int]) -> int:
+    """Of ``frames`` processed, those of the DBC's messages from senders it maps (their
+    CRC or counter may have failed), given the pipeline's ``bad`` counts: not the unknown
+    IDs, error, remote and FD frames, wrong lengths, unmapped J1939 senders, nor frames
+    lost to a bug. Worked out from the counters when asked, nothing per frame.
+
+    >>> decoded_frames(1000, {"error_frame": 900, "unknown_id": 60, "crc": 3})
+    40
+    """
+    return frames - sum(count for kind, count in bad.items() if kind not in DECODED_FAULTS)
 
 
 @fast_init
@@ -78,6 +95,9 @@ class Pipeline:
         self.leg_faults: defaultdict[str, Counter[str]] = defaultdict(Counter)
         #: Frames lost on the way, as the rolling counters of the frames after them tell.
         self.frames_lost = 0
+        #: What the error frames reported (:func:`~daq.frames.error_frame_kinds`: bus off,
+        #: rx overflow, ...), by kind.
+        self.error_frame_kinds: Counter[str] = Counter()
         # The unmapped senders seen (message, source address): each is logged once.
         self._unmapped: set[tuple[str, int | None]] = set()
         # The messages and lengths of the wrong_dlc frames seen: each is logged once.
@@ -113,6 +133,7 @@ class Pipeline:
         self.estimator.observe(frame.t_s)
         try:
             if frame.is_error_frame:
+                self.error_frame_kinds.update(error_frame_kinds(frame))
                 raise ErrorFrameError(frame.arbitration_id, "CAN error frame")
             if frame.is_remote_frame:
                 raise RemoteFrameError(frame.arbitration_id, "remote frame, no data")

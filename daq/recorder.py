@@ -258,7 +258,7 @@ class Recorder(Worker):
         if isinstance(item, EncodedBatch) and item.frame_count:
             # A batch spanning the file's duration: its later frames begin the next file.
             head, tail = item.split(self._rotation_t_s(item.first_t_s))
-            if tail.frame_count:
+            if head.frame_count and tail.frame_count:
                 self._write_to_file(head)
                 self._write(tail)
                 return
@@ -315,15 +315,18 @@ class Recorder(Worker):
             action()
         except (OSError, RecordingError) as exc:
             self.errors += 1
-            self._abandon_file()
             self._retry_at = time.monotonic() + RETRY_AFTER_S
-            if self.stopped_t_s is None:
+            stopping = self.stopped_t_s is None
+            if stopping:
                 self.stopped_t_s = self._now()
                 self._dropped_at_stop = self.dropped
+            lost = self._abandon_file()  # counted as dropped, in this gap
+            if stopping:
                 logger.error(
-                    "recording stopped: %s; check free space and the rights on %s; "
-                    "retrying every %.0f s",
+                    "recording stopped: %s; %d items lost from the file; "
+                    "check free space and the rights on %s; retrying every %.0f s",
                     _one_line(exc),
+                    lost,
                     self.directory,
                     RETRY_AFTER_S,
                 )
@@ -332,10 +335,18 @@ class Recorder(Worker):
 
     def _flush(self) -> None:
         self._last_flush = time.monotonic()
-        if self._file is not None:
-            self._file.flush()
+        mcap, stream = self._file, self._stream
+        if mcap is not None and stream is not None:
+            mcap.flush()
+            if stream.deleted:  # writing on would lose everything, unseen
+                mcap.lost()
+                raise RecordingError(self.paths[-1], "deleted while it was being written")
 
     def _open(self, t_s: float) -> None:
+        try:  # a directory removed while recording is made again
+            self.directory.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise RecordingError(self.directory, f"cannot create it: {exc.strerror}") from exc
         path = self.directory / file_name(self._machine_id, t_s)
         serial = 0
         while path in self.paths or path.exists():
@@ -396,22 +407,37 @@ class Recorder(Worker):
         self._file = self._stream = None
         if mcap is None or stream is None:
             return
+        path = self.paths[-1]
         try:
             mcap.close()
         except Exception as exc:  # noqa: BLE001 -- close runs on shutdown: log, never raise
-            self.errors += 1
-            logger.error("cannot finish %s: %s", self.paths[-1], _one_line(exc))
+            self._lose_unwritten(mcap, f"cannot finish {path}: {_one_line(exc)}")
+        else:
+            if stream.deleted:
+                mcap.lost()
+                self._lose_unwritten(mcap, f"{path} was deleted while it was being written")
         finally:
             stream.close()
 
-    def _abandon_file(self) -> None:
-        stream = self._stream
+    def _lose_unwritten(self, mcap: McapFile, what: str) -> None:
+        """Count what ``mcap`` did not get onto the disk as dropped, with one line."""
+        self.errors += 1
+        self.dropped += mcap.unwritten
+        logger.error("%s; %d items lost from the file", what, mcap.unwritten)
+
+    def _abandon_file(self) -> int:
+        """Give the file up after a write error; what the chunk it was building held
+        is lost, and counted as dropped (returned)."""
+        mcap, stream = self._file, self._stream
         self._file = self._stream = None
+        lost = mcap.unwritten if mcap is not None else 0
+        self.dropped += lost
         if stream is not None:
             try:
                 stream.close()
             except OSError:
                 pass
+        return lost
 
 
 def _first_frame_t_s(item: Item) -> float | None:

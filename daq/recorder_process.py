@@ -16,7 +16,10 @@ forked) and stands, for the service, in the recorder's place:
 - The child's recorder takes from that queue itself and shares its counters (dropped,
   errors, failing, ...), the current file and the gaps through shared memory, which
   the status reads without waiting on the child.
-- The child ignores SIGINT and SIGTERM (a terminal and systemd signal the whole group):
+- The child ignores SIGINT, SIGTERM and SIGHUP (a terminal and systemd signal the whole
+  group), blocked from its very start (:data:`GROUP_SIGNALS`: one landing while it
+  imports, before it could ignore them, killed it with a traceback, and the service
+  exited 1 as if the recorder could not start):
   :meth:`RecorderProcess.close` waits until the child has taken every item, then tells
   it to stop (a flag in shared memory: a ``multiprocessing.Event`` would wait forever
   on a child killed while waiting on it); it finishes the file (last chunk, summary) and
@@ -44,7 +47,8 @@ import queue
 import signal
 import time
 from collections import deque
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
 from multiprocessing.context import SpawnProcess
 from pathlib import Path
 from typing import Any
@@ -59,6 +63,10 @@ from daq.subcommand import setup_logging
 
 logger = logging.getLogger(__name__)
 
+#: What a terminal (Ctrl-C, a hang-up) or systemd sends the whole process group: the
+#: child ignores them, the service stops it (as multiprocessing's resource tracker, the child
+#: inherits them blocked, so that none lands before it ignores them).
+GROUP_SIGNALS = frozenset({signal.SIGINT, signal.SIGTERM, signal.SIGHUP})
 #: How often the child shares its counters (and checks that its parent lives).
 SHARE_PERIOD_S = 0.25
 #: Longest wait for the child to open its first file.
@@ -209,8 +217,14 @@ class RecorderProcess:
         """Start the child; return once it records. Raises :class:`RecordingError`."""
         if self._process is not None:
             return
-        self._items = _CONTEXT.Queue(maxsize=self.settings.queue_size)
-        self._shared = shared = _Shared()
+        # Blocked when a child starts, they stay blocked in it: in the recorder's process
+        # until it ignores them, in multiprocessing's resource tracker (started for the
+        # queue's semaphores) for good, as it unblocks only SIGINT and SIGTERM (SIGHUP
+        # killed it, and the service relaunched it with a traceback per semaphore). Twice:
+        # the tracker's start unblocks SIGINT and SIGTERM in this thread.
+        with _group_signals_blocked():
+            self._items = _CONTEXT.Queue(maxsize=self.settings.queue_size)
+            self._shared = shared = _Shared()
         self._process = _CONTEXT.Process(
             target=_child_main,
             name="recorder",
@@ -226,7 +240,8 @@ class RecorderProcess:
             ),
             daemon=True,
         )
-        self._process.start()
+        with _group_signals_blocked():
+            self._process.start()
         deadline = time.monotonic() + START_TIMEOUT_S
         while shared.get("state") == 0:
             if not self._process.is_alive() or time.monotonic() > deadline:
@@ -377,6 +392,16 @@ def _leave_idle(pid: int) -> None:
             return
 
 
+@contextmanager
+def _group_signals_blocked() -> Iterator[None]:
+    """:data:`GROUP_SIGNALS` blocked in this thread (and in a child started meanwhile)."""
+    blocked = signal.pthread_sigmask(signal.SIG_BLOCK, GROUP_SIGNALS)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
+
+
 def _child_main(
     settings: RecordingSettings,
     database: Database,
@@ -388,8 +413,9 @@ def _child_main(
     log_level: str,
 ) -> None:
     """The child process: records what comes through ``items`` until the ``stop`` flag."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    for signum in GROUP_SIGNALS:
+        signal.signal(signum, signal.SIG_IGN)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, GROUP_SIGNALS)  # those pending are dropped
     setup_logging(log_level)
     try:
         os.sched_setscheduler(0, os.SCHED_IDLE, os.sched_param(0))

@@ -14,12 +14,18 @@ recording of an earlier release) is a run of its own.
 
 :func:`run_files` takes files and directories (a directory stands for its ``*.mcap``
 files), checks that they are one run, and orders them; :func:`runs` groups the files
-of many runs (a campaign) the same way. A file missing from the
+of many runs (a campaign) the same way. A file given twice (a directory and a file in
+it, a symbolic link) counts once, and so does a copy of a file (a backup folder in the
+campaign's tree: the same bytes, found by size and then content), with a warning line:
+counted twice, a copy of a run without run metadata doubled its rows, and one of a run
+with it stopped everything as "two files claim one index". A file missing from the
 middle or the start of a run is logged: the estimates right after it differ from
 the live ones until the median has refilled.
 """
 
+import filecmp
 import logging
+import os
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -111,17 +117,52 @@ def runs(paths: Sequence[Path]) -> list[tuple[str, list[Path]]]:
     claiming one index of a run.
     """
     grouped: dict[tuple[str, str] | Path, list[RunFile]] = {}
-    for file in (read_run_file(path) for path in expand(paths)):
+    for file in _without_copies([read_run_file(path) for path in expand(paths)]):
         grouped.setdefault(file.run or file.path, []).append(file)
     return [(_run_name(key), _ordered(members)) for key, members in grouped.items()]
+
+
+def _without_copies(files: list[RunFile]) -> list[RunFile]:
+    """``files`` without the ones given twice and without copies of a file before them.
+
+    Only files of one size (and, with run metadata, of one run and index) are compared,
+    so a campaign without copies reads nothing more than its files' sizes.
+    """
+    kept: list[RunFile] = []
+    by_slot: dict[tuple[tuple[str, str] | None, int, int], list[RunFile]] = {}
+    for file in files:
+        try:
+            size = file.path.stat().st_size
+        except OSError as exc:
+            raise RecordingError(file.path, f"cannot open it: {exc.strerror or exc}") from exc
+        slot = by_slot.setdefault((file.run, file.index, size), [])
+        original = next((other for other in slot if _same_bytes(other.path, file.path)), None)
+        if original is None:
+            slot.append(file)
+            kept.append(file)
+        elif not os.path.samefile(original.path, file.path):
+            logger.warning("%s: left out, a copy of %s (the same bytes)", file.path, original.path)
+    return kept
+
+
+def _same_bytes(a: Path, b: Path) -> bool:
+    try:
+        return os.path.samefile(a, b) or filecmp.cmp(a, b, shallow=False)
+    except OSError as exc:
+        raise RecordingError(b, f"cannot read it: {exc.strerror or exc}") from exc
 
 
 def _ordered(files: list[RunFile]) -> list[Path]:
     """The files of one run by index; a missing file is logged."""
     ordered = sorted(files, key=lambda file: file.index)
     indexes = [file.index for file in ordered]
-    if len(set(indexes)) != len(indexes):
-        raise RecordingError(files[0].path, f"two files claim one index of the run: {indexes}")
+    for first, second in zip(ordered, ordered[1:], strict=False):
+        if first.index == second.index:
+            raise RecordingError(
+                second.path,
+                f"claims file {second.index} of the run as {first.path} does, with other "
+                "bytes (a recovered copy of a cut file, say): give one of the two",
+            )
     missing = sorted(set(range(indexes[-1] + 1)) - set(indexes))
     if ordered[0].run is not None and missing:
         logger.warning(

@@ -8,7 +8,7 @@ with that file where zenohd is not installed (bench, tests); without ``--config`
 the one shipped in the package (:data:`DEFAULT_CONFIG`), so that it runs from a wheel.
 
 The file's ``mode`` must be ``router`` (or absent). Exit status: 0 after
-SIGINT/SIGTERM; 2 for a file that is not a valid Zenoh config or asks for
+SIGINT/SIGTERM; 2 for a file that is not a valid Zenoh config (its access control too) or asks for
 another mode (one line on stderr); 1 when the session cannot be opened (e.g. the
 listen port is taken).
 """
@@ -75,11 +75,15 @@ def router_main(args: Sequence[str]) -> int:
     try:
         with (
             StopSignal() as stop,  # SIGTERM, SIGINT
-            open_config_session(config, "check listen in the router's config") as session,
+            open_config_session(
+                config, "check listen in the router's config", options.config
+            ) as session,
         ):
             sys.stdout.write(f"router {session.info.zid()} listening on {' '.join(endpoints)}\n")
             sys.stdout.flush()
             stop.wait()
+    except ConfigError as exc:  # an access control Zenoh refuses
+        return fail(exc, 2)
     except PortalDaqError as exc:
         return fail(exc, 1)
     return 0

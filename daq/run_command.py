@@ -1,7 +1,7 @@
 """``portal-daq run --config FILE``: the DAQ service (also the bare ``portal-daq --config FILE``).
 
 Argument parsing and exit codes only; the work is in :mod:`daq.runner`. Exit status:
-0 after a clean stop (SIGTERM, SIGINT), 2 for a bad configuration or DBC, 1 when a
+0 after a clean stop (SIGTERM, SIGINT, SIGHUP), 2 for a bad configuration or DBC, 1 when a
 resource cannot be had at start (Zenoh endpoint, recording directory); the reason is
 one line on stderr.
 """
@@ -22,7 +22,7 @@ def run_main(args: Sequence[str]) -> int:
     parser = argparse.ArgumentParser(
         prog=f"{PROG} run",
         description="Run the DAQ service: CAN frames in, soil-pressure estimates published "
-        "on Zenoh and recorded to MCAP, until SIGTERM or SIGINT.",
+        "on Zenoh and recorded to MCAP, until SIGTERM, SIGINT or SIGHUP.",
     )
     parser.add_argument(
         "--config",
@@ -39,7 +39,7 @@ def run_main(args: Sequence[str]) -> int:
     except (ConfigError, DbcError) as exc:
         return fail(exc, 2)
     try:
-        with tuned_interpreter(), StopSignal() as stop:  # SIGTERM, SIGINT
+        with tuned_interpreter(), StopSignal() as stop:  # SIGTERM, SIGINT, SIGHUP
             run_service(config, stop)
     except (ConfigError, DbcError) as exc:
         return fail(exc, 2)

@@ -29,13 +29,15 @@ bus, and while the bus is down or being reopened (the service repairs that
 itself, so a restart by systemd would not help); the consumer's loop turns at
 least every 0.1 s, and stops turning only when it hangs on a frame.
 
-Healthy, on the status topic and STATUS= (:func:`problems`): alive, and during the
-last status period the recorder was recording, nothing was lost anywhere (every
-key of ``dropped``, ``dropped.kernel`` and ``dropped.publish_failed`` included,
-``bad.internal_error`` and ``recording.failed_items``: :func:`losses`), every configured
-Zenoh ``connect`` endpoint was reached, and frames came in (none for a whole period, or
-for the legs' stale time when that is longer, is a problem). ``problems`` lists what is wrong, one
-short text each. None of these stops the watchdog (a restart would not help).
+Healthy, on the status topic and STATUS= (:func:`problems`): alive, the bus neither down
+nor absent, and during the last status period the recorder was recording, nothing was
+lost anywhere (every key of ``dropped``, ``dropped.kernel`` and ``dropped.publish_failed``
+included, ``bad.internal_error`` and ``recording.failed_items``: :func:`losses`), every
+configured Zenoh ``connect`` endpoint was reached, no other service publishes under the
+key prefix (:mod:`daq.prefix_owners`), and frames of the DBC came in (none
+for a whole period, or for the legs' stale time when that is longer, is a problem).
+``problems`` lists what is wrong, one short text each. None of these stops the watchdog
+(a restart would not help).
 """
 
 import logging
@@ -43,16 +45,17 @@ import math
 import queue
 import re
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 
 import zenoh
 
 from daq.bus_reader import BusFactory, BusReader, LinkProbe
 from daq.consumer import Consumer
-from daq.frames import BusEvent, RawFrame
+from daq.frames import BUS_ABSENT, BUS_DOWN, BusEvent, RawFrame
 from daq.leg_restarts import warn_restarting_legs
 from daq.payloads import JsonObject
-from daq.pipeline import Pipeline
+from daq.pipeline import Pipeline, decoded_frames
+from daq.prefix_owners import PrefixOwners
 from daq.publisher import ZenohPublisher
 from daq.recorder import Recorder
 from daq.recorder_process import RecorderProcess
@@ -62,7 +65,7 @@ from daq.service_config import ServiceConfig
 from daq.sim_truth import TRUTH_KEY, TruthSubscriber
 from daq.socketcan import RCVBUF_BYTES_PER_FRAME
 from daq.stop_signal import Stop
-from daq.zenoh_links import zenoh_status
+from daq.zenoh_links import Outages, zenoh_status
 from daq.zenoh_session import connect_endpoints
 
 logger = logging.getLogger(__name__)
@@ -143,18 +146,34 @@ class Service:
             now=now,
         )
         self.session = session
+        #: Other services publishing under the same key prefix (one machine id twice).
+        self.owners = PrefixOwners(session, config.zenoh.key_prefix)
         #: The endpoints the session connects to (``[zenoh] connect`` or the JSON5 file).
         self.connect = connect_endpoints(config.zenoh, config.source)
-        #: No frame for this long is a problem: the legs' stale time (at least a period).
-        self.silence_s = max(
-            config.publish.status_period_s,
-            config.machine.estimator.stale_after_cycles
-            * max((leg.cycle_time_s for leg in config.machine.legs.values()), default=0.0),
+        #: Times they went unreached, and for how long.
+        self._outages = Outages()
+        #: No frame for this long is a problem: the legs' stale time (at least a period),
+        #: and the poll period, for which frames wait in the socket before they are taken:
+        #: without it, statuses between two wake-ups 250 ms apart said "no frame for 0.1 s".
+        longest_cycle_s = max(
+            (leg.cycle_time_s for leg in config.machine.legs.values()), default=0.0
+        )
+        self.silence_s = (
+            max(
+                config.publish.status_period_s,
+                config.machine.estimator.stale_after_s(longest_cycle_s),
+            )
+            + config.service.poll_period_s
         )
         self._started_monotonic = time.monotonic()
         self._rate_mark = (time.monotonic(), 0)
         self._frames_per_s = 0.0
-        self._last_frame_monotonic = time.monotonic()
+        #: When frames of the DBC (:func:`~daq.pipeline.decoded_frames`) last came in, and
+        #: any frame at all (monotonic); their count at the previous status.
+        self._last_frame_monotonic = self._last_heard_monotonic = time.monotonic()
+        self._decoded_mark = 0
+        #: The pipeline's error frames by kind at the previous status: a rise is a problem.
+        self._error_frames_mark: dict[str, int] = {}
         #: :func:`losses` at the previous status: what rose since is a problem.
         self._lost_mark: dict[str, int] = {}
         self._reported_problems: list[str] = []
@@ -163,6 +182,8 @@ class Service:
         #: When the first frame was seen (monotonic), for :meth:`_truth_missing`.
         self._first_frame_monotonic: float | None = None
         self._truth_warned = False
+        #: The other services under the key prefix already told of.
+        self._owners_told: set[str] = set()
         #: The legs told of restarting their filter at every sample (once each).
         self._restarting_told: set[str] = set()
         self._started = False
@@ -182,6 +203,7 @@ class Service:
         self._started_monotonic = time.monotonic()
         self._rate_mark = (self._started_monotonic, 0)
         self.publisher.start()
+        self.owners.start()
         if self.recorder is not None:
             self.recorder.start()
         if self.truth is not None:
@@ -190,7 +212,7 @@ class Service:
         self.reader.start()
         # Silence is judged from now: starting (the recorder's process takes ~0.5 s to
         # spawn) is no time a frame could have come in.
-        self._last_frame_monotonic = time.monotonic()
+        self._last_frame_monotonic = self._last_heard_monotonic = time.monotonic()
 
     def close(self) -> None:
         """Stop receiving, drain the queues, finish the recording. Idempotent."""
@@ -204,6 +226,7 @@ class Service:
             self.reader.close()
             self.consumer.close()
         self.publisher.close()
+        self.owners.close()
         if self.truth is not None:
             self.truth.close()
         if self.recorder is not None:
@@ -275,15 +298,23 @@ class Service:
             self._frames_per_s = (received - mark_received) / (now - mark_t)
         self._rate_mark = (now, received)
         if received != mark_received:
-            self._last_frame_monotonic = now
+            self._last_heard_monotonic = now
             if self._first_frame_monotonic is None:
                 self._first_frame_monotonic = now
+        # Frames before their kinds: a frame counted in both is never taken for decoded.
+        processed = self.pipeline.frames
+        bad = dict(self.pipeline.bad)
+        # Silence is of the DBC's frames: error frames of a bus-off controller or a
+        # foreign peer's flood of unknown IDs are no sensor talking.
+        decoded = decoded_for_sure(processed, bad)
+        if decoded > self._decoded_mark:
+            self._decoded_mark = decoded
+            self._last_frame_monotonic = now
         self._truth_missing(now)
         warn_restarting_legs(self.pipeline, self._restarting_told)
         # Read once: the status must show the very count its health was judged on.
         kernel_dropped = self.reader.kernel_dropped
         self._kernel_losses(kernel_dropped)  # logs a rise; health: see problems()
-        bad = dict(self.pipeline.bad)
         recorder = self.recorder
         status: JsonObject = {
             "t": self._now(),
@@ -301,7 +332,7 @@ class Service:
             "frames_lost": self.pipeline.frames_lost,
             "frames": {
                 "received": received,
-                "processed": self.pipeline.frames,
+                "processed": processed,
                 "unknown": bad.get("unknown_id", 0),
                 "bad": sum(bad.values()),
                 "dropped": self.reader.dropped + kernel_dropped,
@@ -335,16 +366,26 @@ class Service:
             "leg_faults": {
                 leg: dict(faults) for leg, faults in sorted(self.pipeline.leg_faults.items())
             },
-            "zenoh": zenoh_status(self.session, self.connect),
+            "zenoh": zenoh_status(self.session, self.connect, self._outages, now)
+            | {"same_prefix": self.owners.others()},
         }
+        self._tell_other_owners(status["zenoh"]["same_prefix"])
+        error_frames = dict(self.pipeline.error_frame_kinds)
         found = problems(
             status,
             alive=self.alive(),
+            error_frames={
+                kind: n - self._error_frames_mark.get(kind, 0)
+                for kind, n in error_frames.items()
+                if n > self._error_frames_mark.get(kind, 0)
+            },
             lost_before=self._lost_mark,
             silent_s=now - self._last_frame_monotonic,
+            heard_s=now - self._last_heard_monotonic,
             silence_s=self.silence_s,
         )
         self._lost_mark = losses(status)
+        self._error_frames_mark = error_frames
         kinds = [_NUMBER.sub("N", problem) for problem in found]  # "dropped.rx +N"
         if kinds != self._reported_problems:
             if found:
@@ -355,6 +396,19 @@ class Service:
         status["healthy"] = not found
         status["problems"] = found
         return status
+
+    def _tell_other_owners(self, others: list[str]) -> None:
+        """One line per other service seen under the key prefix, with what to do."""
+        for zid in sorted(set(others) - self._owners_told):
+            logger.warning(
+                "another service publishes under %s (zenoh session %s): give each machine "
+                "its own [machine] id (or [zenoh] key_prefix); a fleet view shows the two "
+                "as one machine. (This service's previous run, if it was killed just now, "
+                "goes by itself within the router's lease.)",
+                self.config.zenoh.key_prefix,
+                zid,
+            )
+        self._owners_told = set(others)
 
     def _truth_missing(self, now: float) -> None:
         """Logs once when ``[recording] truth`` is on and frames have come in for
@@ -433,32 +487,79 @@ def losses(status: JsonObject) -> dict[str, int]:
     return found
 
 
+#: Frames the consumer may have counted as processed and not yet by kind when a status
+#: reads the counters: the one it is processing (the pipeline counts a frame, then its
+#: kind once decoding has refused it).
+IN_FLIGHT_FRAMES = 1
+
+
+def decoded_for_sure(processed: int, bad: Mapping[str, int]) -> int:
+    """Of ``processed`` frames, those of the DBC's messages for sure, the counters read
+    while the consumer runs (:func:`~daq.pipeline.decoded_frames` less the frame it may
+    be in the middle of). Read as they were, a foreign frame counted and not yet refused
+    was taken for a sensor's: during a flood of unknown IDs or error frames, a status now
+    and then judged the bus talking, and the next ones said "no frame for 0.3 s" where
+    "no frame of the DBC" was meant (and healthy, when no other problem was).
+
+    >>> decoded_for_sure(4001, {"unknown_id": 4000})  # the 4001st not refused yet
+    0
+    >>> decoded_for_sure(4012, {"unknown_id": 4000})
+    11
+    """
+    return max(0, decoded_frames(processed, bad) - IN_FLIGHT_FRAMES)
+
+
 def problems(
     status: JsonObject,
     *,
     alive: bool,
     lost_before: dict[str, int],
     silent_s: float,
+    heard_s: float,
     silence_s: float,
+    error_frames: Mapping[str, int] = {},
 ) -> list[str]:
     """What makes ``status`` unhealthy (see the module docstring); empty when healthy.
-    ``lost_before`` is :func:`losses` of the previous status.
+    ``lost_before`` is :func:`losses` of the previous status; ``silent_s`` the time since
+    a frame of the DBC came in, ``heard_s`` since any frame did; ``error_frames`` what
+    the error frames of the period reported, by kind (a CAN bus in order has none).
 
     >>> problems({"dropped": {"rx": 5, "kernel": 2}, "recording": None,
     ...           "zenoh": {"unreached": []}}, alive=True, lost_before={"dropped.rx": 5},
-    ...          silent_s=0.1, silence_s=1.0)
+    ...          silent_s=0.1, heard_s=0.1, silence_s=1.0)
     ['dropped.kernel +2']
+    >>> problems({"dropped": {}, "recording": None, "zenoh": {"unreached": []}},
+    ...          alive=True, lost_before={}, silent_s=3.0, heard_s=0.0, silence_s=1.0)
+    ['no frame of the DBC for 3.0 s, only frames it does not use (see bad)']
+    >>> problems({"dropped": {}, "recording": None, "zenoh": {"unreached": []}},
+    ...          alive=True, lost_before={}, silent_s=0.0, heard_s=0.0, silence_s=1.0,
+    ...          error_frames={"rx overflow": 2, "bus off": 1})
+    ['CAN controller: rx overflow +2, bus off +1 (error frames)']
     """
     found = [] if alive else ["a service thread hangs or died"]
+    bus = status.get("bus") or {}
+    if bus.get("state") in (BUS_DOWN, BUS_ABSENT):  # no frame can come in
+        found.append(f"bus {bus['state']}: {bus['reason']}")
     recording = status.get("recording")
     if recording is not None and recording.get("failing"):
         found.append("recording stopped (write error)")
     for name, count in losses(status).items():
         if count > lost_before.get(name, 0):
             found.append(f"{name} +{count - lost_before.get(name, 0)}")
+    if error_frames:
+        reported = ", ".join(f"{kind} +{n}" for kind, n in error_frames.items())
+        found.append(f"CAN controller: {reported} (error frames)")
     found += [f"zenoh connect {endpoint} not reached" for endpoint in status["zenoh"]["unreached"]]
+    found += [
+        f"another service publishes under this key prefix (zenoh session {zid})"
+        for zid in status["zenoh"].get("same_prefix", ())
+    ]
     if silent_s >= silence_s:
-        found.append(f"no frame for {silent_s:.1f} s")
+        found.append(
+            f"no frame for {silent_s:.1f} s"
+            if heard_s >= silent_s
+            else f"no frame of the DBC for {silent_s:.1f} s, only frames it does not use (see bad)"
+        )
     return found
 
 

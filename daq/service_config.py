@@ -22,8 +22,8 @@ from cantools.database.can import Database
 from dbc.machine import MachineConfig, machine_from_toml, read_toml
 from dbc.toml_table import TomlTable
 
-#: A Zenoh key expression without wildcards: chunks joined by '/'.
-KEY_PREFIX_PATTERN = r"[^/*$?#\s]+(/[^/*$?#\s]+)*"
+#: What Zenoh keys reserve (wildcards ``*``, ``$*``; ``?`` and ``#``, forbidden).
+KEY_RESERVED = "*$?#"
 ZENOH_MODES = ("peer", "client", "router")
 COMPRESSIONS = ("zstd", "lz4", "none")
 
@@ -285,8 +285,50 @@ def _zenoh(table: TomlTable, config_dir: Path, machine_id: str) -> ZenohSettings
         connect=table.strings("connect", ()),
         listen=table.strings("listen", ()),
         multicast_scouting=multicast,
-        key_prefix=table.string("key_prefix", f"portal/{machine_id}", pattern=KEY_PREFIX_PATTERN),
+        key_prefix=_key_prefix(table, f"portal/{machine_id}"),
     )
+
+
+def _key_prefix(table: TomlTable, default: str) -> str:
+    prefix = table.string("key_prefix", default)
+    problem = key_prefix_problem(prefix)
+    if problem is not None:
+        raise table.error("key_prefix", f"{prefix!r} {problem}")
+    return prefix
+
+
+def key_prefix_problem(prefix: str) -> str | None:
+    """Why ``prefix`` cannot start a service's keys (``[zenoh] key_prefix``, a fleet
+    view's ``--root``); None when it can: a Zenoh key without wildcards, its chunks
+    joined by ``/``.
+
+    A chunk that starts with ``@`` is one of Zenoh's verbatim chunks, which no wildcard
+    matches: the access control's ``portal/**`` let puts under ``portal/@m1`` pass,
+    and the fleet views' ``portal/*`` never found it.
+
+    >>> key_prefix_problem("portal/pam-1") is None
+    True
+    >>> key_prefix_problem("portal/*")
+    "has '*' (wildcards, '?', '#' and spaces are no part of a key prefix)"
+    >>> key_prefix_problem("portal/")
+    'has an empty chunk (a leading, trailing or double /)'
+    >>> key_prefix_problem("portal/@m1")[:48]
+    "has the chunk '@m1', which starts with '@': Zeno"
+    """
+    for chunk in prefix.split("/"):
+        if not chunk:
+            return "has an empty chunk (a leading, trailing or double /)"
+        reserved = [c for c in chunk if c in KEY_RESERVED or c.isspace()]
+        if reserved:
+            reason = "wildcards, '?', '#' and spaces are no part of a key prefix"
+            return f"has {reserved[0]!r} ({reason})"
+        if chunk.startswith("@"):
+            return (
+                f"has the chunk {chunk!r}, which starts with '@': Zenoh's verbatim chunks "
+                "are matched by no wildcard (the access control's portal/** nor the fleet "
+                "views' portal/*)"
+            )
+    return None
 
 
 def _publish(table: TomlTable) -> PublishSettings:

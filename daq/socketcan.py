@@ -6,6 +6,10 @@ without a trace. This socket:
 
 - takes CAN FD frames too (``CAN_RAW_FD_FRAMES``); a classic-only socket never
   sees them, the kernel drops them unseen;
+- takes the controller's error frames of every class (``CAN_RAW_ERR_FILTER``: bus off,
+  error passive, an overflow of the controller's receive buffer, no ack, ...), which a
+  socket gets only when it asks (python-can's did; this one did not, and a bus-off
+  showed nowhere);
 - asks for ``SO_RCVBUFFORCE`` (passes ``rmem_max``; needs CAP_NET_ADMIN), else
   ``SO_RCVBUF`` (clamped to ``rmem_max``), and reads back what it got
   (:attr:`SocketCanSource.rcvbuf_bytes`; Linux doubles the request for its
@@ -22,11 +26,14 @@ OS errors are raised as they are (``OSError`` with ``errno``): the reader
 import errno
 import logging
 import socket
+import struct
 import time
 
 from daq.frames import RawFrame
 from daq.socketcan_wire import (
     ANCILLARY_BYTES,
+    CAN_ERR_MASK,
+    CAN_RAW_ERR_FILTER,
     CANFD_MTU,
     SO_RCVBUFFORCE,
     SO_RXQ_OVFL,
@@ -98,6 +105,7 @@ class SocketCanSource:
         try:
             sock.setsockopt(socket.SOL_CAN_RAW, socket.CAN_RAW_FD_FRAMES, 1)
             sock.setsockopt(socket.SOL_CAN_RAW, socket.CAN_RAW_RECV_OWN_MSGS, int(self._own))
+            sock.setsockopt(socket.SOL_CAN_RAW, CAN_RAW_ERR_FILTER, struct.pack("=I", CAN_ERR_MASK))
             if self._receive_filters is not None:
                 sock.setsockopt(
                     socket.SOL_CAN_RAW, socket.CAN_RAW_FILTER, pack_filters(self._receive_filters)

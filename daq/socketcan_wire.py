@@ -10,7 +10,8 @@ Pure functions over the bytes that a ``CAN_RAW`` socket exchanges with the kerne
 - the ancillary data of each ``recvmsg``: the kernel time stamp
   (``SO_TIMESTAMPNS``) and the socket's drop counter (``SO_RXQ_OVFL``):
   :func:`parse_ancillary`;
-- receive filters (``CAN_RAW_FILTER``): :func:`pack_filters`.
+- receive filters (``CAN_RAW_FILTER``): :func:`pack_filters`; the error frames asked
+  for (``CAN_RAW_ERR_FILTER``): :data:`CAN_ERR_MASK`, every class.
 
 >>> frame = parse_frame(bytes([0x23, 0x01, 0, 0, 2, 0, 0, 0]) + bytes(8), t_s=1.5)
 >>> frame.arbitration_id, frame.data, frame.is_fd
@@ -36,7 +37,11 @@ CAN_ERR_FLAG = 0x20000000
 CAN_SFF_MASK = 0x000007FF
 CAN_EFF_MASK = 0x1FFFFFFF
 
-# Socket options Python's socket module does not name (Linux asm-generic values).
+#: Every class of error frame (bus off, controller problems, no ack, ...; linux/can/error.h).
+CAN_ERR_MASK = 0x1FFFFFFF
+
+# Socket options Python's socket module does not name (Linux values).
+CAN_RAW_ERR_FILTER: int = getattr(socket, "CAN_RAW_ERR_FILTER", 2)
 SO_RCVBUFFORCE: int = getattr(socket, "SO_RCVBUFFORCE", 33)
 SO_TIMESTAMPNS: int = getattr(socket, "SO_TIMESTAMPNS", 35)
 SO_RXQ_OVFL: int = getattr(socket, "SO_RXQ_OVFL", 40)

@@ -1,4 +1,4 @@
-"""Stopping a main loop on SIGTERM/SIGINT without taking a lock in the signal handler.
+"""Stopping a main loop on SIGTERM/SIGINT/SIGHUP without taking a lock in the signal handler.
 
 A handler that calls ``threading.Event.set()`` can hang the process: Python runs
 handlers in the main thread between byte codes, and when the signal lands while the
@@ -33,7 +33,9 @@ _SET_BYTE = 0
 
 
 class StopSignal:
-    """A stop request, made by one of ``signals`` or by :meth:`set`.
+    """A stop request, made by one of ``signals`` or by :meth:`set`: by default SIGTERM
+    (systemd), SIGINT (Ctrl-C) and SIGHUP (the terminal closed; its default action
+    killed the service without finishing its recording).
 
     A context manager (main thread only): entering installs the handlers and the
     wake-up pipe, leaving restores the handlers and wake-up fd that were there and
@@ -44,7 +46,9 @@ class StopSignal:
     ...         do_periodic_work()
     """
 
-    def __init__(self, signals: Iterable[signal.Signals] = (signal.SIGTERM, signal.SIGINT)) -> None:
+    def __init__(
+        self, signals: Iterable[signal.Signals] = (signal.SIGTERM, signal.SIGINT, signal.SIGHUP)
+    ) -> None:
         self._signals = tuple(signals)
         self._wake_bytes = frozenset({_SET_BYTE, *(int(s) for s in self._signals)})
         self._requested = False

@@ -7,6 +7,13 @@ reached when a link goes to its address: literally, or (for a host name) to one 
 the addresses the name resolves to. The status topic shows the result next to the
 connected routers and peers (``session.info``), and ``healthy`` is false while a
 configured endpoint is not reached.
+
+Those statuses reach nobody through the link that is down: a site router that
+restarts takes the fleet's view of the machine with it, and the statuses after the
+link is back said nothing of it. :class:`Outages` counts the times a configured
+endpoint went unreached and the seconds it stayed so (judged at each status: to a
+status period), shown on every status after (``zenoh.outages``,
+``zenoh.unreached_s``), and logs a line when the endpoints are reached again.
 """
 
 import json
@@ -54,17 +61,67 @@ def unreached(endpoints: Sequence[str], destinations: Iterable[str]) -> list[str
     return [e for e in endpoints if not targets.intersection(_candidates(_address(e)))]
 
 
-def zenoh_status(session: zenoh.Session, connect: Sequence[str]) -> JsonObject:
-    """``status.zenoh``: the connect endpoints not reached, routers and peers connected."""
+class Outages:
+    """Times some configured endpoint went unreached, and the seconds it stayed so.
+
+    Fed the unreached endpoints at each status with a monotonic time; pure.
+
+    >>> outages = Outages()
+    >>> outages.update([], 0.0), outages.update(["tcp/r:7447"], 1.0)
+    (None, None)
+    >>> outages.update(["tcp/r:7447"], 2.0), outages.unreached_s(2.5)
+    (None, 1.5)
+    >>> outages.update([], 8.0), outages.count
+    (7.0, 1)
+    """
+
+    def __init__(self) -> None:
+        #: Times the statuses went from every endpoint reached to some not reached.
+        self.count = 0
+        self._past_s = 0.0
+        self._since_s: float | None = None
+
+    def update(self, unreached: Sequence[str], now_s: float) -> float | None:
+        """Take a status's unreached endpoints; the length of an outage that just ended."""
+        if unreached and self._since_s is None:
+            self.count += 1
+            self._since_s = now_s
+        elif not unreached and self._since_s is not None:
+            lasted_s = now_s - self._since_s
+            self._past_s += lasted_s
+            self._since_s = None
+            return lasted_s
+        return None
+
+    def unreached_s(self, now_s: float) -> float:
+        """Seconds some endpoint was unreached, the outage going on included."""
+        return self._past_s + (0.0 if self._since_s is None else now_s - self._since_s)
+
+
+def zenoh_status(
+    session: zenoh.Session, connect: Sequence[str], outages: Outages, now_s: float
+) -> JsonObject:
+    """``status.zenoh``: the connect endpoints not reached, routers and peers connected,
+    and the outages so far (``outages`` updated with this status, at ``now_s``)."""
     info = session.info
     try:
         missing = unreached(connect, link_destinations(session)) if connect else []
     except zenoh.ZError as exc:
         logger.debug("admin space query failed: %s", exc)
         missing = list(connect)
+    lasted_s = outages.update(missing, now_s)
+    if lasted_s is not None:
+        logger.warning(
+            "zenoh connect %s reached again after %.1f s: what was published meanwhile "
+            "went nowhere through it",
+            " ".join(connect),
+            lasted_s,
+        )
     return {
         "connect": list(connect),
         "unreached": missing,
+        "outages": outages.count,
+        "unreached_s": outages.unreached_s(now_s),
         "routers": sorted(str(zid) for zid in info.routers_zid()),
         "peers": sorted(str(zid) for zid in info.peers_zid()),
     }

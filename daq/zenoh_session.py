@@ -13,14 +13,18 @@ surface, the access control of ``deploy/zenoh.json5``).
 """
 
 import json
+from pathlib import Path
 from typing import Any
 
 import zenoh
 
 from daq.errors import ZenohError
 from daq.service_config import ZenohSettings
+from dbc.errors import ConfigError
 from dbc.zenoh_config import one_line, put, read_config_file
 
+#: How Zenoh begins the error of an access control it refuses when a session opens.
+ACL_REFUSED = "Access control not enabled due to: "
 #: Where the service listens without a ``config_file`` and without ``listen``.
 DEFAULT_LISTEN = "tcp/127.0.0.1:7447"
 #: A put to a link that stays congested this long (µs) closes the link instead of
@@ -63,23 +67,79 @@ def zenoh_config(settings: ZenohSettings, source: str = "") -> zenoh.Config:
 
 
 def open_session(settings: ZenohSettings, source: str = "") -> zenoh.Session:
-    """Open the session; a failure (e.g. the listen port is taken) is a ZenohError."""
+    """Open the session; a failure (e.g. the listen port is taken) is a ZenohError, an
+    access control that leaves the key prefix open (:func:`access_control_gap`) a
+    ConfigError naming the file."""
+    config = zenoh_config(settings, source)
     where = "[zenoh] listen/connect"
     if settings.config_file is not None:  # where the endpoints come from when not set here
         where += f" (or listen/connect in {settings.config_file})"
+        gap = access_control_gap(config, settings.key_prefix)
+        if gap is not None:
+            raise ConfigError(settings.config_file, "access_control", gap)
     return open_config_session(
-        zenoh_config(settings, source),
+        config,
         f"check {where}: is the port taken by another process, is the address on this host?",
+        settings.config_file,
     )
 
 
-def open_config_session(config: zenoh.Config, hint: str) -> zenoh.Session:
-    """Open a session on ``config``; a Zenoh error becomes a ZenohError with ``hint``."""
+def access_control_gap(config: zenoh.Config, key_prefix: str) -> str | None:
+    """Why the access control of ``config`` leaves ``key_prefix`` open; None when it does
+    not (no access control; everything denied unless allowed; a deny rule names a key
+    under the prefix).
+
+    The shipped ``zenoh.json5`` denies puts under ``portal/**``, which covers the
+    default prefix ``portal/<machine id>`` but no other: with ``[zenoh] key_prefix =
+    "site7/pam"`` a foreign peer's fake ``/sim/truth`` was recorded.
+
+    >>> config = zenoh.Config()
+    >>> config.insert_json5("access_control", '{"enabled": true, "default_permission": '
+    ...     '"allow", "rules": [{"id": "r", "permission": "deny", "flows": ["ingress"], '
+    ...     '"messages": ["put"], "key_exprs": ["portal/**"]}], "subjects": [{"id": "s"}], '
+    ...     '"policies": [{"rules": ["r"], "subjects": ["s"]}]}')
+    >>> access_control_gap(config, "portal/pam-1") is None
+    True
+    >>> access_control_gap(config, "site7/pam")[:65]
+    'its deny rules name no key under site7/pam (their keys: portal/**'
+    """
+    acl = config_value(config, "access_control")
+    if not isinstance(acl, dict) or acl.get("enabled") is not True:
+        return None
+    if acl.get("default_permission") != "allow":
+        return None  # Zenoh denies what no rule allows (its default when the key is absent)
+    keys = [
+        str(key)
+        for rule in acl.get("rules") or []
+        if isinstance(rule, dict) and rule.get("permission") == "deny"
+        for key in rule.get("key_exprs") or []
+    ]
+    covered = zenoh.KeyExpr(f"{key_prefix}/**")
+    if any(zenoh.KeyExpr(key).intersects(covered) for key in keys):
+        return None
+    return (
+        f"its deny rules name no key under {key_prefix} (their keys: "
+        f"{', '.join(keys) or 'none'}), the service's key prefix: puts and deletes from "
+        f"other sessions under it (a fake /sim/truth, a fake /status) pass; add "
+        f'"{key_prefix}/**" to the key_exprs of the rule that denies them'
+    )
+
+
+def open_config_session(
+    config: zenoh.Config, hint: str, config_file: Path | None = None
+) -> zenoh.Session:
+    """Open a session on ``config``; a Zenoh error becomes a ZenohError with ``hint``,
+    an access control Zenoh refuses (checked only now: a policy naming a rule or subject
+    that is not there) a ConfigError naming ``config_file``, the file it came from (it
+    exited 1 with the hint of a taken port)."""
     try:
         return zenoh.open(config)
     except zenoh.ZError as exc:
-        first = (str(exc).strip().splitlines() or [""])[0]
-        raise ZenohError(one_line(first) or "cannot open the session", hint) from exc
+        first = one_line((str(exc).strip().splitlines() or [""])[0])
+        if first.startswith(ACL_REFUSED):
+            source = config_file or "the Zenoh config"
+            raise ConfigError(source, "access_control", first.removeprefix(ACL_REFUSED)) from exc
+        raise ZenohError(first or "cannot open the session", hint) from exc
 
 
 def config_value(config: zenoh.Config, key: str) -> Any:

@@ -164,10 +164,16 @@ class _MessageCodec:
         # A counter with a value table (e.g. 15 "NotAvailable") decodes to a name for some
         # values; the check judges its number.
         self._counter_codes: dict[str, int] = {}
+        # A counter the DBC scales ((1,1): 1..16 for raw 0..15) is judged raw, as sent.
+        self._counter_scaling: tuple[float, float] | None = None
         # A CRC under a multiplexer value is in (and checked on) those frames only; so is a
         # counter, which then counts them.
         self._multiplexed_crc: str | None = None
+        # Profile 1 in data ID mode nibble: (the nibble's signal, the value it must carry).
+        self._nibble: tuple[str, int] | None = None
         if protection is not None:
+            if protection.data_id_nibble is not None:
+                self._nibble = (protection.data_id_nibble, protection.nibble_value)
             self.crc = protection.crc_check(message, compiled=compiled)
             self.counter_signal = protection.counter
             if protection.crc is not None:
@@ -178,6 +184,9 @@ class _MessageCodec:
                     message.get_signal_by_name(protection.counter).choices or {}
                 )
                 self._counter_codes = {str(name): int(raw) for raw, name in choices.items()}
+                counter_signal = message.get_signal_by_name(protection.counter)
+                if (counter_signal.scale, counter_signal.offset) != (1, 0):
+                    self._counter_scaling = (counter_signal.scale, counter_signal.offset)
 
     def decode(
         self, arbitration_id: int, data: bytes, t_s: float, source_address: int | None
@@ -201,13 +210,22 @@ class _MessageCodec:
         if self.counter_signal is not None:
             value = signals.get(self.counter_signal)
             if value is not None:
-                counter_value = self._counter_codes[value] if isinstance(value, str) else int(value)
+                if isinstance(value, str):
+                    counter_value = self._counter_codes[value]
+                elif self._counter_scaling is None:
+                    counter_value = int(value)
+                else:  # judged by what the sender counts: its raw value
+                    scale, offset = self._counter_scaling
+                    counter_value = round((value - offset) / scale)
                 counter = self._counters.get(source_address) or self._counter(source_address)
         crc = self.crc
         if (
             crc is not None
             and (self._multiplexed_crc is None or self._multiplexed_crc in signals)
-            and not crc.matches(data, counter_value)
+            and (
+                not crc.matches(data, counter_value)
+                or (self._nibble is not None and signals.get(self._nibble[0]) != self._nibble[1])
+            )
         ):
             # The counter of a corrupted frame is not trusted: judge the next good frame
             # as a first one, so one bad CRC costs exactly one sample.

@@ -97,13 +97,17 @@ class FrameEncoder:
             key = (message_name, source_address)
             if counter is None:
                 counter = self._counters.get(key, -1) + 1
-            counter %= counter_modulo(message, protection.counter)
+            counter %= counter_modulo(message, protection.counter, protection.crc_algorithm)
             self._counters[key] = counter
-            values[protection.counter] = counter
+            counter_signal = message.get_signal_by_name(protection.counter)
+            # ``counter`` is what the bits carry; a scaled counter is encoded from its value.
+            values[protection.counter] = counter * counter_signal.scale + counter_signal.offset
         with_crc = protection is not None and _carries(message, protection.crc, values)
         if with_crc:
             assert protection is not None and protection.crc is not None
             values[protection.crc] = 0
+            if protection.data_id_nibble is not None:
+                values[protection.data_id_nibble] = protection.nibble_value
         # Not strict: a value beyond the DBC's range is encoded (the bridge's --out-of-range
         # sends one, as a faulty transducer does); one beyond what the bits hold raises.
         data = bytearray(message.encode(values, scaling=True, padding=False, strict=False))

@@ -28,7 +28,12 @@ from dbc.decoding import is_j1939, j1939_destination, j1939_pgn
 from dbc.errors import ConfigError
 from dbc.machine_signals import NO_SIGNALS, MachineSignals, parse_signals
 from dbc.names import did_you_mean, messages_with
-from dbc.protection import CRC_ALGORITHMS, DEFAULT_CRC_ALGORITHM, Protection, counter_modulo
+from dbc.protection import (
+    CRC_ALGORITHMS,
+    DEFAULT_CRC_ALGORITHM,
+    Protection,
+    counter_modulo,
+)
 from dbc.signal_range import decoded_bounds, named_values, value_range
 from dbc.stability_config import StabilityConfig, angle_signal, parse_stability
 from dbc.toml_table import TomlTable
@@ -74,7 +79,15 @@ CHAMBER_KEYS = (
     "status_ok",
     "cycle_time_ms",
 )
-PROTECTION_KEYS = ("counter", "crc", "crc_algorithm", "data_id", "max_delta_counter")
+PROTECTION_KEYS = (
+    "counter",
+    "crc",
+    "crc_algorithm",
+    "data_id",
+    "data_id_mode",
+    "data_id_nibble",
+    "max_delta_counter",
+)
 #: Keys of ``[messages.<MESSAGE>]``: what the config says of a message the DBC leaves out.
 MESSAGE_KEYS = ("cycle_time_ms",)
 #: The shortest cycle time a config may give: an 8-byte frame takes ~0.11 ms at 1 Mbit/s
@@ -402,6 +415,7 @@ def parse_machine_config(
     }
     _across_legs.check_senders(legs_table, legs, database)
     _across_legs.check_not_protection(legs_table, legs, protection)
+    _across_legs.warn_unchecked_protection(legs_table, legs, protection, database)
     unit_factors, sender_unit_factors, decoded_units = _across_legs.unit_factors(
         legs_table, legs, database
     )
@@ -568,6 +582,15 @@ def _written(text: str, database: Database) -> str:
     return ""
 
 
+def _comment_of(signal: Signal) -> str:
+    """The DBC's comment on ``signal``, on one line, to end a refusal with: a vendor's DBC
+    often says a transducer's unit only there (``CM_ SG_ ... "Rod pressure in bar"``)."""
+    comment = " ".join(str(signal.comment or "").split())
+    if not comment:
+        return ""
+    return f" (the DBC's comment on it: {comment[:120] + ('...' if len(comment) > 120 else '')!r})"
+
+
 def _no_signal(signal: str, message: Message, database: Database) -> str:
     """Why ``signal`` is not ``message``'s: the messages that do have it, else the names
     it has that are close."""
@@ -629,7 +652,7 @@ def _chamber(
         raise chamber.error(
             where,
             f"signal {message.name}.{signal_name} has unit {unit!r}, not a pressure unit; "
-            f"set unit = one of {ACCEPTED_PRESSURE_UNITS}",
+            f"set unit = one of {ACCEPTED_PRESSURE_UNITS}{_comment_of(signal)}",
         )
     if signal.scale == 0:  # cantools takes it: a constant, published as a valid pressure
         raise chamber.error(
@@ -767,7 +790,14 @@ def _source_address(table: TomlTable, message: Message, database: Database) -> i
         )
     address = table.integer("source_address")
     if not 0 <= address <= 253:
-        raise table.error("source_address", f"must be a J1939 address 0..253, got {address}")
+        # 254 and 255 are no sender's: J1939-81's null address (a node that could not
+        # claim one may send only its Cannot Claim from it) and the global destination.
+        special = {254: " (0xFE: the null address, a node without a claimed one)"}
+        special[255] = " (0xFF: the global address, a destination, no sender)"
+        raise table.error(
+            "source_address",
+            f"must be a J1939 address 0..253, got {address}{special.get(address, '')}",
+        )
     message.protocol = "j1939"
     pgn = j1939_pgn(message.frame_id)
     for other in database.messages:
@@ -1018,9 +1048,16 @@ def _protection(
         if signal.start // 8 + algorithm.width_bytes > message.length:
             raise table.error("crc", f"{crc} lies outside the {message.length}-byte frame")
     data_id = _data_id(table, algorithm.data_id_layout)
+    if isinstance(data_id, tuple) and counter is None:
+        raise table.error(
+            "data_id", "a DataIDList is picked by the counter's value: name the counter too"
+        )
+    data_id_mode, data_id_nibble = _data_id_mode(
+        table, algorithm_name, message, database, (counter, crc)
+    )
     max_delta = table.integer("max_delta_counter", 2)
     if counter is not None:
-        modulo = counter_modulo(message, counter)
+        modulo = counter_modulo(message, counter, algorithm_name)
         if not 1 <= max_delta < modulo:
             raise table.error(
                 "max_delta_counter", f"must be 1..{modulo - 1} for {counter}, got {max_delta}"
@@ -1031,6 +1068,8 @@ def _protection(
         crc=crc,
         crc_algorithm=algorithm_name,
         data_id=data_id,
+        data_id_mode=data_id_mode,
+        data_id_nibble=data_id_nibble,
         max_delta_counter=max_delta,
         cycle_time_s=cycle_times_ms[name] / 1000.0 if name in cycle_times_ms else None,
         sender_cycle_times_s=tuple(
@@ -1057,6 +1096,47 @@ def _data_id(table: TomlTable, layout: str) -> int | tuple[int, ...]:
     if not _is_id(value, limit):
         raise table.error("data_id", f"must be a number 0..{limit:#x}, got {value!r}")
     return int(value)
+
+
+def _data_id_mode(
+    table: TomlTable,
+    algorithm_name: str,
+    message: Message,
+    database: Database,
+    counter_crc: tuple[str | None, str | None],
+) -> tuple[str, str | None]:
+    """AUTOSAR E2E profile 1's DataIDMode and, in mode nibble, the signal of the nibble."""
+    modes = CRC_ALGORITHMS[algorithm_name].data_id_modes
+    if "data_id_mode" in table and not modes:
+        raise table.error("data_id_mode", "only e2e_p1 and e2e_p11 have a data ID mode")
+    mode = table.string("data_id_mode", modes[0] if modes else "both")
+    if modes and mode not in modes:
+        raise table.error(
+            "data_id_mode", f"unknown {mode!r} for {algorithm_name}; one of {', '.join(modes)}"
+        )
+    if mode == "alt" and counter_crc[0] is None:
+        raise table.error(
+            "data_id_mode",
+            "alt takes the data ID's low or high byte by the counter's value: name the counter",
+        )
+    if mode != "nibble":
+        if "data_id_nibble" in table:
+            raise table.error("data_id_nibble", 'only with data_id_mode = "nibble"')
+        return mode, None
+    if "data_id_nibble" not in table:
+        raise table.error(
+            "data_id_nibble",
+            "missing: data_id_mode nibble sends the data ID's high nibble in the frame: "
+            "name its 4-bit signal",
+        )
+    nibble = table.string("data_id_nibble")
+    if nibble not in {signal.name for signal in message.signals}:
+        raise table.error("data_id_nibble", _no_signal(nibble, message, database))
+    if message.get_signal_by_name(nibble).length != 4 or nibble in counter_crc:
+        raise table.error(
+            "data_id_nibble", f"{nibble} must be a 4-bit signal of its own (the data ID nibble)"
+        )
+    return mode, nibble
 
 
 def _is_id(value: object, limit: int) -> bool:

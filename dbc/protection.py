@@ -11,25 +11,37 @@ with the CRC byte(s) left out, and a data ID where the profile has one:
 name           width  poly   init     xor out  data ID
 ============== ====== ====== ======== ======== ===================================
 crc8_sae_j1850 8      0x1D   0xFF     0xFF     none (the project's own DBC)
-e2e_p1         8      0x1D   0xFF     0xFF     16 bit, low then high byte, before
+e2e_p1         8      0x1D   0x00     0x00     16 bit before, by data ID mode (below)
+e2e_p11        8      0x1D   0x00     0x00     as e2e_p1 (modes both, nibble)
 e2e_p2         8      0x2F   0xFF     0xFF     8 bit after; or a list of 16, by counter
+e2e_p22        8      0x2F   0xFF     0xFF     as e2e_p2
 e2e_p5         16     0x1021 0xFFFF   0x0000   16 bit, low then high byte, after
 ============== ====== ====== ======== ======== ===================================
 
-``e2e_p1`` is AUTOSAR E2E profile 1 (CRC-8 SAE J1850, data ID mode "both"),
+``e2e_p1`` is AUTOSAR E2E profile 1: the SAE J1850 polynomial, but AUTOSAR's
+``Crc_CalculateCRC8`` chained from start value 0xFF and the result XORed with 0xFF
+again, which leaves init 0x00 and no final XOR (the J1850 check value 0x4B is not
+profile 1's, 0x37). Its data ID goes in by ``DataIDMode``: ``both`` (low byte, then
+high), ``low`` (low byte only), ``alt`` (low byte where the counter is even, high
+where odd) or ``nibble`` (low byte, then 0; the high byte's low nibble is sent in the
+frame, :attr:`Protection.data_id_nibble`); its 4-bit counter counts 0..14.
+``e2e_p11`` is profile 11, profile 1's successor for CAN: the same CRC and counter,
+data ID modes ``both`` and ``nibble``; ``e2e_p22`` profile 22, profile 2's, the same
+CRC over the data and ``DataIDList[counter]``.
 ``e2e_p2`` profile 2 (CRC-8H2F, DataIDList), ``e2e_p5`` profile 5
-(CRC-16/CCITT-FALSE); a 16-bit CRC is stored low byte first for an Intel signal,
-high byte first for a Motorola one. The parameter sets come from the ``crc``
+(CRC-16/CCITT-FALSE), its CRC written low byte first whatever the DBC declares (AUTOSAR's
+E2E library places the bytes, not the signal packing: a Motorola CRC signal of a big-endian
+DBC is still low byte first on the bus). The parameter sets come from the ``crc``
 package (the reference path); the hot path uses tables built from the same
 parameters (:class:`TableCrc`).
 """
 
 import math
+import re
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Literal
 
-from cantools.database.can import Message
+from cantools.database.can import Message, Signal
 from crc import Calculator, Configuration, Crc8, Crc16
 
 #: Counter faults, as they appear in an estimate's ``reasons``.
@@ -47,18 +59,28 @@ class CrcAlgorithm:
     #: "none", "before" (16-bit ID, low byte first), "after8" (one byte, or a list of
     #: 16 by counter) or "after16" (16-bit ID, low byte first).
     data_id_layout: str
+    #: The DataIDModes the profile takes ("before" only; the first is the default).
+    data_id_modes: tuple[str, ...] = ()
+    #: The values a 4-bit counter of the profile takes, where fewer than 16.
+    counter_modulo: int | None = None
 
     @property
     def width_bytes(self) -> int:
         return self.configuration.width // 8
 
 
+#: AUTOSAR E2E profile 1's ways of putting its 16-bit data ID into the CRC (DataIDMode).
+P1_DATA_ID_MODES = ("both", "alt", "low", "nibble")
+_P1_CRC = Configuration(8, 0x1D, init_value=0x00, final_xor_value=0x00)
 CRC_ALGORITHMS: dict[str, CrcAlgorithm] = {
     algorithm.name: algorithm
     for algorithm in (
         CrcAlgorithm("crc8_sae_j1850", Crc8.SAEJ1850.value, "none"),
-        CrcAlgorithm("e2e_p1", Crc8.SAEJ1850.value, "before"),
+        # Profile 1's counter takes 0..14 (15 is no counter value); so does 11's.
+        CrcAlgorithm("e2e_p1", _P1_CRC, "before", P1_DATA_ID_MODES, counter_modulo=15),
+        CrcAlgorithm("e2e_p11", _P1_CRC, "before", ("both", "nibble"), counter_modulo=15),
         CrcAlgorithm("e2e_p2", Crc8.AUTOSAR.value, "after8"),
+        CrcAlgorithm("e2e_p22", Crc8.AUTOSAR.value, "after8"),
         CrcAlgorithm("e2e_p5", Crc16.IBM_3740.value, "after16"),
     )
 }
@@ -129,25 +151,39 @@ _J1850_REFERENCE = reference_checksum(Crc8.SAEJ1850.value)
 class CrcCheck:
     """The CRC of one message: computes, checks and writes it at its place in the frame.
 
-    ``start_byte``/``big_endian`` locate the CRC signal; ``data_id`` is the profile's
-    data ID (a tuple of 16 for ``e2e_p2``'s DataIDList, picked by the counter value).
+    ``start_byte`` locates the CRC (a 16-bit one low byte first); ``data_id`` is the profile's
+    data ID (a tuple of 16 for ``e2e_p2``'s DataIDList, picked by the counter value),
+    put in by ``data_id_mode`` for ``e2e_p1`` (:data:`P1_DATA_ID_MODES`).
     ``compiled=False`` uses the ``crc`` package instead of the tables.
+
+    AUTOSAR E2E profile 1, data ID 0x123, the CRC in byte 0 and the counter in byte 1
+    (the vectors of the ``autosar-e2e`` package's tests):
+
+    >>> p1 = CrcCheck(CRC_ALGORITHMS["e2e_p1"], 0, data_id=0x123)
+    >>> hex(p1.compute(bytes(8), 0)), hex(p1.compute(bytes([0, 1]) + bytes(6), 1))
+    ('0xcc', '0x91')
+    >>> alt = CrcCheck(CRC_ALGORITHMS["e2e_p1"], 0, data_id=0x123, data_id_mode="alt")
+    >>> hex(alt.compute(bytes([0, 1]) + bytes(6), 1))
+    '0x2'
     """
 
     def __init__(
         self,
         algorithm: CrcAlgorithm,
         start_byte: int,
-        big_endian: bool = False,
         data_id: int | tuple[int, ...] = 0,
         *,
+        data_id_mode: str = "both",
         compiled: bool = True,
     ) -> None:
         self.algorithm = algorithm
         self.start_byte = start_byte
         self.end_byte = start_byte + algorithm.width_bytes
-        self.byteorder: Literal["big", "little"] = "big" if big_endian else "little"
         self.data_id = data_id
+        # Profile 1's data ID bytes before the data, for an even and an odd counter.
+        self._before = (
+            _p1_data_id_bytes(data_id, data_id_mode) if isinstance(data_id, int) else (b"", b"")
+        )
         self._checksum: Checksum = (
             TableCrc(algorithm.configuration).checksum
             if compiled
@@ -167,14 +203,14 @@ class CrcCheck:
             return self._checksum(payload)
         data_id = self._data_id_for(counter)
         if layout == "before":
-            return self._checksum(bytes((data_id & 0xFF, (data_id >> 8) & 0xFF)) + payload)
+            return self._checksum(self._before[(counter or 0) & 1] + payload)
         if layout == "after8":
             return self._checksum(payload + bytes((data_id & 0xFF,)))
         return self._checksum(payload + bytes((data_id & 0xFF, (data_id >> 8) & 0xFF)))
 
     def received(self, data: bytes) -> int:
         """The CRC value the frame carries."""
-        return int.from_bytes(data[self.start_byte : self.end_byte], self.byteorder)
+        return int.from_bytes(data[self.start_byte : self.end_byte], "little")
 
     def matches(self, data: bytes, counter: int | None = None) -> bool:
         return self.compute(data, counter) == self.received(data)
@@ -185,8 +221,23 @@ class CrcCheck:
         if corrupt:
             value ^= (1 << (8 * self.algorithm.width_bytes)) - 1
         frame[self.start_byte : self.end_byte] = value.to_bytes(
-            self.algorithm.width_bytes, self.byteorder
+            self.algorithm.width_bytes, "little"
         )
+
+
+def _p1_data_id_bytes(data_id: int, mode: str) -> tuple[bytes, bytes]:
+    """What profile 1's CRC takes of ``data_id`` before the data in ``mode``, for an even
+    and for an odd counter value."""
+    low, high = data_id & 0xFF, (data_id >> 8) & 0xFF
+    if mode == "both":
+        return bytes((low, high)), bytes((low, high))
+    if mode == "low":
+        return bytes((low,)), bytes((low,))
+    if mode == "alt":
+        return bytes((low,)), bytes((high,))
+    if mode == "nibble":  # the high byte's low nibble travels in the frame instead
+        return bytes((low, 0)), bytes((low, 0))
+    raise ValueError(f"profile 1 data ID mode must be one of {P1_DATA_ID_MODES}, got {mode!r}")
 
 
 @dataclass(frozen=True, slots=True)
@@ -260,18 +311,29 @@ class CounterCheck:
         return CounterResult(COUNTER_JUMP, delta - 1)
 
 
-def counter_modulo(message: Message, counter: str) -> int:
+def counter_modulo(
+    message: Message, counter: str, crc_algorithm: str = DEFAULT_CRC_ALGORITHM
+) -> int:
     """How many values the rolling counter ``counter`` of ``message`` takes: all its bits
-    can hold, or fewer where the DBC declares a range ``[0|max]`` below that (AUTOSAR E2E
-    profile 1 counts 0..14: ``[0|14]``), so the wrap from max to 0 is one step.
+    can hold, or fewer where the DBC declares a range ``[0|max]`` below that, so the wrap
+    from max to 0 is one step. AUTOSAR E2E profile 1's 4-bit counter counts 0..14 whatever
+    the DBC declares (CANdb++ fills in ``[0|15]``), as profile 11's does: a real
+    sender's wrap 14 -> 0 was a lost frame, and its 15 a valid value.
 
     >>> from cantools.database import load_string
     >>> db = load_string('BO_ 1 M: 1 A\\n SG_ C : 0|4@1+ (1,0) [0|14] "" A\\n', "dbc")
     >>> counter_modulo(db.get_message_by_name("M"), "C")
     15
+    >>> db = load_string('BO_ 1 M: 1 A\\n SG_ C : 0|4@1+ (1,0) [0|15] "" A\\n', "dbc")
+    >>> counter_modulo(db.get_message_by_name("M"), "C"), counter_modulo(
+    ...     db.get_message_by_name("M"), "C", "e2e_p1")
+    (16, 15)
     """
     signal = message.get_signal_by_name(counter)
     modulo: int = 2**signal.length
+    profile_modulo = CRC_ALGORITHMS[crc_algorithm].counter_modulo
+    if profile_modulo is not None and signal.length == 4:
+        return profile_modulo
     low, high = signal.minimum, signal.maximum
     if (
         low == 0
@@ -282,6 +344,39 @@ def counter_modulo(message: Message, counter: str) -> int:
     ):
         return int(high) + 1
     return modulo
+
+
+#: Words of a signal name that call it a rolling counter or a CRC, as vendors write them
+#: (English, German, abbreviated): ``AliveCounter``, ``MsgCntr``, ``Zaehler``, ``BZ``
+#: (Botschaftszaehler), ``SQC``; ``Checksum``, ``CHK``, ``Pruefsumme``, ``CRC8``.
+_ROLE_WORDS = {
+    "counter": frozenset(
+        "counter cntr cnt ctr zaehler zähler alive rollingcounter msgcntr msgcnt bz sqc seq".split()
+    ),
+    "crc": frozenset("crc checksum chksum chks chk pruefsumme prüfsumme".split()),
+}
+_WORD_BREAKS = re.compile(
+    r"[^0-9A-Za-zÄÖÜäöüß]+|(?<=[a-zäöüß])(?=[A-ZÄÖÜ])|(?<=\D)(?=\d)|(?<=\d)(?=\D)"
+)
+
+
+def protection_role(signal: Signal) -> str | None:
+    """``"counter"`` or ``"crc"`` where ``signal``'s name calls it one (a word of it, by
+    ``_`` and case: ``ZYL_VL_Zaehler``, ``MsgCntr``, ``HUB_CRC8``) and its bits fit one
+    (an unscaled integer of 2..16 bits; a CRC of 8 or 16); else None.
+
+    >>> from cantools.database.can import Signal
+    >>> [protection_role(Signal(n, 0, 8)) for n in ("MsgCntr", "Pruefsumme", "CycleCount")]
+    ['counter', 'crc', None]
+    """
+    if signal.is_float or (signal.scale, signal.offset) != (1, 0):
+        return None
+    words = {word.lower() for word in _WORD_BREAKS.split(signal.name) if word}
+    if words & _ROLE_WORDS["crc"] and signal.length in (8, 16):
+        return "crc"
+    if words & _ROLE_WORDS["counter"] and 2 <= signal.length <= 16:
+        return "counter"
+    return None
 
 
 @dataclass(frozen=True, slots=True)
@@ -300,6 +395,12 @@ class Protection:
     crc_algorithm: str = DEFAULT_CRC_ALGORITHM
     #: The profile's data ID; a tuple of 16 is e2e_p2's DataIDList (by counter value).
     data_id: int | tuple[int, ...] = 0
+    #: How ``e2e_p1`` (``e2e_p11``) puts the data ID into the CRC: one of
+    #: :data:`P1_DATA_ID_MODES` (``both``, ``nibble``).
+    data_id_mode: str = "both"
+    #: ``e2e_p1`` in data ID mode ``nibble``: the 4-bit signal that carries the data
+    #: ID's high byte's low nibble (a frame with another is a CRC fault: another sender's).
+    data_id_nibble: str | None = None
     #: Largest counter step still accepted (1 + frames that may be lost in a row).
     max_delta_counter: int = 2
     #: The message's cycle time (:attr:`dbc.machine.MachineConfig.cycle_times_ms`), s;
@@ -314,16 +415,27 @@ class Protection:
         if self.crc is None:
             return None
         signal = message.get_signal_by_name(self.crc)
-        big_endian = signal.byte_order == "big_endian"
-        # A Motorola signal's start bit is its MSB, in the lowest byte it occupies.
+        # A Motorola signal's start bit is its MSB, in the lowest byte it occupies; its
+        # bytes are low byte first all the same (profile 5's CRC: AUTOSAR places them).
         start_byte = signal.start // 8
         return CrcCheck(
             CRC_ALGORITHMS[self.crc_algorithm],
             start_byte,
-            big_endian,
             self.data_id,
+            data_id_mode=self.data_id_mode,
             compiled=compiled,
         )
+
+    @property
+    def nibble_value(self) -> int:
+        """What :attr:`data_id_nibble` carries: the data ID's high byte's low nibble."""
+        assert isinstance(self.data_id, int)
+        return (self.data_id >> 8) & 0x0F
+
+    @property
+    def signals(self) -> tuple[str, ...]:
+        """The signals of the profile (counter, CRC, data ID nibble): no measurement."""
+        return tuple(s for s in (self.counter, self.crc, self.data_id_nibble) if s is not None)
 
     def counter_check(
         self, message: Message, source_address: int | None = None
@@ -332,7 +444,7 @@ class Protection:
         None without a counter."""
         if self.counter is None:
             return None
-        modulo = counter_modulo(message, self.counter)
+        modulo = counter_modulo(message, self.counter, self.crc_algorithm)
         own = [
             cycle_s for address, cycle_s in self.sender_cycle_times_s if address == source_address
         ]

@@ -413,7 +413,7 @@ def _plan(
     )
     taken = {s.name for c in mine for s in (c.pressure, c.status) if s is not None}
     if protection is not None:
-        taken |= {name for name in (protection.counter, protection.crc) if name is not None}
+        taken |= set(protection.signals)
     named: list[tuple[Signal, Getter, float]] = []
     constants: list[tuple[Signal, SignalValue]] = []
     multiplexer = None

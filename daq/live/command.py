@@ -17,7 +17,7 @@ import zenoh
 from daq.live.fleet import DEFAULT_ROOT, FleetSettings
 from daq.live.session import viewer_zenoh_config
 from daq.live.viewer import ViewerConfig, viewer_config
-from daq.service_config import ZenohSettings, load_service_config
+from daq.service_config import ZenohSettings, key_prefix_problem, load_service_config
 from daq.subcommand import add_log_level_option
 from dbc.errors import ConfigError
 
@@ -49,6 +49,7 @@ def add_viewer_arguments(parser: argparse.ArgumentParser) -> None:
     )
     fleet.add_argument(
         "--root",
+        type=_root,
         default=DEFAULT_ROOT,
         help=f"machines are <root>/<machine id> [{DEFAULT_ROOT}]",
     )
@@ -134,6 +135,15 @@ def fail(command: str, error: BaseException | str, status: int) -> int:
     """One line on stderr, e.g. ``portal-daq monitor: x.toml: zenoh.mode: ...``."""
     sys.stderr.write(f"{PROG} {command}: {error}\n")
     return status
+
+
+def _root(text: str) -> str:
+    """A key prefix (the machines' without their ids): a bad one was a Zenoh traceback,
+    one with a wildcard showed no machine ever."""
+    problem = key_prefix_problem(text)
+    if problem is not None:
+        raise argparse.ArgumentTypeError(f"{text!r} {problem}")
+    return text
 
 
 def _positive(text: str) -> float:

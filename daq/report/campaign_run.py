@@ -27,11 +27,13 @@ import threading
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import Executor, ProcessPoolExecutor
 from contextlib import contextmanager
+from dataclasses import replace
 from functools import partial
 from pathlib import Path
 from typing import Any
 
 from daq.report.campaign import CampaignRow, run_rows
+from daq.report.loading import recording_name
 from dbc.errors import ConfigError, PortalDaqError
 
 logger = logging.getLogger(__name__)
@@ -51,11 +53,35 @@ def campaign(
     cluster: str | None = None,
     workers: int | None = None,
 ) -> list[CampaignRow]:
-    """The rows of every run, in the order of ``runs``."""
+    """The rows of every run, in the order of ``runs``, each named by
+    :func:`recording_names`."""
     work = partial(run_rows, config_path=config_path)
+    names = recording_names([files for _, files in runs])
     with executor(cluster, workers, len(runs)) as pool:
         results = pool.map(work, [files for _, files in runs])
-        return [row for rows in results for row in rows]
+        return [
+            replace(row, recording=name)
+            for name, rows in zip(names, results, strict=True)
+            for row in rows
+        ]
+
+
+def recording_names(runs: Sequence[Sequence[Path]]) -> list[str]:
+    """Each run's name in the table: its first file's path from the directory all the
+    runs are in (the file name, for a campaign of one directory). Two folders' files of
+    one name (``day1/recording.mcap``, ``day2/recording.mcap``) were one recording by
+    their names: the page counted 1 recording and "1 more recordings hold nothing".
+
+    >>> recording_names([[Path("/c/d1/rec.mcap")], [Path("/c/d2/rec.mcap")]])
+    ['d1/rec.mcap', 'd2/rec.mcap']
+    >>> recording_names([[Path("/c/a.mcap")], [Path("/c/b_1.mcap"), Path("/c/b_2.mcap")]])
+    ['a.mcap', 'b_1.mcap .. b_2.mcap (2 files)']
+    """
+    absolute = [[Path(os.path.abspath(path)) for path in files] for files in runs]
+    if not absolute:
+        return []
+    base = Path(os.path.commonpath([files[0].parent for files in absolute]))
+    return [recording_name(files, base) for files in absolute]
 
 
 @contextmanager

@@ -149,7 +149,11 @@ def load_recording(
     config: MachineConfig | None = machine[0] if machine is not None else None
     machine_id = config.machine_id if config else machine_id_from_name(first) or first.stem
     return collector.recording(
-        _name(files), config, machine_id=machine_id, recomputed=recomputed, complete=complete
+        recording_name(files),
+        config,
+        machine_id=machine_id,
+        recomputed=recomputed,
+        complete=complete,
     )
 
 
@@ -182,11 +186,18 @@ def _log_recording(
     collector.count_lost(lost)
     if collector.frames == 0:
         raise EmptyRecordingError(files[0], "holds no CAN frames: nothing to report")
-    return collector.recording(_name(files), config, machine_id=config.machine_id, recomputed=True)
-
-
-def _name(files: Sequence[Path]) -> str:
-    first = files[0]
-    return (
-        first.name if len(files) == 1 else f"{first.name} .. {files[-1].name} ({len(files)} files)"
+    return collector.recording(
+        recording_name(files), config, machine_id=config.machine_id, recomputed=True
     )
+
+
+def recording_name(files: Sequence[Path], base: Path | None = None) -> str:
+    """The name a report gives the files of one run: the first file's name (its path from
+    ``base``, when given), and the last's for a rotated run.
+
+    >>> recording_name([Path("/d/day1/a_1.mcap"), Path("/d/day1/a_2.mcap")], Path("/d"))
+    'day1/a_1.mcap .. a_2.mcap (2 files)'
+    """
+    first = files[0]
+    name = first.name if base is None else str(first.relative_to(base))
+    return name if len(files) == 1 else f"{name} .. {files[-1].name} ({len(files)} files)"

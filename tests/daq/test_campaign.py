@@ -11,7 +11,9 @@ weight residual; the same rows come from one process, local processes and a Dask
 from __future__ import annotations
 
 import csv
+import logging
 import math
+import shutil
 import subprocess
 import sys
 from collections.abc import Callable
@@ -21,7 +23,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from daq.recording_run import run_metadata, runs
+from daq.errors import RecordingError
+from daq.recording_run import run_files, run_metadata, runs
 from daq.report.campaign import COLUMNS, CampaignRow, campaign_rows, weight_residuals_N
 from daq.report.campaign_run import campaign
 from daq.report.content import analyse
@@ -295,3 +298,63 @@ def test_a_recording_that_holds_nothing_is_left_out_of_the_campaign(
     assert report_main(["--campaign", str(season), "--workers", "1", "--out", str(out)]) == 1
     err = capsys.readouterr().err.strip().splitlines()
     assert err[-1] == f"portal-daq: {season}: none of its 1 recordings holds data", err
+
+
+def test_copies_and_files_given_twice_count_once(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """A backup folder in the campaign's tree, a file named twice (by its directory and
+    by itself, through a link): each recording counts once. A copy of a run with run
+    metadata stopped everything ("two files claim one index"), one of a recording
+    without it (an earlier release) doubled its rows, unsaid."""
+    season = tmp_path / "season"
+    backup = season / "backup"
+    backup.mkdir(parents=True)
+    run = record(season / "a_run.mcap", seconds=1.0, run=run_metadata("m", "r", 0))
+    old = record(season / "b_old.mcap", seconds=1.5)  # no run metadata
+    for original in (run, old):
+        shutil.copyfile(original, backup / original.name)
+    (tmp_path / "link.mcap").symlink_to(old)
+    given = [season, backup, run.resolve(), tmp_path / "link.mcap"]
+    with caplog.at_level(logging.WARNING, logger="daq.recording_run"):
+        found = runs(given)
+    assert [files for _, files in found] == [[run], [old]]
+    copies = [r.getMessage() for r in caplog.records if "left out" in r.getMessage()]
+    assert sorted(copies) == [
+        f"{backup / name}: left out, a copy of {season / name} (the same bytes)"
+        for name in ("a_run.mcap", "b_old.mcap")
+    ]  # the same file given again (path, link) is no copy: not said
+    assert run_files([backup / "a_run.mcap", run]) == [backup / "a_run.mcap"]  # a replay
+    # Other bytes under the same run and index (a cut copy): which one is meant is unsaid.
+    cut = backup / "a_run.mcap"
+    cut.write_bytes(run.read_bytes()[: run.stat().st_size // 2])
+    with pytest.raises(RecordingError) as error:
+        runs([season, backup])
+    assert str(error.value) == (
+        f"{cut}: claims file 0 of the run as {run} does, with other bytes "
+        "(a recovered copy of a cut file, say): give one of the two"
+    )
+
+
+def test_recordings_of_one_name_in_two_folders_are_two(tmp_path: Path) -> None:
+    """Named by their file names alone, ``day1/recording.mcap`` and ``day2/recording.mcap``
+    were one recording: the page said "1 recordings" and "1 more recordings hold nothing
+    ...: left out", and the table could not tell their rows apart."""
+    from daq.report.command import report_main
+
+    for day, seconds in (("day1", 1.0), ("day2", 3.0)):
+        (tmp_path / day).mkdir()
+        record(tmp_path / day / "recording.mcap", seconds=seconds)
+    out = tmp_path / "out"
+    given = [str(tmp_path / "day1"), str(tmp_path / "day2")]
+    assert report_main(["--campaign", *given, "--workers", "1", "--out", str(out)]) == 0
+    with open(out / "campaign.csv") as table:
+        rows = list(csv.DictReader(table))
+    per_recording = {
+        name: [r for r in rows if r["recording"] == name]
+        for name in ("day1/recording.mcap", "day2/recording.mcap")
+    }
+    assert len(rows) == sum(len(found) for found in per_recording.values())
+    assert [len(found) for found in per_recording.values()] == [6, 6 * 2]  # 1 and 2 cycles
+    page = (out / "campaign.html").read_text()
+    assert "Campaign report: 2 recordings" in page and "hold nothing" not in page

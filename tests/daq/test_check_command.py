@@ -26,7 +26,10 @@ def test_each_legs_chambers_are_shown_as_read(capsys: pytest.CaptureFixture[str]
         "  rod: IOM_VORNE_AIN.AIN_Druck[Kanal=3] in 'mbar', every 10 ms, status AIN_Diagnose "
         "(fine: OK)",
     ]
-    assert lines[-1] == "protected: IOM_VORNE_AIN (IOM_Zaehler), IOM_HINTEN_AIN (IOM_Zaehler)"
+    assert lines[-2:] == [
+        "protected IOM_VORNE_AIN: counter IOM_Zaehler 0..15 (steps up to 2)",
+        "protected IOM_HINTEN_AIN: counter IOM_Zaehler 0..15 (steps up to 2)",
+    ]
     assert main(["check", "--config", str(STRANGER / "xdcr_two_rates.toml")]) == 0
     lines = capsys.readouterr().out.splitlines()
     assert (
@@ -90,3 +93,26 @@ def test_a_wrong_key_is_one_line_and_exit_2(
         f"portal-daq: {tmp_path / 'm.toml'}: legs.SB1_F2.rod: no signal 'p_stange_f2' in "
         "message STANGE_SB1 of the DBC; did you mean p_Stange_F2?\n"
     )
+
+
+def test_each_protected_message_shows_how_it_is_checked(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """The counter's values (AUTOSAR E2E profile 1's 0..14 where the DBC says [0|15]), the
+    largest step taken, the CRC's algorithm, data ID and profile 1's data ID mode: a config
+    naming the wrong profile or mode shows before a bus does; it said only the names."""
+    assert main(["check", "--config", str(STRANGER / "e2e_p1_modes.toml")]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[-5:] == [
+        "protected ZYL_VL: counter ZYL_VL_Zaehler 0..14 (steps up to 2), "
+        "CRC ZYL_VL_Pruefsumme e2e_p1, data ID 0x0123 (both)",
+        "protected ZYL_VR: counter ZYL_VR_AliveCounter 0..14 (steps up to 2), "
+        "CRC ZYL_VR_Checksum e2e_p1, data ID 0x1234 (alt)",
+        "protected ZYL_HL: counter ZYL_HL_MsgCntr 0..14 (steps up to 2), "
+        "CRC ZYL_HL_CRC8 e2e_p1, data ID 0x0056 (low)",
+        "protected ZYL_HR: counter ZYL_HR_Cnt 0..14 (steps up to 1), "
+        "CRC ZYL_HR_CRC e2e_p1, data ID 0x0A42 (nibble in ZYL_HR_DataIDNibble)",
+        "protected MASCHINE_ZUSTAND: counter MZ_Zaehler 0..15 (steps up to 2), CRC MZ_CRC "
+        "e2e_p2, data ID list 0x60, 0x61, 0x62, 0x63, 0x64, 0x65, 0x66, 0x67, 0x68, 0x69, "
+        "0x6A, 0x6B, 0x6C, 0x6D, 0x6E, 0x6F by counter",
+    ]

@@ -250,3 +250,116 @@ def test_replay_of_a_can_log_needs_a_config(tmp_path: Path) -> None:
     log = tmp_path / "drive.log"
     write_candump_log(log)
     assert_one_line_error(run_cli("replay", str(log)), 2, "needs --config")
+
+
+def test_an_access_control_zenoh_refuses_is_one_line_naming_the_file(tmp_path: Path) -> None:
+    # Zenoh checks a policy's subjects when the session opens: it was exit 1, blamed on
+    # a taken port ("check [zenoh] listen/connect ...: is the port taken ...?").
+    assert run_cli("init", str(tmp_path)).returncode == 0
+    config, zenoh_file = tmp_path / "portal-daq.toml", tmp_path / "zenoh.json5"
+    text = zenoh_file.read_text().replace("tcp/127.0.0.1:7447", f"tcp/127.0.0.1:{free_port()}")
+    assert 'subjects: ["anyone"] }' in text
+    zenoh_file.write_text(text.replace('subjects: ["anyone"] }', 'subjects: ["anyon"] }'))
+    result = run_cli("run", "--config", str(config))
+    assert_one_line_error(
+        result,
+        2,
+        f"{zenoh_file}: access_control: Subject 'anyon' in policy #0 does not exist in "
+        "subjects list",
+    )
+    assert "is the port taken" not in result.stderr
+
+
+def service_process(config: Path, notify: str | None = None) -> subprocess.Popen[str]:
+    """``portal-daq run`` in a session of its own (so that a signal to its process group,
+    as a terminal or systemd sends it, reaches the service and its recorder only)."""
+    env = {name: value for name, value in os.environ.items() if name != "NOTIFY_SOCKET"}
+    return subprocess.Popen(
+        [sys.executable, "-m", "daq", "run", "--config", str(config)],
+        cwd=ROOT,
+        env=env if notify is None else dict(env, NOTIFY_SOCKET=notify),
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
+
+
+def test_sighup_stops_the_service_and_finishes_the_file(tmp_path: Path) -> None:
+    # A terminal that closes sends SIGHUP to its process group: the service and its
+    # recorder's process died of it, the file cut without its summary.
+    config = write_service_config(
+        tmp_path, channel=f"hup-{os.getpid()}", port=free_port(), recording=tmp_path / "rec"
+    )
+    address = str(tmp_path / "notify.sock")
+    with socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM) as sock:
+        sock.bind(address)
+        sock.settimeout(WAIT_S)
+        process = service_process(config, address)
+        try:
+            while sock.recv(4096).decode() != "READY=1":
+                pass
+            os.killpg(process.pid, signal.SIGHUP)
+            status = process.wait(timeout=WAIT_S)
+        finally:
+            if process.poll() is None:
+                process.kill()
+            stderr = process.communicate()[1]
+    assert status == 0, stderr
+    assert "Traceback" not in stderr
+    (path,) = (tmp_path / "rec").iterdir()
+    with open(path, "rb") as file:
+        assert make_reader(file).get_summary() is not None
+
+
+def children(pid: int) -> list[int]:
+    """The child processes of ``pid`` (Linux: /proc/PID/task/*/children)."""
+    found: list[int] = []
+    for task in Path(f"/proc/{pid}/task").glob("*/children"):
+        try:
+            found += [int(child) for child in task.read_text().split()]
+        except OSError:  # the thread ended meanwhile
+            pass
+    return found
+
+
+def spawned_recorder(pid: int) -> bool:
+    """The recorder's process of the service ``pid`` has been started (it may still be
+    importing: its start takes ~0.5 s)."""
+    for child in children(pid):
+        try:
+            command = Path(f"/proc/{child}/cmdline").read_bytes()
+        except OSError:
+            continue
+        if b"spawn_main" in command:
+            return True
+    return False
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGHUP])
+def test_a_signal_to_the_group_while_the_recorder_starts_is_a_clean_stop(
+    tmp_path: Path, signum: signal.Signals
+) -> None:
+    # Ctrl-C (or a closing terminal, or systemd's stop) signals the whole process group.
+    # Landing while the recorder's process was still importing (before it ignored them),
+    # it died of a KeyboardInterrupt traceback, and the service exited 1: "the recorder's
+    # process did not start".
+    config = write_service_config(
+        tmp_path, channel=f"start-{os.getpid()}", port=free_port(), recording=tmp_path / "rec"
+    )
+    process = service_process(config)
+    try:
+        deadline = time.monotonic() + WAIT_S
+        while not spawned_recorder(process.pid):
+            assert process.poll() is None and time.monotonic() < deadline
+            time.sleep(0.001)
+        os.killpg(process.pid, signum)
+        status = process.wait(timeout=WAIT_S)
+    finally:
+        if process.poll() is None:
+            process.kill()
+        stderr = process.communicate()[1]
+    assert status == 0, stderr
+    assert "Traceback" not in stderr and "KeyboardInterrupt" not in stderr
+    (path,) = (tmp_path / "rec").iterdir()
+    with open(path, "rb") as file:
+        assert make_reader(file).get_summary() is not None

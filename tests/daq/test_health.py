@@ -2,18 +2,26 @@
 
 from __future__ import annotations
 
+import errno
+import logging
+import os
+import threading
 import time
 import uuid
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
+import can
+import pytest
 import zenoh
 
 from daq.consumer import Consumer
 from daq.frames import RawFrame
-from daq.pipeline import Pipeline
+from daq.pipeline import Pipeline, decoded_frames
 from daq.runner import bus_factory
-from daq.service import Service, losses, problems, status_line
+from daq.service import Service, decoded_for_sure, losses, problems, status_line
 from daq.service_config import load_service_config
 from daq.zenoh_links import unreached
 from daq.zenoh_session import zenoh_config
@@ -49,13 +57,16 @@ def status(**changes: object) -> dict:  # type: ignore[type-arg]
 
 
 def test_healthy_when_nothing_is_wrong() -> None:
-    assert problems(status(), alive=True, lost_before={}, silent_s=0.0, silence_s=1.0) == []
+    assert (
+        problems(status(), alive=True, lost_before={}, silent_s=0.0, heard_s=0.0, silence_s=1.0)
+        == []
+    )
 
 
 def test_any_drop_in_the_period_is_a_problem_whatever_its_key() -> None:
     now = status(dropped={"rx": 3, "publish": 0, "record": 7, "kernel": 2})
     before = {"dropped.rx": 3, "dropped.publish": 0, "dropped.record": 5}
-    found = problems(now, alive=True, lost_before=before, silent_s=0.0, silence_s=1.0)
+    found = problems(now, alive=True, lost_before=before, silent_s=0.0, heard_s=0.0, silence_s=1.0)
     assert found == ["dropped.record +2", "dropped.kernel +2"]
 
 
@@ -63,7 +74,7 @@ def test_failing_recorder_hung_thread_unreached_endpoint_and_silence() -> None:
     now = status(
         recording={"failing": True, "failed_items": 0}, zenoh={"unreached": ["tcp/10.0.0.9:7447"]}
     )
-    found = problems(now, alive=False, lost_before={}, silent_s=2.5, silence_s=1.0)
+    found = problems(now, alive=False, lost_before={}, silent_s=2.5, heard_s=2.5, silence_s=1.0)
     assert found == [
         "a service thread hangs or died",
         "recording stopped (write error)",
@@ -77,9 +88,12 @@ def test_an_item_the_recorder_skipped_is_a_loss_as_a_drop_is() -> None:
     # status healthy: the item is missing from the file as surely as a dropped one.
     before = losses(status(recording={"failing": False, "failed_items": 2}))
     now = status(recording={"failing": False, "failed_items": 5})
-    found = problems(now, alive=True, lost_before=before, silent_s=0.0, silence_s=1.0)
+    found = problems(now, alive=True, lost_before=before, silent_s=0.0, heard_s=0.0, silence_s=1.0)
     assert found == ["recording.failed_items +3"]
-    assert problems(now, alive=True, lost_before=losses(now), silent_s=0.0, silence_s=1.0) == []
+    assert (
+        problems(now, alive=True, lost_before=losses(now), silent_s=0.0, heard_s=0.0, silence_s=1.0)
+        == []
+    )
 
 
 def test_messages_zenoh_failed_to_put_are_counted_and_unhealthy(tmp_path: Path) -> None:
@@ -133,7 +147,7 @@ def test_frames_a_bug_cost_are_counted_each_and_make_the_status_unhealthy() -> N
     assert pipeline.bad["internal_error"] == 12 and collect.batches == []
     before = losses(status(bad={}))
     now = status(bad=dict(pipeline.bad))
-    found = problems(now, alive=True, lost_before=before, silent_s=0.0, silence_s=1.0)
+    found = problems(now, alive=True, lost_before=before, silent_s=0.0, heard_s=0.0, silence_s=1.0)
     assert found == ["bad.internal_error +12"]
 
 
@@ -209,3 +223,274 @@ def test_unreached_connect_endpoint_is_reported_until_it_comes_up(tmp_path: Path
             assert len(up["zenoh"]["peers"]) == 2
             assert not [p for p in up["problems"] if p.startswith("zenoh")]
         assert service.connect == [endpoint]
+
+
+def test_a_flood_of_error_frames_and_unknown_ids_is_no_sensor_talking(tmp_path: Path) -> None:
+    # A controller gone bus-off reports error frames, a foreign peer floods an ID of no
+    # message: any frame counted as "frames came in", so /status stayed healthy while no
+    # sensor was heard and every leg was stale.
+    path = write_service_config(
+        tmp_path, channel=f"test-{uuid.uuid4().hex}", port=free_port(), status_period_s=0.2
+    )
+    config = load_service_config(path)
+    prefix = config.zenoh.key_prefix
+    t0 = time.time()
+    flood = [
+        can.Message(timestamp=t0, arbitration_id=0x7AB, data=bytes(8), is_extended_id=False)
+        for _ in range(2000)
+    ] + [
+        can.Message(timestamp=t0, arbitration_id=0x80, is_error_frame=True, dlc=8, data=bytes(8))
+        for _ in range(2000)
+    ]
+    with live_service(config), subscriber_session(zenoh_port(config)) as session:
+        collector = Collector(session, f"{prefix}/status")
+        collector.wait_for(f"{prefix}/status")
+        with sender(config) as bus:
+            for message in flood:
+                bus.send(message)
+        status = collector.wait_for(
+            f"{prefix}/status",
+            lambda s: (
+                s["frames"]["processed"] == 4000
+                and any(p.startswith("no frame") for p in s["problems"])
+            ),
+        )
+    assert status["bad"] == {"unknown_id": 2000, "error_frame": 2000}
+    assert status["healthy"] is False
+    (silence,) = [p for p in status["problems"] if p.startswith("no frame")]
+    assert silence.startswith("no frame of the DBC for ")
+    assert silence.endswith(" s, only frames it does not use (see bad)")
+
+
+def test_a_foreign_frame_being_refused_is_no_sensor_talking() -> None:
+    """The pipeline counts a frame, then its kind once decoding refuses it; a status that
+    read the counters in between took the 4001st frame of a flood of unknown IDs for a
+    sensor's (the flood test above then saw "no frame for 0.3 s", now and then)."""
+    pipeline = Pipeline.from_config(CONFIG, DATABASE)
+    frame = RawFrame(START_S, 0x7AB, False, bytes(8))
+    for _ in range(4000):
+        pipeline.process(frame)
+    pipeline.frames += 1  # the 4001st, as the consumer is in the middle of it
+    assert decoded_frames(pipeline.frames, pipeline.bad) == 1  # read as it was
+    assert decoded_for_sure(pipeline.frames, pipeline.bad) == 0
+    pipeline.frames -= 1
+    for leg_frame in leg_frames(3):  # three of the legs' frames, all decoded
+        pipeline.process(leg_frame)
+    assert decoded_frames(pipeline.frames, pipeline.bad) == 3
+    assert decoded_for_sure(pipeline.frames, pipeline.bad) == 3 - 1  # one may be in flight
+
+
+class DownOnce:
+    """A bus whose interface is set down once (``ENETDOWN``, as a SocketCAN socket
+    reports it once), then quiet."""
+
+    kernel_dropped = 0
+    rcvbuf_bytes = None
+
+    def __init__(self) -> None:
+        self._reported = False
+        self._quiet = threading.Event()
+
+    def recv(self, timeout_s: float) -> RawFrame | None:
+        if not self._reported:
+            self._reported = True
+            raise OSError(errno.ENETDOWN, os.strerror(errno.ENETDOWN))
+        self._quiet.wait(timeout_s)  # a quiet bus: no frame within the timeout
+        return None
+
+    def shutdown(self) -> None:
+        pass
+
+
+def never_opens() -> DownOnce:
+    raise OSError(errno.ENODEV, os.strerror(errno.ENODEV))
+
+
+@pytest.mark.parametrize(
+    ("open_bus", "state", "reason"),
+    [(DownOnce, "down", "Network is down"), (never_opens, "absent", "No such device")],
+)
+def test_a_bus_down_or_absent_is_unhealthy_at_once(
+    tmp_path: Path, open_bus: Callable[[], DownOnce], state: str, reason: str
+) -> None:
+    # A bus set down or gone was healthy until the silence rule caught up (a period or
+    # the stale time later), and even then the problem said only "no frame for 1.0 s".
+    path = write_service_config(
+        tmp_path, channel=f"test-{uuid.uuid4().hex}", port=free_port(), status_period_s=3600.0
+    )
+    config = load_service_config(path)
+    with zenoh.open(zenoh_config(config.zenoh)) as session:
+        with Service(config, open_bus=open_bus, session=session) as service:
+            wait_until(lambda: service.reader.state == state)
+            now = service.status()
+    assert now["bus"]["state"] == state and now["healthy"] is False
+    (problem,) = [p for p in now["problems"] if p.startswith("bus ")]
+    assert problem == f"bus {state}: {now['bus']['reason']}"
+    assert problem.startswith(f"bus {state}: CAN bus {config.bus.channel!r}: {reason}")
+
+
+def test_frames_held_for_the_poll_period_are_no_silence(tmp_path: Path) -> None:
+    # With [service] poll_period_ms = 250 the frames are taken every 250 ms; statuses every
+    # 50 ms between two wake-ups found no new frame and said "no frame for 0.1 s", the
+    # status flapping between healthy and not on a bus that never paused.
+    path = write_service_config(
+        tmp_path,
+        channel=f"test-{uuid.uuid4().hex}",
+        port=free_port(),
+        status_period_s=0.05,
+        extra="[service]\npoll_period_ms = 250\n",
+    )
+    config = load_service_config(path)
+    estimator = config.machine.estimator
+    stale_s = max(estimator.stale_after_s(leg.cycle_time_s) for leg in config.machine.legs.values())
+    with zenoh.open(zenoh_config(config.zenoh)) as session:
+        service = Service(config, open_bus=bus_factory(config.bus, []), session=session)
+    # A wake-up every 250 ms is seen by a status at most one period later.
+    assert service.silence_s == max(0.05, stale_s) + 0.25
+
+
+def test_an_outage_of_a_connect_endpoint_is_counted_after_it(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """A site router that restarts: the statuses while it is away reach nobody through
+    it, and the ones after said nothing of it (healthy, unreached []): a fleet could not
+    tell a machine that was cut off for a while from one that never was."""
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    path = write_service_config(
+        tmp_path, channel=f"test-{uuid.uuid4().hex}", port=free_port(), status_period_s=0.2
+    )
+    path.write_text(
+        path.read_text().replace(
+            "multicast_scouting = false", f'multicast_scouting = false\nconnect = ["{endpoint}"]', 1
+        )
+    )
+    config = load_service_config(path)
+    prefix = config.zenoh.key_prefix
+    key = f"{prefix}/status"
+    caplog.set_level(logging.INFO, logger="daq.zenoh_links")
+    with live_service(config), subscriber_session(zenoh_port(config)) as session:
+        collector = Collector(session, key)
+        with zenoh.open(peer_config(listen=endpoint)):  # the router, up
+            before = collector.wait_for(key, lambda s: not s["zenoh"]["unreached"])
+            started = time.monotonic()  # before it goes (it may have been away at start)
+        down = collector.wait_for(key, lambda s: s["zenoh"]["unreached"] == [endpoint])
+        assert down["zenoh"]["outages"] == before["zenoh"]["outages"] + 1
+        assert down["healthy"] is False
+        with zenoh.open(peer_config(listen=endpoint)):  # back, on the same address
+            up = collector.wait_for(key, lambda s: not s["zenoh"]["unreached"])
+            span_s = time.monotonic() - started
+    assert up["zenoh"]["outages"] == down["zenoh"]["outages"]  # shown after, too
+    lasted_s = up["zenoh"]["unreached_s"] - before["zenoh"]["unreached_s"]
+    assert 0.0 < lasted_s < span_s
+    again = [r.getMessage() for r in caplog.records if "reached again" in r.getMessage()]
+    assert again[-1].startswith(f"zenoh connect {endpoint} reached again after ")
+    assert again[-1].endswith(" s: what was published meanwhile went nowhere through it")
+
+
+def test_two_services_under_one_key_prefix_are_told(tmp_path: Path) -> None:
+    """Two machines given one id publish into the same keys: a fleet view showed one
+    machine, live and healthy, its values taken in turn from both, and nothing said so."""
+    configs = []
+    for name in ("a", "b"):
+        (tmp_path / name).mkdir()
+        configs.append(
+            write_service_config(
+                tmp_path / name,
+                channel=f"test-{uuid.uuid4().hex}",
+                port=free_port(),
+                status_period_s=0.2,
+            )
+        )
+    first = load_service_config(configs[0])
+    port = zenoh_port(first)
+    text = configs[1].read_text()
+    configs[1].write_text(
+        text.replace(
+            "multicast_scouting = false",
+            f'multicast_scouting = false\nconnect = ["tcp/127.0.0.1:{port}"]',
+            1,
+        )
+    )
+    second = load_service_config(configs[1])
+    assert first.zenoh.key_prefix == second.zenoh.key_prefix  # one machine id
+    key = f"{first.zenoh.key_prefix}/status"
+    lines = Lines()
+    with lines.of("daq.service"), live_service(first) as a, subscriber_session(port) as session:
+        collector = Collector(session, key)
+        alone = collector.wait_for(key)
+        assert alone["zenoh"]["same_prefix"] == []
+        assert not [p for p in alone["problems"] if "another service" in p]
+        a_zid = str(a.session.info.zid())
+        with live_service(second) as b:
+            b_zid = str(b.session.info.zid())
+            status = collector.wait_for(key, lambda s: s["zenoh"]["same_prefix"] == [b_zid])
+            assert status["healthy"] is False
+            assert (
+                f"another service publishes under this key prefix (zenoh session {b_zid})"
+                in status["problems"]
+            )
+            assert b.owners.others() == [a_zid]  # and the other way round
+        # Gone: a's statuses say nothing of it any more.
+        after = collector.wait_for(key, lambda s: s["zenoh"]["same_prefix"] == [])
+        assert not [p for p in after["problems"] if "another service" in p]
+    told = [
+        line
+        for line in lines.messages
+        if line.startswith(f"another service publishes under {first.zenoh.key_prefix}")
+        and b_zid in line
+    ]
+    assert len(told) == 1, lines.messages  # a's line, once while it lasted
+    assert f"(zenoh session {b_zid}): give each machine its own [machine] id" in told[0]
+
+
+class Lines(logging.Handler):
+    """The messages logged to a logger, from any thread (beside pytest's capture)."""
+
+    def __init__(self) -> None:
+        super().__init__(logging.WARNING)
+        self.messages: list[str] = []
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.messages.append(record.getMessage())
+
+    @contextmanager
+    def of(self, name: str) -> Iterator[None]:
+        logger = logging.getLogger(name)
+        logger.addHandler(self)
+        try:
+            yield
+        finally:
+            logger.removeHandler(self)
+
+
+def test_error_frames_make_their_period_unhealthy_naming_what_they_report(
+    tmp_path: Path,
+) -> None:
+    # The controller's error frames (a bus-off, an overflow of its receive buffer: frames
+    # lost before the socket) were counted in bad.error_frame and nothing else: /status
+    # stayed healthy, no line said what happened.
+    path = write_service_config(
+        tmp_path, channel=f"test-{uuid.uuid4().hex}", port=free_port(), status_period_s=0.2
+    )
+    config = load_service_config(path)
+    prefix = config.zenoh.key_prefix
+    t0 = time.time()
+    overflow_and_bus_off = can.Message(
+        timestamp=t0, arbitration_id=0x044, is_error_frame=True, dlc=8, data=bytes([0, 1, 0, 0])
+    )
+    frames = [overflow_and_bus_off, *leg_messages(encoder_for(config), 2, t0)]
+    with live_service(config), subscriber_session(zenoh_port(config)) as session:
+        collector = Collector(session, f"{prefix}/status")
+        collector.wait_for(f"{prefix}/status")
+        with sender(config) as bus:
+            for message in frames:
+                bus.send(message)
+        reported = collector.wait_for(
+            f"{prefix}/status", lambda s: any(p.startswith("CAN controller") for p in s["problems"])
+        )
+        after = collector.wait_for(f"{prefix}/status", lambda s: s["frames"]["processed"] == 13)
+    assert "CAN controller: rx overflow +1, bus off +1 (error frames)" in reported["problems"]
+    assert reported["healthy"] is False
+    # The next period has no error frame: the problem is gone.
+    assert not [p for p in after["problems"] if p.startswith("CAN controller")]
+    assert after["bad"] == {"error_frame": 1}

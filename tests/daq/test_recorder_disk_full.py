@@ -1,10 +1,13 @@
-"""The recorder on a full disk (a 64 KiB tmpfs): one log line, no empty files, the gap recorded."""
+"""The recorder on a full disk (a 64 KiB tmpfs) or without its directory: one log line, no
+empty files, the gap recorded, every item lost counted."""
 
 from __future__ import annotations
 
 import errno
+import io
 import json
 import logging
+import shutil
 import subprocess
 import time
 from collections.abc import Iterator
@@ -16,12 +19,13 @@ from mcap.reader import make_reader
 import daq.recorder
 from daq.mcap_file import RecordBatch
 from daq.recorder import Recorder
+from daq.replay import replay
 from daq.report.loading import load_recording
 from daq.runner import recording_attachments
 from daq.service_config import RecordingSettings, load_service_config
 from tests.daq.service_support import free_port, write_service_config
-from tests.daq.test_recording import results
-from tests.helpers import example_machine
+from tests.daq.test_recording import results, wait_drained
+from tests.helpers import example_machine, recorded_raw_frames
 
 WAIT_S = 20.0
 
@@ -59,10 +63,10 @@ def fill(disk: Path) -> Path:
     return filler
 
 
-def recorder_on(disk: Path, tmp_path: Path) -> Recorder:
+def recorder_on(disk: Path, tmp_path: Path, flush_period_s: float = 0.02) -> Recorder:
     config, database = example_machine()
     path = write_service_config(tmp_path, port=free_port())
-    settings = RecordingSettings(directory=disk, chunk_size=4096, flush_period_s=0.02)
+    settings = RecordingSettings(directory=disk, chunk_size=4096, flush_period_s=flush_period_s)
     return Recorder(
         settings,
         database,
@@ -71,13 +75,17 @@ def recorder_on(disk: Path, tmp_path: Path) -> Recorder:
     )
 
 
-def wait_until(condition, recorder: Recorder, feed: Iterator) -> None:  # type: ignore[no-untyped-def]
-    """Keep submitting results until ``condition()`` holds (the recorder retries on items)."""
+def wait_until(condition, recorder: Recorder, feed: Iterator) -> int:  # type: ignore[no-untyped-def]
+    """Keep submitting results until ``condition()`` holds (the recorder retries on items);
+    how many were submitted."""
     deadline = time.monotonic() + WAIT_S
+    submitted = 0
     while not condition():
         assert time.monotonic() < deadline, "condition not reached"
         recorder.submit(RecordBatch.of([next(feed)], signals=False))
+        submitted += 1
         time.sleep(0.005)
+    return submitted
 
 
 def mcap_files(disk: Path) -> list[Path]:
@@ -150,3 +158,50 @@ def test_disk_full_at_start_leaves_no_file_and_recovers(
     (path,) = mcap_files(small_disk)
     with open(path, "rb") as file:
         assert make_reader(file).get_summary() is not None
+
+
+def test_the_chunk_a_full_disk_cut_is_counted_as_dropped(
+    small_disk: Path, tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    # The messages of the chunk being written when the disk filled (up to chunk_size or
+    # flush_period_s of frames) were lost from the file, which reads back to its last
+    # complete chunk, and counted nowhere: /status said every other frame was recorded.
+    # Chunks go out when full (4 KiB), never by time: the disk fills under a chunk of
+    # messages for certain.
+    feed = results(100_000, t0=1_750_000_000.0)
+    recorder = recorder_on(small_disk, tmp_path, flush_period_s=3600.0)
+    with recorder:
+        filler = fill(small_disk)
+        submitted = wait_until(lambda: recorder.failing, recorder, feed)
+        filler.unlink()
+        submitted += wait_until(lambda: not recorder.failing, recorder, feed)
+        wait_drained(recorder)
+    recorded = sum(len(recorded_raw_frames(path)) for path in mcap_files(small_disk))
+    (stopped,) = one_line_logs(caplog, "recording stopped")
+    lost = int(stopped.split("; ")[1].split()[0])  # "; 17 items lost from the file; ..."
+    assert lost > 0 and recorded + recorder.dropped == submitted
+    # What was recorded, the cut file's complete chunks too, is replayed as one run.
+    out = io.StringIO()
+    assert replay([small_disk], out) == recorded
+
+
+def test_a_recording_directory_removed_while_recording_is_counted_and_made_again(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    # A cleanup that removed the recording directory unlinked the file being written: the
+    # recorder wrote on into it, lost, until the file rotated (an hour, by default) while
+    # /status said healthy; and the retries never found the directory again.
+    directory = tmp_path / "rec"
+    feed = results(100_000, t0=1_750_000_000.0)
+    recorder = recorder_on(directory, tmp_path)
+    with recorder:
+        submitted = wait_until(lambda: recorder.current_bytes > 20_000, recorder, feed)
+        shutil.rmtree(directory)
+        submitted += wait_until(lambda: recorder.failing, recorder, feed)
+        submitted += wait_until(lambda: not recorder.failing, recorder, feed)
+        wait_drained(recorder)
+    (path,) = mcap_files(directory)  # the directory made again, the file resumed in
+    recorded = len(recorded_raw_frames(path))
+    assert recorded > 0 and recorded + recorder.dropped == submitted
+    (stopped,) = one_line_logs(caplog, "recording stopped")
+    assert f"{recorder.paths[0]}: deleted while it was being written; " in stopped

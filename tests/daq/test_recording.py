@@ -100,6 +100,30 @@ def test_one_batch_spanning_several_files_is_split_by_frame_time(
     assert leg_times == raw_times(recorder.paths[1])  # the estimates went with their frames
 
 
+def test_a_clock_stepped_back_in_a_batch_at_a_rotation_keeps_every_frame_in_its_place(
+    tmp_path: Path,
+) -> None:
+    # 1.4 s of frames, then the clock stepped back two hours: in one batch across the
+    # rotation at 1001.0 s. Split by time, the 5 frames after the step (earlier by their
+    # stamps) went into the first file, before the frames they followed: replay read the
+    # run out of order.
+    config, database = example_machine()
+    pipeline = Pipeline.from_config(config, database)
+    encoder = FrameEncoder(database, config.protection)
+    # None at the rotation's very time (1001.0 s, from the file's first log time in ns).
+    times = [1000.0] + [1000.05 + 0.1 * i for i in range(1, 15)]
+    times += [1001.5 - 7200.0 + 0.1 * i for i in range(5)]
+    batch = []
+    for i, t_s in enumerate(times):
+        frame = encoder.encode("LEG_SB1_F1", leg_signals("SB1_F1", 9e6 + 1e3 * i, 1e6))
+        batch.append(pipeline.process(RawFrame(t_s, frame.arbitration_id, False, frame.data)))
+    settings = RecordingSettings(directory=tmp_path, max_duration_s=1.0)
+    with Recorder(settings, database, machine_id="m") as recorder:
+        recorder.submit(RecordBatch.of(batch, signals=True))
+        wait_drained(recorder)
+    assert [raw_times(path) for path in recorder.paths] == [times[:10], times[10:]]
+
+
 def record_run(directory: Path, run_id: str, t0: float) -> list[Path]:
     _, database = example_machine()
     settings = RecordingSettings(directory=directory, max_duration_s=1.0)

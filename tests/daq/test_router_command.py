@@ -43,3 +43,20 @@ def test_a_config_it_cannot_use_is_one_short_line(
     stderr = capsys.readouterr().err
     assert stderr.startswith(f"portal-daq: {path}") and stderr.count("\n") == 1
     assert reason in stderr and "a long comment" not in stderr and len(stderr) < 300
+
+
+def test_an_access_control_zenoh_refuses_is_the_files_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Zenoh checks a policy's rules and subjects only when the session opens: it was
+    exit 1 with the hint of a taken port ("check listen in the router's config")."""
+    text = DEFAULT_CONFIG.read_text()
+    rules = 'policies: [{ rules: ["no-sim-truth-through-the-router"]'
+    assert rules in text
+    path = tmp_path / "zenoh-router.json5"
+    path.write_text(text.replace(rules, 'policies: [{ rules: ["no-sim-truth"]'))
+    assert router_main(["--config", str(path)]) == 2
+    assert capsys.readouterr().err == (
+        f"portal-daq: {path}: access_control: "
+        "Rule 'no-sim-truth' in policy #0 does not exist in rules list\n"
+    )

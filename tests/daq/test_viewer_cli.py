@@ -3,6 +3,7 @@ errors, clean SIGINT/SIGTERM."""
 
 from __future__ import annotations
 
+import argparse
 import signal
 import socket
 import subprocess
@@ -11,6 +12,7 @@ from pathlib import Path
 
 import pytest
 
+from daq.live.command import add_viewer_arguments
 from tests.daq.service_support import WAIT_S, free_port, write_service_config
 from tests.helpers import EXAMPLE_CONFIG, ROOT
 
@@ -130,3 +132,25 @@ def test_signals_stop_cleanly_with_status_0(command: str, signum: int, tmp_path:
         assert first.startswith("dashboard of portal/pam-proto-1 on http://127.0.0.1:")
     else:
         assert "waiting for portal/pam-proto-1/status" in first
+
+
+@pytest.mark.parametrize(
+    ("root", "reason"),
+    [
+        ("portal/", "has an empty chunk"),  # was a Zenoh traceback (portal//*/ground)
+        ("port#al", "has '#'"),  # was a Zenoh traceback
+        ("portal/*", "has '*'"),  # showed "no machine yet" for ever
+        ("@site", "has the chunk '@site', which starts with '@'"),  # ditto: not in portal/*
+    ],
+)
+def test_a_fleet_root_that_is_no_key_prefix_is_a_usage_error(
+    root: str, reason: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    parser = argparse.ArgumentParser(prog="portal-daq monitor")
+    add_viewer_arguments(parser)
+    assert parser.parse_args(["--fleet", "--root", "site7/hall-2"]).root == "site7/hall-2"
+    with pytest.raises(SystemExit) as exit_info:
+        parser.parse_args(["--fleet", "--root", root])
+    assert exit_info.value.code == 2
+    last = capsys.readouterr().err.strip().splitlines()[-1]
+    assert last.startswith(f"portal-daq monitor: error: argument --root: {root!r} {reason}")

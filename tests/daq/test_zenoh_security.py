@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import logging
+import threading
 import time
 import uuid
 from pathlib import Path
@@ -13,7 +14,8 @@ import zenoh
 from mcap.reader import make_reader
 
 from daq.service_config import ServiceConfig, ZenohSettings, load_service_config
-from daq.zenoh_session import config_value, zenoh_config
+from daq.zenoh_session import config_value, open_session, zenoh_config
+from dbc.errors import ConfigError
 from tests.daq.service_support import (
     WAIT_S,
     Collector,
@@ -152,3 +154,56 @@ def test_truth_that_never_comes_is_said_once(
     warnings = [r.getMessage() for r in caplog.records if "no sample came on" in r.getMessage()]
     assert len(warnings) == 1 and f"{prefix}/sim/truth" in warnings[0]
     assert "a Unix socket, not TCP" in warnings[0]
+
+
+def test_an_access_control_that_leaves_the_key_prefix_open_stops_the_service(
+    tmp_path: Path,
+) -> None:
+    """The shipped zenoh.json5 denies puts under portal/**: with another key prefix, a
+    foreign peer's fake truth was recorded (5 of 5). The service refuses to start with
+    one line naming the file; with the rule's key moved as it says, the peer is refused."""
+    config, tcp = locked_down_service(tmp_path)
+    path = Path(config.source)
+    path.write_text(path.read_text().replace("[zenoh]\n", '[zenoh]\nkey_prefix = "site7/pam"\n'))
+    zenoh_file = tmp_path / "zenoh.json5"
+    shipped = (ROOT / "deploy" / "zenoh.json5").read_text()
+    zenoh_file.write_text(shipped)
+    path.write_text(path.read_text().replace(str(ROOT / "deploy" / "zenoh.json5"), "zenoh.json5"))
+    config = load_service_config(path)
+    assert config.zenoh.key_prefix == "site7/pam" and config.zenoh.config_file == zenoh_file
+    with pytest.raises(ConfigError) as error:
+        open_session(config.zenoh, config.source)
+    assert str(error.value) == (
+        f"{zenoh_file}: access_control: its deny rules name no key under site7/pam (their "
+        "keys: portal/**), the service's key prefix: puts and deletes from other sessions "
+        'under it (a fake /sim/truth, a fake /status) pass; add "site7/pam/**" to the '
+        "key_exprs of the rule that denies them"
+    )
+    assert '"portal/**"' in shipped
+    zenoh_file.write_text(shipped.replace('"portal/**"', '"site7/pam/**"'))
+    with (
+        live_service(config) as service,
+        zenoh.open(peer_config(connect=tcp)) as foreign,
+    ):
+        received: list[str] = []
+        arrived = threading.Condition()
+
+        def on_sample(sample: zenoh.Sample) -> None:
+            with arrived:
+                received.append(str(sample.key_expr))
+                arrived.notify_all()
+
+        # What reaches the service's session (its ingress is what the access control checks).
+        service.session.declare_subscriber("**", on_sample)
+        connected(foreign)
+        with arrived:  # until the foreign peer's puts are routed to the service
+            while "marker/0" not in received:
+                foreign.put("marker/0", b"{}")
+                arrived.wait(0.1)
+        for _ in range(5):
+            foreign.put("site7/pam/sim/truth", FAKE)
+        foreign.put("marker/1", b"{}")  # after them, on the same link
+        with arrived:
+            assert arrived.wait_for(lambda: "marker/1" in received, WAIT_S)
+        assert service.truth is not None and service.truth.received == 0
+        assert "site7/pam/sim/truth" not in received

@@ -11,7 +11,7 @@ from typing import Any
 import pytest
 from cantools.autosar.end_to_end import compute_profile2_crc, compute_profile5_crc
 from cantools.j1939 import frame_id_pack
-from crccheck.crc import Crc8SaeJ1850
+from crccheck.crc import Crc
 
 from daq.frames import RawFrame
 from daq.pipeline import Pipeline
@@ -19,11 +19,11 @@ from dbc.database import load_database
 from dbc.decoding import FrameDecoder
 from dbc.encoding import FrameEncoder
 from dbc.errors import ConfigError
-from dbc.machine import MachineConfig, parse_machine_config
+from dbc.machine import MachineConfig, load_machine_config, parse_machine_config
 from dbc.protection import CRC_ALGORITHMS, CrcCheck, TableCrc, reference_checksum
 from dbc.units import PRESSURE_UNITS_TO_PA
 from estimator import foot_force_N
-from tests.helpers import LEG_DEFAULTS_TOML, ROOT, dbc_text
+from tests.helpers import FILES, LEG_DEFAULTS_TOML, ROOT, dbc_text
 
 DBC_PATH = ROOT / "tests" / "files" / "transducers.dbc"
 DATABASE = load_database(DBC_PATH)
@@ -444,7 +444,14 @@ def test_e2e_profile5_frames_from_the_encoder_check_and_bad_ones_fail() -> None:
 
 @pytest.mark.parametrize(
     ("algorithm", "check"),
-    [("crc8_sae_j1850", 0x4B), ("e2e_p1", 0x4B), ("e2e_p2", 0xDF), ("e2e_p5", 0x29B1)],
+    [
+        ("crc8_sae_j1850", 0x4B),
+        ("e2e_p1", 0x37),
+        ("e2e_p11", 0x37),
+        ("e2e_p2", 0xDF),
+        ("e2e_p22", 0xDF),
+        ("e2e_p5", 0x29B1),
+    ],
 )
 def test_each_crc_algorithm_has_its_published_check_value(algorithm: str, check: int) -> None:
     configuration = CRC_ALGORITHMS[algorithm].configuration
@@ -460,18 +467,34 @@ def test_e2e_profiles_against_independent_implementations() -> None:
     assert p2_list.compute(payload, 5) == compute_profile2_crc(payload, 0x15)
     p5 = CrcCheck(CRC_ALGORITHMS["e2e_p5"], 0, data_id=0xBEEF)
     assert p5.compute(payload) == compute_profile5_crc(payload, 0xBEEF)
-    # Profile 1 (data ID mode both): CRC-8 SAE J1850 over ID low, ID high, data w/o CRC byte.
+    # Profile 1 (data ID mode both): SAE J1850's polynomial from 0x00, no final XOR, over
+    # ID low, ID high, data w/o CRC byte (each mode against AUTOSAR's vectors:
+    # tests/dbc/test_e2e_profile1.py).
     p1 = CrcCheck(CRC_ALGORITHMS["e2e_p1"], 7, data_id=0x0123)
-    expected = Crc8SaeJ1850.calc(bytes([0x23, 0x01]) + payload[:7])
+    expected = Crc(8, 0x1D).calc(bytes([0x23, 0x01]) + payload[:7])
     assert p1.compute(payload) == expected
-    # A CRC anywhere: profile 5 in bytes 6-7, Motorola (high byte first).
-    moved = CrcCheck(CRC_ALGORITHMS["e2e_p5"], 6, big_endian=True, data_id=0xBEEF)
+    # A CRC anywhere: profile 5 in bytes 6-7 (low byte first, as AUTOSAR writes it).
+    moved = CrcCheck(CRC_ALGORITHMS["e2e_p5"], 6, data_id=0xBEEF)
     frame = bytearray(payload)
     moved.write(frame)
     assert frame[:6] == payload[:6] and moved.matches(bytes(frame))
-    assert int.from_bytes(frame[6:8], "big") == compute_profile5_crc(
+    assert int.from_bytes(frame[6:8], "little") == compute_profile5_crc(
         bytes(frame[6:8]) + payload[:6], 0xBEEF
     )
+
+
+def test_a_profile_5_crc_the_dbc_declares_motorola_is_low_byte_first() -> None:
+    """AUTOSAR's E2E library writes profile 5's CRC low byte first, whatever the DBC's
+    signal says: fd_be_float's HYD_HUB_CRC (bytes 30-31 of a big-endian hub) is Motorola.
+    Read high byte first, as before, a real sender's every frame was a crc fault."""
+    config, database = load_machine_config(FILES / "stranger" / "fd_be_float.toml")
+    message = database.get_message_by_name("HYD_HUB_FD")
+    check = config.protection["HYD_HUB_FD"].crc_check(message)
+    assert check is not None and (check.start_byte, check.end_byte) == (30, 32)
+    frame = bytearray(range(32))
+    crc = compute_profile5_crc(bytes(frame[30:32]) + bytes(frame[:30]), 0x0610)
+    frame[30:32] = crc.to_bytes(2, "little")
+    assert check.matches(bytes(frame)) and crc.to_bytes(2, "big") != bytes(frame[30:32])
 
 
 @pytest.mark.parametrize(

@@ -20,7 +20,12 @@ DBC signal of the simulation's (the truth's), each foot force within what that a
 - ``abs_vehicle``: absolute transmitters ("bar (abs)", "PSIA") in a vehicle DBC that
   cantools reads only without its checks;
 - ``iom_j1939``: two J1939 I/O modules on one PGN, eight inputs each in turn, each
-  chamber named by source address and page.
+  chamber named by source address and page;
+- ``e2e_p1_modes``: AUTOSAR E2E profile 1 in each DataIDMode (both, alt, low, nibble),
+  counters and CRCs under German and vendor names, a Motorola leg, the machine state
+  profile 2 with a DataIDList;
+- ``xdcr32_pdu1``: J1939 transducers of 32-bit pressures, the pistons' Motorola and peer
+  to peer (PDU1) to the DAQ at priority 3, the rods' unit only in the DBC's comment.
 """
 
 import logging
@@ -62,6 +67,8 @@ PAIRS = (
     "split_rates",
     "abs_vehicle",
     "iom_j1939",
+    "e2e_p1_modes",
+    "xdcr32_pdu1",
 )
 PLAYED_S = 0.5
 

@@ -115,3 +115,23 @@ def test_the_kernel_drop_counter_accounts_for_every_frame_sent(sender: can.BusAB
     assert [frame.arbitration_id for frame in late] == [0x7AB]
     assert 0 < len(early) < sent
     assert socket_source.kernel_dropped == sent - len(early)
+
+
+def test_the_controllers_error_frames_are_received(sender: can.BusABC) -> None:
+    # A socket gets error frames only when it asks (CAN_RAW_ERR_FILTER): the service's
+    # did not, so a bus-off or an overflow of the controller's receive buffer showed
+    # nowhere (python-can's socket, which it replaced, asked for every class).
+    bus_off = can.Message(arbitration_id=0x040, is_error_frame=True, dlc=8, data=bytes(8))
+    overflow = can.Message(
+        arbitration_id=0x004, is_error_frame=True, dlc=8, data=bytes([0, 0x01, 0, 0, 0, 0, 0, 0])
+    )
+    with source() as socket_source:
+        for message in (bus_off, can.Message(arbitration_id=0x123, data=b"\x01"), overflow):
+            sender.send(message)
+        frames = [socket_source.recv(RECV_TIMEOUT_S) for _ in range(3)]
+    assert [(f.arbitration_id, f.is_error_frame) for f in frames if f is not None] == [
+        (0x040, True),
+        (0x123, False),
+        (0x004, True),
+    ]
+    assert frames[2] is not None and frames[2].data[1] == 0x01  # its detail: rx overflow
