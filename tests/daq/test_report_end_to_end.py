@@ -84,6 +84,9 @@ max_bytes = 1073741824
 flush_period_s = 0.5
 queue_size = 500000
 truth = true
+# In the service's process: the recorder's own process runs at SCHED_IDLE, which a CPU
+# saturated by other work (a loaded CI) starves for the whole cycle's writing.
+process = false
 """,
     )
     path = tmp_path / "portal-daq.toml"
@@ -120,9 +123,15 @@ def play_cycle(config: ServiceConfig, service: Service, result: SimulationResult
         sent = sum(stats.sent.values())
         truth_subscriber = service.truth
         assert truth_subscriber is not None
+        recorder = service.recorder
+        assert recorder is not None
+        # Until all is processed and written: the stop lets the recorder finish for a
+        # bounded time only (what it has not taken by then is dropped and counted).
         deadline = time.monotonic() + 4 * WAIT_S
         while time.monotonic() < deadline and (
-            service.pipeline.frames < sent or truth_subscriber.received < stats.truth_samples
+            service.pipeline.frames < sent
+            or truth_subscriber.received < stats.truth_samples
+            or recorder.depth
         ):
             time.sleep(0.02)
     return stats
