@@ -33,7 +33,8 @@ Healthy, on the status topic and STATUS= (:func:`problems`): alive, the bus neit
 nor absent, and during the last status period the recorder was recording, nothing was
 lost anywhere (every key of ``dropped``, ``dropped.kernel`` and ``dropped.publish_failed``
 included, ``bad.internal_error`` and ``recording.failed_items``: :func:`losses`), every
-configured Zenoh ``connect`` endpoint was reached, and frames of the DBC came in (none
+configured Zenoh ``connect`` endpoint was reached, no other service publishes under the
+key prefix (:mod:`daq.prefix_owners`), and frames of the DBC came in (none
 for a whole period, or for the legs' stale time when that is longer, is a problem).
 ``problems`` lists what is wrong, one short text each. None of these stops the watchdog
 (a restart would not help).
@@ -54,6 +55,7 @@ from daq.frames import BUS_ABSENT, BUS_DOWN, BusEvent, RawFrame
 from daq.leg_restarts import warn_restarting_legs
 from daq.payloads import JsonObject
 from daq.pipeline import Pipeline, decoded_frames
+from daq.prefix_owners import PrefixOwners
 from daq.publisher import ZenohPublisher
 from daq.recorder import Recorder
 from daq.recorder_process import RecorderProcess
@@ -145,6 +147,8 @@ class Service:
             now=now,
         )
         self.session = session
+        #: Other services publishing under the same key prefix (one machine id twice).
+        self.owners = PrefixOwners(session, config.zenoh.key_prefix)
         #: The endpoints the session connects to (``[zenoh] connect`` or the JSON5 file).
         self.connect = connect_endpoints(config.zenoh, config.source)
         #: Times they went unreached, and for how long.
@@ -181,6 +185,8 @@ class Service:
         #: When the first frame was seen (monotonic), for :meth:`_truth_missing`.
         self._first_frame_monotonic: float | None = None
         self._truth_warned = False
+        #: The other services under the key prefix already told of.
+        self._owners_told: set[str] = set()
         #: The legs told of restarting their filter at every sample (once each).
         self._restarting_told: set[str] = set()
         self._started = False
@@ -200,6 +206,7 @@ class Service:
         self._started_monotonic = time.monotonic()
         self._rate_mark = (self._started_monotonic, 0)
         self.publisher.start()
+        self.owners.start()
         if self.recorder is not None:
             self.recorder.start()
         if self.truth is not None:
@@ -222,6 +229,7 @@ class Service:
             self.reader.close()
             self.consumer.close()
         self.publisher.close()
+        self.owners.close()
         if self.truth is not None:
             self.truth.close()
         if self.recorder is not None:
@@ -301,7 +309,7 @@ class Service:
         bad = dict(self.pipeline.bad)
         # Silence is of the DBC's frames: error frames of a bus-off controller or a
         # foreign peer's flood of unknown IDs are no sensor talking.
-        decoded = decoded_frames(processed, bad)
+        decoded = decoded_for_sure(processed, bad)
         if decoded > self._decoded_mark:
             self._decoded_mark = decoded
             self._last_frame_monotonic = now
@@ -361,8 +369,10 @@ class Service:
             "leg_faults": {
                 leg: dict(faults) for leg, faults in sorted(self.pipeline.leg_faults.items())
             },
-            "zenoh": zenoh_status(self.session, self.connect, self._outages, now),
+            "zenoh": zenoh_status(self.session, self.connect, self._outages, now)
+            | {"same_prefix": self.owners.others()},
         }
+        self._tell_other_owners(status["zenoh"]["same_prefix"])
         error_frames = dict(self.pipeline.error_frame_kinds)
         found = problems(
             status,
@@ -404,6 +414,19 @@ class Service:
             for leg, t_s in heard_at_s.items()
             if bus_time_s - t_s >= self.silence_s and before.get(leg) == t_s
         }
+
+    def _tell_other_owners(self, others: list[str]) -> None:
+        """One line per other service seen under the key prefix, with what to do."""
+        for zid in sorted(set(others) - self._owners_told):
+            logger.warning(
+                "another service publishes under %s (zenoh session %s): give each machine "
+                "its own [machine] id (or [zenoh] key_prefix); a fleet view shows the two "
+                "as one machine. (This service's previous run, if it was killed just now, "
+                "goes by itself within the router's lease.)",
+                self.config.zenoh.key_prefix,
+                zid,
+            )
+        self._owners_told = set(others)
 
     def _truth_missing(self, now: float) -> None:
         """Logs once when ``[recording] truth`` is on and frames have come in for
@@ -492,6 +515,28 @@ def losses(status: JsonObject) -> dict[str, int]:
     return found
 
 
+#: Frames the consumer may have counted as processed and not yet by kind when a status
+#: reads the counters: the one it is processing (the pipeline counts a frame, then its
+#: kind once decoding has refused it).
+IN_FLIGHT_FRAMES = 1
+
+
+def decoded_for_sure(processed: int, bad: Mapping[str, int]) -> int:
+    """Of ``processed`` frames, those of the DBC's messages for sure, the counters read
+    while the consumer runs (:func:`~daq.pipeline.decoded_frames` less the frame it may
+    be in the middle of). Read as they were, a foreign frame counted and not yet refused
+    was taken for a sensor's: during a flood of unknown IDs or error frames, a status now
+    and then judged the bus talking, and the next ones said "no frame for 0.3 s" where
+    "no frame of the DBC" was meant (and healthy, when no other problem was).
+
+    >>> decoded_for_sure(4001, {"unknown_id": 4000})  # the 4001st not refused yet
+    0
+    >>> decoded_for_sure(4012, {"unknown_id": 4000})
+    11
+    """
+    return max(0, decoded_frames(processed, bad) - IN_FLIGHT_FRAMES)
+
+
 def problems(
     status: JsonObject,
     *,
@@ -543,6 +588,10 @@ def problems(
         reported = ", ".join(f"{kind} +{n}" for kind, n in error_frames.items())
         found.append(f"CAN controller: {reported} (error frames)")
     found += [f"zenoh connect {endpoint} not reached" for endpoint in status["zenoh"]["unreached"]]
+    found += [
+        f"another service publishes under this key prefix (zenoh session {zid})"
+        for zid in status["zenoh"].get("same_prefix", ())
+    ]
     if silent_s >= silence_s:
         found.append(
             f"no frame for {silent_s:.1f} s"

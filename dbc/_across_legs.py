@@ -6,18 +6,22 @@ and one cycle time per J1939 transducer (:func:`unit_factors`,
 once the legs are read; errors are raised through ``legs_table`` (``FILE: KEY: reason``).
 """
 
+import logging
 from collections.abc import Iterator, Mapping
 from typing import TYPE_CHECKING
 
 from cantools.database.can import Database
 
 from dbc.decoding import is_j1939
+from dbc.protection import protection_role
 from dbc.toml_table import TomlTable
 from dbc.units import chamber_unit, pressure_factor_to_Pa
 
 if TYPE_CHECKING:
     from dbc.machine import ChamberSignal, LegConfig
     from dbc.protection import Protection
+
+logger = logging.getLogger(__name__)
 
 
 def _chambers(leg: "LegConfig") -> Iterator[tuple[str, "ChamberSignal"]]:
@@ -73,6 +77,45 @@ def check_not_protection(
                         f"{chamber.message}.{chamber.signal} is [protection."
                         f"{chamber.message}] {role}, not a pressure",
                     )
+
+
+def warn_unchecked_protection(
+    legs_table: TomlTable,
+    legs: Mapping[str, "LegConfig"],
+    protection: Mapping[str, "Protection"],
+    database: Database,
+) -> None:
+    """One warning line per leg message whose DBC has a signal named as a rolling counter
+    or a CRC (``Zaehler``, ``AliveCounter``, ``Pruefsumme``, ``Checksum``, ...) that its
+    ``[protection.<MESSAGE>]`` does not name (or that has none): a config written for a
+    foreign DBC took its frames unchecked, a frozen sender's or a corrupted frame's
+    pressures valid, and nothing said so."""
+    messages = dict.fromkeys(
+        chamber.message for leg in legs.values() for _, chamber in _chambers(leg)
+    )
+    for name in messages:
+        guard = protection.get(name)
+        named = guard.signals if guard is not None else ()
+        found = [
+            f"{signal.name} (a {'rolling counter' if role == 'counter' else 'CRC'} by its name)"
+            for signal in database.get_message_by_name(name).signals
+            if (role := protection_role(signal)) is not None
+            and signal.name not in named
+            and (guard is None or getattr(guard, role) is None)
+        ]
+        if found:
+            logger.warning(
+                "%s: protection.%s: %s %s not checked: %s; name %s there (counter, crc, "
+                "crc_algorithm as the sender computes it) to judge its frames",
+                legs_table.source,
+                name,
+                ", ".join(found),
+                "is" if len(found) == 1 else "are",
+                f"[protection.{name}] names no {'crc' if guard.counter else 'counter'}"
+                if guard is not None
+                else f"the config has no [protection.{name}]",
+                "it" if len(found) == 1 else "them",
+            )
 
 
 def sender_cycle_times_ms(

@@ -164,6 +164,8 @@ class _MessageCodec:
         # A counter with a value table (e.g. 15 "NotAvailable") decodes to a name for some
         # values; the check judges its number.
         self._counter_codes: dict[str, int] = {}
+        # A counter the DBC scales ((1,1): 1..16 for raw 0..15) is judged raw, as sent.
+        self._counter_scaling: tuple[float, float] | None = None
         # A CRC under a multiplexer value is in (and checked on) those frames only; so is a
         # counter, which then counts them.
         self._multiplexed_crc: str | None = None
@@ -182,6 +184,9 @@ class _MessageCodec:
                     message.get_signal_by_name(protection.counter).choices or {}
                 )
                 self._counter_codes = {str(name): int(raw) for raw, name in choices.items()}
+                counter_signal = message.get_signal_by_name(protection.counter)
+                if (counter_signal.scale, counter_signal.offset) != (1, 0):
+                    self._counter_scaling = (counter_signal.scale, counter_signal.offset)
 
     def decode(
         self, arbitration_id: int, data: bytes, t_s: float, source_address: int | None
@@ -205,7 +210,13 @@ class _MessageCodec:
         if self.counter_signal is not None:
             value = signals.get(self.counter_signal)
             if value is not None:
-                counter_value = self._counter_codes[value] if isinstance(value, str) else int(value)
+                if isinstance(value, str):
+                    counter_value = self._counter_codes[value]
+                elif self._counter_scaling is None:
+                    counter_value = int(value)
+                else:  # judged by what the sender counts: its raw value
+                    scale, offset = self._counter_scaling
+                    counter_value = round((value - offset) / scale)
                 counter = self._counters.get(source_address) or self._counter(source_address)
         crc = self.crc
         if (

@@ -99,7 +99,9 @@ class FrameEncoder:
                 counter = self._counters.get(key, -1) + 1
             counter %= counter_modulo(message, protection.counter, protection.crc_algorithm)
             self._counters[key] = counter
-            values[protection.counter] = counter
+            counter_signal = message.get_signal_by_name(protection.counter)
+            # ``counter`` is what the bits carry; a scaled counter is encoded from its value.
+            values[protection.counter] = counter * counter_signal.scale + counter_signal.offset
         with_crc = protection is not None and _carries(message, protection.crc, values)
         if with_crc:
             assert protection is not None and protection.crc is not None

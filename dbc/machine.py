@@ -415,6 +415,7 @@ def parse_machine_config(
     }
     _across_legs.check_senders(legs_table, legs, database)
     _across_legs.check_not_protection(legs_table, legs, protection)
+    _across_legs.warn_unchecked_protection(legs_table, legs, protection, database)
     unit_factors, sender_unit_factors, decoded_units = _across_legs.unit_factors(
         legs_table, legs, database
     )

@@ -29,18 +29,19 @@ frame, :attr:`Protection.data_id_nibble`); its 4-bit counter counts 0..14.
 data ID modes ``both`` and ``nibble``; ``e2e_p22`` profile 22, profile 2's, the same
 CRC over the data and ``DataIDList[counter]``.
 ``e2e_p2`` profile 2 (CRC-8H2F, DataIDList), ``e2e_p5`` profile 5
-(CRC-16/CCITT-FALSE); a 16-bit CRC is stored low byte first for an Intel signal,
-high byte first for a Motorola one. The parameter sets come from the ``crc``
+(CRC-16/CCITT-FALSE), its CRC written low byte first whatever the DBC declares (AUTOSAR's
+E2E library places the bytes, not the signal packing: a Motorola CRC signal of a big-endian
+DBC is still low byte first on the bus). The parameter sets come from the ``crc``
 package (the reference path); the hot path uses tables built from the same
 parameters (:class:`TableCrc`).
 """
 
 import math
+import re
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Literal
 
-from cantools.database.can import Message
+from cantools.database.can import Message, Signal
 from crc import Calculator, Configuration, Crc8, Crc16
 
 #: Counter faults, as they appear in an estimate's ``reasons``.
@@ -150,7 +151,7 @@ _J1850_REFERENCE = reference_checksum(Crc8.SAEJ1850.value)
 class CrcCheck:
     """The CRC of one message: computes, checks and writes it at its place in the frame.
 
-    ``start_byte``/``big_endian`` locate the CRC signal; ``data_id`` is the profile's
+    ``start_byte`` locates the CRC (a 16-bit one low byte first); ``data_id`` is the profile's
     data ID (a tuple of 16 for ``e2e_p2``'s DataIDList, picked by the counter value),
     put in by ``data_id_mode`` for ``e2e_p1`` (:data:`P1_DATA_ID_MODES`).
     ``compiled=False`` uses the ``crc`` package instead of the tables.
@@ -170,7 +171,6 @@ class CrcCheck:
         self,
         algorithm: CrcAlgorithm,
         start_byte: int,
-        big_endian: bool = False,
         data_id: int | tuple[int, ...] = 0,
         *,
         data_id_mode: str = "both",
@@ -179,7 +179,6 @@ class CrcCheck:
         self.algorithm = algorithm
         self.start_byte = start_byte
         self.end_byte = start_byte + algorithm.width_bytes
-        self.byteorder: Literal["big", "little"] = "big" if big_endian else "little"
         self.data_id = data_id
         # Profile 1's data ID bytes before the data, for an even and an odd counter.
         self._before = (
@@ -211,7 +210,7 @@ class CrcCheck:
 
     def received(self, data: bytes) -> int:
         """The CRC value the frame carries."""
-        return int.from_bytes(data[self.start_byte : self.end_byte], self.byteorder)
+        return int.from_bytes(data[self.start_byte : self.end_byte], "little")
 
     def matches(self, data: bytes, counter: int | None = None) -> bool:
         return self.compute(data, counter) == self.received(data)
@@ -222,7 +221,7 @@ class CrcCheck:
         if corrupt:
             value ^= (1 << (8 * self.algorithm.width_bytes)) - 1
         frame[self.start_byte : self.end_byte] = value.to_bytes(
-            self.algorithm.width_bytes, self.byteorder
+            self.algorithm.width_bytes, "little"
         )
 
 
@@ -347,6 +346,39 @@ def counter_modulo(
     return modulo
 
 
+#: Words of a signal name that call it a rolling counter or a CRC, as vendors write them
+#: (English, German, abbreviated): ``AliveCounter``, ``MsgCntr``, ``Zaehler``, ``BZ``
+#: (Botschaftszaehler), ``SQC``; ``Checksum``, ``CHK``, ``Pruefsumme``, ``CRC8``.
+_ROLE_WORDS = {
+    "counter": frozenset(
+        "counter cntr cnt ctr zaehler zähler alive rollingcounter msgcntr msgcnt bz sqc seq".split()
+    ),
+    "crc": frozenset("crc checksum chksum chks chk pruefsumme prüfsumme".split()),
+}
+_WORD_BREAKS = re.compile(
+    r"[^0-9A-Za-zÄÖÜäöüß]+|(?<=[a-zäöüß])(?=[A-ZÄÖÜ])|(?<=\D)(?=\d)|(?<=\d)(?=\D)"
+)
+
+
+def protection_role(signal: Signal) -> str | None:
+    """``"counter"`` or ``"crc"`` where ``signal``'s name calls it one (a word of it, by
+    ``_`` and case: ``ZYL_VL_Zaehler``, ``MsgCntr``, ``HUB_CRC8``) and its bits fit one
+    (an unscaled integer of 2..16 bits; a CRC of 8 or 16); else None.
+
+    >>> from cantools.database.can import Signal
+    >>> [protection_role(Signal(n, 0, 8)) for n in ("MsgCntr", "Pruefsumme", "CycleCount")]
+    ['counter', 'crc', None]
+    """
+    if signal.is_float or (signal.scale, signal.offset) != (1, 0):
+        return None
+    words = {word.lower() for word in _WORD_BREAKS.split(signal.name) if word}
+    if words & _ROLE_WORDS["crc"] and signal.length in (8, 16):
+        return "crc"
+    if words & _ROLE_WORDS["counter"] and 2 <= signal.length <= 16:
+        return "counter"
+    return None
+
+
 @dataclass(frozen=True, slots=True)
 class Protection:
     """The end-to-end protection profile of one message (``[protection.<MESSAGE>]``).
@@ -383,13 +415,12 @@ class Protection:
         if self.crc is None:
             return None
         signal = message.get_signal_by_name(self.crc)
-        big_endian = signal.byte_order == "big_endian"
-        # A Motorola signal's start bit is its MSB, in the lowest byte it occupies.
+        # A Motorola signal's start bit is its MSB, in the lowest byte it occupies; its
+        # bytes are low byte first all the same (profile 5's CRC: AUTOSAR places them).
         start_byte = signal.start // 8
         return CrcCheck(
             CRC_ALGORITHMS[self.crc_algorithm],
             start_byte,
-            big_endian,
             self.data_id,
             data_id_mode=self.data_id_mode,
             compiled=compiled,

@@ -15,26 +15,81 @@ import zenoh
 
 from dbc.errors import ConfigError
 
+#: The endpoint keys of a Zenoh config.
+ENDPOINT_KEYS = ("connect/endpoints", "listen/endpoints")
+#: Protocols whose address is ``HOST:PORT``.
+PORT_PROTOCOLS = ("tcp", "udp", "tls", "quic", "ws")
+
 
 def read_config_file(path: Path, option: str) -> zenoh.Config:
     """The :class:`zenoh.Config` in ``path`` (given by ``option``, e.g. ``--config``);
-    a file missing, a directory or one Zenoh refuses is a ConfigError naming it."""
+    a file missing, a directory or one Zenoh refuses is a ConfigError naming it, as is
+    an endpoint no session could ever use (:func:`endpoint_problem`)."""
     if not path.is_file():
         reason = "it is a directory" if path.is_dir() else "no such file"
         raise ConfigError(path, "", f"{reason}; give {option} a Zenoh JSON5 file")
     try:
-        return zenoh.Config.from_file(str(path))
+        config = zenoh.Config.from_file(str(path))
     except zenoh.ZError as exc:
         raise ConfigError(path, "", f"not a valid Zenoh config: {one_line(str(exc))}") from exc
+    for key in ENDPOINT_KEYS:
+        value = json.loads(config.get_json(key) or "null")
+        lists = value.values() if isinstance(value, dict) else [value]  # per mode, or one
+        for endpoints in lists:
+            _check_endpoints(endpoints, key, source=str(path), name=key)
+    return config
 
 
 def put(config: zenoh.Config, key: str, value: object, *, source: str, name: str = "") -> None:
     """Set ``key`` (e.g. ``connect/endpoints``) of ``config`` to ``value``; a value Zenoh
-    refuses is a ConfigError naming ``source`` (a file or an option) and ``name``."""
+    refuses, or an endpoint no session could ever use, is a ConfigError naming
+    ``source`` (a file or an option) and ``name``."""
+    if key in ENDPOINT_KEYS:
+        _check_endpoints(value, key, source=source, name=name)
     try:
         config.insert_json5(key, json.dumps(value))
     except zenoh.ZError as exc:
         raise ConfigError(source, name, one_line(str(exc))) from exc
+
+
+def _check_endpoints(value: object, key: str, *, source: str, name: str) -> None:
+    for endpoint in value if isinstance(value, list) else []:
+        problem = endpoint_problem(str(endpoint), listen=key.startswith("listen"))
+        if problem is not None:
+            raise ConfigError(source, name, problem)
+
+
+def endpoint_problem(endpoint: str, *, listen: bool) -> str | None:
+    """Why a session can never use ``endpoint``; None when it may. Zenoh takes a TCP
+    endpoint without a port or with port 99999 into its config: a peer then retried it
+    for ever ("not reached"), a listener said "invalid socket address".
+
+    >>> endpoint_problem("tcp/192.168.10.1:7447", listen=False) is None
+    True
+    >>> endpoint_problem("tcp/[::1]:7447?iface=lo", listen=False) is None
+    True
+    >>> endpoint_problem("tcp/192.168.10.1", listen=False)
+    "'tcp/192.168.10.1' names no port (tcp/HOST:PORT, e.g. tcp/192.168.10.1:7447)"
+    >>> endpoint_problem("tcp/127.0.0.1:0", listen=False)
+    "'tcp/127.0.0.1:0': port 0 is for listening (any free port), one cannot connect to it"
+    >>> endpoint_problem("udp/127.0.0.1:70000", listen=True)
+    "'udp/127.0.0.1:70000': port 70000 is beyond 65535"
+    """
+    protocol, slash, rest = endpoint.partition("/")
+    if not slash or protocol not in PORT_PROTOCOLS:
+        return None
+    address = re.split(r"[?#]", rest, maxsplit=1)[0]
+    host, colon, port = address.rpartition(":")
+    form = f"({protocol}/HOST:PORT, e.g. {protocol}/192.168.10.1:7447)"
+    if not colon or not port.isdigit():
+        return f"{endpoint!r} names no port {form}"
+    if not host.strip("[]"):
+        return f"{endpoint!r} names no host {form}"
+    if int(port) > 65535:
+        return f"{endpoint!r}: port {int(port)} is beyond 65535"
+    if int(port) == 0 and not listen:
+        return f"{endpoint!r}: port 0 is for listening (any free port), one cannot connect to it"
+    return None
 
 
 def one_line(message: str) -> str:

@@ -8,7 +8,8 @@ import os
 import threading
 import time
 import uuid
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -18,9 +19,9 @@ import zenoh
 
 from daq.consumer import Consumer
 from daq.frames import RawFrame
-from daq.pipeline import Pipeline
+from daq.pipeline import Pipeline, decoded_frames
 from daq.runner import bus_factory
-from daq.service import Service, losses, problems, status_line
+from daq.service import Service, decoded_for_sure, losses, problems, status_line
 from daq.service_config import load_service_config
 from daq.zenoh_links import unreached
 from daq.zenoh_session import zenoh_config
@@ -259,6 +260,24 @@ def test_a_flood_of_error_frames_and_unknown_ids_is_no_sensor_talking(tmp_path: 
     assert silence.endswith(" s, only frames it does not use (see bad)")
 
 
+def test_a_foreign_frame_being_refused_is_no_sensor_talking() -> None:
+    """The pipeline counts a frame, then its kind once decoding refuses it; a status that
+    read the counters in between took the 4001st frame of a flood of unknown IDs for a
+    sensor's (the flood test above then saw "no frame for 0.3 s", now and then)."""
+    pipeline = Pipeline.from_config(CONFIG, DATABASE)
+    frame = RawFrame(START_S, 0x7AB, False, bytes(8))
+    for _ in range(4000):
+        pipeline.process(frame)
+    pipeline.frames += 1  # the 4001st, as the consumer is in the middle of it
+    assert decoded_frames(pipeline.frames, pipeline.bad) == 1  # read as it was
+    assert decoded_for_sure(pipeline.frames, pipeline.bad) == 0
+    pipeline.frames -= 1
+    for leg_frame in leg_frames(3):  # three of the legs' frames, all decoded
+        pipeline.process(leg_frame)
+    assert decoded_frames(pipeline.frames, pipeline.bad) == 3
+    assert decoded_for_sure(pipeline.frames, pipeline.bad) == 3 - 1  # one may be in flight
+
+
 class DownOnce:
     """A bus whose interface is set down once (``ENETDOWN``, as a SocketCAN socket
     reports it once), then quiet."""
@@ -364,6 +383,82 @@ def test_an_outage_of_a_connect_endpoint_is_counted_after_it(
     again = [r.getMessage() for r in caplog.records if "reached again" in r.getMessage()]
     assert again[-1].startswith(f"zenoh connect {endpoint} reached again after ")
     assert again[-1].endswith(" s: what was published meanwhile went nowhere through it")
+
+
+def test_two_services_under_one_key_prefix_are_told(tmp_path: Path) -> None:
+    """Two machines given one id publish into the same keys: a fleet view showed one
+    machine, live and healthy, its values taken in turn from both, and nothing said so."""
+    configs = []
+    for name in ("a", "b"):
+        (tmp_path / name).mkdir()
+        configs.append(
+            write_service_config(
+                tmp_path / name,
+                channel=f"test-{uuid.uuid4().hex}",
+                port=free_port(),
+                status_period_s=0.2,
+            )
+        )
+    first = load_service_config(configs[0])
+    port = zenoh_port(first)
+    text = configs[1].read_text()
+    configs[1].write_text(
+        text.replace(
+            "multicast_scouting = false",
+            f'multicast_scouting = false\nconnect = ["tcp/127.0.0.1:{port}"]',
+            1,
+        )
+    )
+    second = load_service_config(configs[1])
+    assert first.zenoh.key_prefix == second.zenoh.key_prefix  # one machine id
+    key = f"{first.zenoh.key_prefix}/status"
+    lines = Lines()
+    with lines.of("daq.service"), live_service(first) as a, subscriber_session(port) as session:
+        collector = Collector(session, key)
+        alone = collector.wait_for(key)
+        assert alone["zenoh"]["same_prefix"] == []
+        assert not [p for p in alone["problems"] if "another service" in p]
+        a_zid = str(a.session.info.zid())
+        with live_service(second) as b:
+            b_zid = str(b.session.info.zid())
+            status = collector.wait_for(key, lambda s: s["zenoh"]["same_prefix"] == [b_zid])
+            assert status["healthy"] is False
+            assert (
+                f"another service publishes under this key prefix (zenoh session {b_zid})"
+                in status["problems"]
+            )
+            assert b.owners.others() == [a_zid]  # and the other way round
+        # Gone: a's statuses say nothing of it any more.
+        after = collector.wait_for(key, lambda s: s["zenoh"]["same_prefix"] == [])
+        assert not [p for p in after["problems"] if "another service" in p]
+    told = [
+        line
+        for line in lines.messages
+        if line.startswith(f"another service publishes under {first.zenoh.key_prefix}")
+        and b_zid in line
+    ]
+    assert len(told) == 1, lines.messages  # a's line, once while it lasted
+    assert f"(zenoh session {b_zid}): give each machine its own [machine] id" in told[0]
+
+
+class Lines(logging.Handler):
+    """The messages logged to a logger, from any thread (beside pytest's capture)."""
+
+    def __init__(self) -> None:
+        super().__init__(logging.WARNING)
+        self.messages: list[str] = []
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.messages.append(record.getMessage())
+
+    @contextmanager
+    def of(self, name: str) -> Iterator[None]:
+        logger = logging.getLogger(name)
+        logger.addHandler(self)
+        try:
+            yield
+        finally:
+            logger.removeHandler(self)
 
 
 def test_error_frames_make_their_period_unhealthy_naming_what_they_report(

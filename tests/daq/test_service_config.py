@@ -4,7 +4,7 @@ from pathlib import Path
 
 import pytest
 
-from daq.service_config import load_service_config
+from daq.service_config import ZenohSettings, load_service_config
 from daq.zenoh_session import zenoh_config
 from dbc import DEFAULT_DBC_PATH
 from dbc.errors import ConfigError
@@ -158,3 +158,40 @@ def test_bad_zenoh_file_is_a_config_error(tmp_path: Path) -> None:
     config = load_service_config(path)
     with pytest.raises(ConfigError, match="z.json5: not a valid Zenoh config"):
         zenoh_config(config.zenoh)
+
+
+@pytest.mark.parametrize(
+    ("line", "reason"),
+    [
+        # Taken by Zenoh: a peer retried it for ever ("not reached"), never could it work.
+        (
+            'connect = ["tcp/192.168.10.1"]',
+            "zenoh.connect: 'tcp/192.168.10.1' names no port "
+            "(tcp/HOST:PORT, e.g. tcp/192.168.10.1:7447)",
+        ),
+        ('connect = ["tcp/10.0.0.1:99999"]', "zenoh.connect: 'tcp/10.0.0.1:99999': port 99999"),
+        ('connect = ["tcp/10.0.0.1:0"]', "zenoh.connect: 'tcp/10.0.0.1:0': port 0 is for listen"),
+        ('connect = ["tcp/:7447"]', "zenoh.connect: 'tcp/:7447' names no host"),
+        # A listener said "invalid socket address", blamed on a taken port.
+        ('listen = ["udp/127.0.0.1"]', "zenoh.listen: 'udp/127.0.0.1' names no port"),
+    ],
+)
+def test_an_endpoint_no_session_can_use_is_a_config_error(
+    tmp_path: Path, line: str, reason: str
+) -> None:
+    path = tmp_path / "portal-daq.toml"
+    path.write_text(f"[zenoh]\n{line}\n" + MACHINE_ONLY.read_text())
+    config = load_service_config(path)
+    with pytest.raises(ConfigError) as error:
+        zenoh_config(config.zenoh, config.source)
+    assert str(error.value).startswith(f"{path}: {reason}")
+    # The same in the Zenoh file, named by its key; listening on port 0 (any) is fine.
+    key, _, value = line.partition(" = ")
+    (tmp_path / "z.json5").write_text(f"{{ {key}: {{ endpoints: {value} }} }}")
+    path.write_text('[zenoh]\nconfig_file = "z.json5"\n' + MACHINE_ONLY.read_text())
+    config = load_service_config(path)
+    with pytest.raises(ConfigError) as error:
+        zenoh_config(config.zenoh, config.source)
+    assert str(error.value).startswith(f"{tmp_path / 'z.json5'}: {key}/endpoints: ")
+    fine = ZenohSettings(listen=("tcp/127.0.0.1:0", "tcp/[::1]:7447", "unixsock-stream//x"))
+    assert zenoh_config(fine) is not None

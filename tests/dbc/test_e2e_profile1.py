@@ -1,7 +1,9 @@
 """AUTOSAR E2E profile 1 as real senders compute it: the CRC (SAE J1850's polynomial with
 AUTOSAR's chained start value: init 0x00, no final XOR) in each DataIDMode, the counter
-0..14, the data ID nibble; and its config keys (tests/files/stranger/e2e_p1_modes)."""
+0..14, the data ID nibble; its config keys; a counter or CRC the config leaves unnamed
+(tests/files/stranger/e2e_p1_modes)."""
 
+import logging
 import tomllib
 
 import pytest
@@ -164,3 +166,29 @@ def test_bad_profile_1_and_2_keys_are_one_line(old: str, new: str, key: str, rea
         machine_from_toml(tomllib.loads(text), "m.toml", STRANGER)
     assert info.value.key == f"protection.{key}" and reason in str(info.value)
     assert "\n" not in str(info.value)
+
+
+def test_a_counter_or_crc_the_config_leaves_unnamed_is_one_warning_line(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    """Without [protection.ZYL_VL], and with ZYL_HL's crc left out, those frames were
+    taken unchecked (a frozen sender's pressures valid) and nothing said so; the full
+    config warns of nothing."""
+    without = TOML.replace(
+        '[protection.ZYL_VL]\ncounter = "ZYL_VL_Zaehler"\ncrc = "ZYL_VL_Pruefsumme"\n'
+        'crc_algorithm = "e2e_p1"\ndata_id = 0x0123\n',
+        "",
+    ).replace('crc = "ZYL_HL_CRC8"\n', "")
+    with caplog.at_level(logging.WARNING, logger="dbc"):
+        machine_from_toml(tomllib.loads(TOML), "m.toml", STRANGER)
+        assert caplog.messages == []
+        machine_from_toml(tomllib.loads(without), "m.toml", STRANGER)
+    assert caplog.messages == [
+        "m.toml: protection.ZYL_VL: ZYL_VL_Pruefsumme (a CRC by its name), ZYL_VL_Zaehler (a "
+        "rolling counter by its name) are not checked: the config has no [protection.ZYL_VL]; "
+        "name them there (counter, crc, crc_algorithm as the sender computes it) to judge its "
+        "frames",
+        "m.toml: protection.ZYL_HL: ZYL_HL_CRC8 (a CRC by its name) is not checked: "
+        "[protection.ZYL_HL] names no crc; name it there (counter, crc, crc_algorithm as the "
+        "sender computes it) to judge its frames",
+    ]

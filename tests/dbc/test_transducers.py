@@ -19,11 +19,11 @@ from dbc.database import load_database
 from dbc.decoding import FrameDecoder
 from dbc.encoding import FrameEncoder
 from dbc.errors import ConfigError
-from dbc.machine import MachineConfig, parse_machine_config
+from dbc.machine import MachineConfig, load_machine_config, parse_machine_config
 from dbc.protection import CRC_ALGORITHMS, CrcCheck, TableCrc, reference_checksum
 from dbc.units import PRESSURE_UNITS_TO_PA
 from estimator import foot_force_N
-from tests.helpers import LEG_DEFAULTS_TOML, ROOT, dbc_text
+from tests.helpers import FILES, LEG_DEFAULTS_TOML, ROOT, dbc_text
 
 DBC_PATH = ROOT / "tests" / "files" / "transducers.dbc"
 DATABASE = load_database(DBC_PATH)
@@ -473,14 +473,28 @@ def test_e2e_profiles_against_independent_implementations() -> None:
     p1 = CrcCheck(CRC_ALGORITHMS["e2e_p1"], 7, data_id=0x0123)
     expected = Crc(8, 0x1D).calc(bytes([0x23, 0x01]) + payload[:7])
     assert p1.compute(payload) == expected
-    # A CRC anywhere: profile 5 in bytes 6-7, Motorola (high byte first).
-    moved = CrcCheck(CRC_ALGORITHMS["e2e_p5"], 6, big_endian=True, data_id=0xBEEF)
+    # A CRC anywhere: profile 5 in bytes 6-7 (low byte first, as AUTOSAR writes it).
+    moved = CrcCheck(CRC_ALGORITHMS["e2e_p5"], 6, data_id=0xBEEF)
     frame = bytearray(payload)
     moved.write(frame)
     assert frame[:6] == payload[:6] and moved.matches(bytes(frame))
-    assert int.from_bytes(frame[6:8], "big") == compute_profile5_crc(
+    assert int.from_bytes(frame[6:8], "little") == compute_profile5_crc(
         bytes(frame[6:8]) + payload[:6], 0xBEEF
     )
+
+
+def test_a_profile_5_crc_the_dbc_declares_motorola_is_low_byte_first() -> None:
+    """AUTOSAR's E2E library writes profile 5's CRC low byte first, whatever the DBC's
+    signal says: fd_be_float's HYD_HUB_CRC (bytes 30-31 of a big-endian hub) is Motorola.
+    Read high byte first, as before, a real sender's every frame was a crc fault."""
+    config, database = load_machine_config(FILES / "stranger" / "fd_be_float.toml")
+    message = database.get_message_by_name("HYD_HUB_FD")
+    check = config.protection["HYD_HUB_FD"].crc_check(message)
+    assert check is not None and (check.start_byte, check.end_byte) == (30, 32)
+    frame = bytearray(range(32))
+    crc = compute_profile5_crc(bytes(frame[30:32]) + bytes(frame[:30]), 0x0610)
+    frame[30:32] = crc.to_bytes(2, "little")
+    assert check.matches(bytes(frame)) and crc.to_bytes(2, "big") != bytes(frame[30:32])
 
 
 @pytest.mark.parametrize(
