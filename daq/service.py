@@ -374,17 +374,21 @@ class Service:
         }
         self._tell_other_owners(status["zenoh"]["same_prefix"])
         error_frames = dict(self.pipeline.error_frame_kinds)
+        silent_s = now - self._last_frame_monotonic
+        silent_legs = self._silent_legs()
+        if len(silent_legs) == len(self.config.machine.legs) and silent_s >= self.silence_s:
+            silent_legs = {}  # no frame of the DBC at all: that one problem says it
         found = problems(
             status,
             alive=self.alive(),
-            silent_legs=self._silent_legs(),
+            silent_legs=silent_legs,
             error_frames={
                 kind: n - self._error_frames_mark.get(kind, 0)
                 for kind, n in error_frames.items()
                 if n > self._error_frames_mark.get(kind, 0)
             },
             lost_before=self._lost_mark,
-            silent_s=now - self._last_frame_monotonic,
+            silent_s=silent_s,
             heard_s=now - self._last_heard_monotonic,
             silence_s=self.silence_s,
         )
