@@ -32,6 +32,8 @@ forked) and stands, for the service, in the recorder's place:
   paced p99 was 3.2 ms against 2.0 ms with the recorder in a thread; at ``SCHED_IDLE``
   1.5-2.2 against 1.6-3.5 ms (bench/, measured side by side). A CPU saturated by other
   work starves it: its queue takes up the slack, beyond it batches are dropped and counted.
+  On close it is put back at ``SCHED_OTHER`` (the service's threads have stopped), so
+  that such a CPU still lets it finish its file.
 - Its log lines go to stderr with the service's level, as the service's own do (the
   journal takes them as the service's).
 """
@@ -282,6 +284,8 @@ class RecorderProcess:
         if self._closed or process is None or items is None or shared is None:
             return
         self._closed = True
+        if process.pid is not None:
+            _leave_idle(process.pid)
         deadline = time.monotonic() + JOIN_S
         while self.depth and time.monotonic() < deadline:
             if not process.is_alive():
@@ -358,6 +362,34 @@ class RecorderProcess:
     @property
     def gaps(self) -> list[tuple[float, float]]:
         return [(stopped, lost) for stopped, lost in self._text().get("gaps", [])]
+
+
+def _leave_idle(pid: int) -> None:
+    """Every thread of process ``pid`` back at the normal policy (``SCHED_OTHER``).
+
+    On close the service's threads have stopped: the child no longer has to leave them the
+    CPU. Left at ``SCHED_IDLE`` on a CPU that other work saturates, it got ~1 % of a core,
+    took seconds to take what was queued and finish its file, and was killed after
+    :data:`JOIN_S` (the file cut, the items lost; a SIGTERM'd service took 4.7 s to stop,
+    systemd kills at 5 s). Leaving ``SCHED_IDLE`` needs an ``RLIMIT_NICE`` of 20 (the
+    unit's ``LimitNICE=+0``) or CAP_SYS_NICE; without, the child stays idle (logged).
+    """
+    try:
+        threads = [int(tid) for tid in os.listdir(f"/proc/{pid}/task")]
+    except OSError:  # gone, or no /proc: nothing to do
+        return
+    for tid in threads:
+        try:
+            os.sched_setscheduler(tid, os.SCHED_OTHER, os.sched_param(0))
+        except ProcessLookupError:  # that thread ended meanwhile
+            continue
+        except OSError as exc:
+            logger.info(
+                "the recorder's process finishes its file at SCHED_IDLE: %s (LimitNICE=+0 "
+                "lets it leave)",
+                exc.strerror,
+            )
+            return
 
 
 @contextmanager

@@ -1109,10 +1109,12 @@ def _data_id_mode(
     modes = CRC_ALGORITHMS[algorithm_name].data_id_modes
     if "data_id_mode" in table and not modes:
         raise table.error("data_id_mode", "only e2e_p1 and e2e_p11 have a data ID mode")
-    mode = table.string("data_id_mode", modes[0] if modes else "both")
+    given = table.string("data_id_mode", modes[0] if modes else "both")
+    # As AUTOSAR's configuration tools write it too: E2E_P01_DATAID_ALT, BOTH.
+    mode = re.sub(r"^(e2e_p\d+_)?dataid_", "", given.lower())
     if modes and mode not in modes:
         raise table.error(
-            "data_id_mode", f"unknown {mode!r} for {algorithm_name}; one of {', '.join(modes)}"
+            "data_id_mode", f"unknown {given!r} for {algorithm_name}; one of {', '.join(modes)}"
         )
     if mode == "alt" and counter_crc[0] is None:
         raise table.error(

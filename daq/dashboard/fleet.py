@@ -97,7 +97,8 @@ class FleetDashboard(HubServer):
         ground = entry.state.ground if entry is not None else None
         if ground is None or ground is before:
             return
+        legs = tuple(ground.value.legs)
         history = self._histories.get(prefix)
-        if history is None:
-            history = self._histories[prefix] = PressureHistory(tuple(ground.value.legs))
+        history = PressureHistory(legs) if history is None else history.with_legs(legs)
+        self._histories[prefix] = history
         history.add(ground.value)

@@ -39,6 +39,24 @@ class PressureHistory:
         #: Incremented whenever the history restarts (see the module docstring).
         self.generation = 0
 
+    def with_legs(self, legs: Sequence[str]) -> "PressureHistory":
+        """This history, or an empty one of the next generation when ``legs`` are others
+        (a machine of the fleet restarted with another config): the fleet page plotted
+        the first legs it saw for ever, the new ones never.
+
+        >>> history = PressureHistory(["A"])
+        >>> history.with_legs(["A"]) is history
+        True
+        >>> renewed = history.with_legs(["B", "C"])
+        >>> renewed.legs, renewed.generation
+        (('B', 'C'), 1)
+        """
+        if tuple(legs) == self.legs:
+            return self
+        renewed = PressureHistory(legs, self.window_s)
+        renewed.generation = self.generation + 1
+        return renewed
+
     def __len__(self) -> int:
         return len(self._points)
 

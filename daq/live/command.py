@@ -50,8 +50,8 @@ def add_viewer_arguments(parser: argparse.ArgumentParser) -> None:
     fleet.add_argument(
         "--root",
         type=_root,
-        default=DEFAULT_ROOT,
-        help=f"machines are <root>/<machine id> [{DEFAULT_ROOT}]",
+        help="machines are <root>/<machine id> [with --config: its key prefix without the "
+        f"machine id; else {DEFAULT_ROOT}]",
     )
     parser.add_argument(
         "--duration", type=_positive, metavar="S", help="stop after S seconds (default: run)"
@@ -103,14 +103,14 @@ def load_fleet(options: argparse.Namespace) -> FleetViewer:
     if not options.config and not options.connect:
         raise ConfigError("--fleet", "", "needs --connect ROUTER_ENDPOINT (or --config)")
     zenoh_settings = ZenohSettings(multicast_scouting=False)
-    settings = FleetSettings(options.root)
+    settings = FleetSettings(options.root or DEFAULT_ROOT)
     source = "--fleet"
     if options.config is not None:
         config = load_service_config(options.config)
         viewer = viewer_config(config)
         zenoh_settings, source = config.zenoh, config.source
         settings = FleetSettings(
-            options.root,
+            options.root or config_root(config.zenoh.key_prefix),
             pressure_limit_Pa=viewer.pressure_limit_Pa,
             status_stale_s=viewer.status_stale_s,
             ground_stale_s=viewer.ground_stale_s,
@@ -135,6 +135,19 @@ def fail(command: str, error: BaseException | str, status: int) -> int:
     """One line on stderr, e.g. ``portal-daq monitor: x.toml: zenoh.mode: ...``."""
     sys.stderr.write(f"{PROG} {command}: {error}\n")
     return status
+
+
+def config_root(key_prefix: str) -> str:
+    """The fleet root a service's key prefix is under: the prefix without its last chunk
+    (the machine id of ``portal/<machine id>``). With ``[zenoh] key_prefix = "site7/pam"``
+    in the config given, the fleet looked under ``portal`` and showed "no machine yet"
+    for ever.
+
+    >>> config_root("portal/pam-1"), config_root("site7/hall-2/pam"), config_root("pam")
+    ('portal', 'site7/hall-2', 'portal')
+    """
+    root, slash, _ = key_prefix.rpartition("/")
+    return root if slash else DEFAULT_ROOT
 
 
 def _root(text: str) -> str:

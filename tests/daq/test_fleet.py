@@ -15,6 +15,7 @@ Skipped without Chromium (``./dev test`` installs it). Set
 
 from __future__ import annotations
 
+import json
 import os
 import re
 import shutil
@@ -32,6 +33,7 @@ import pytest
 import zenoh
 
 from daq.dashboard.fleet import FleetDashboard
+from daq.live.feed import Item
 from daq.live.fleet import FleetSettings
 from daq.runner import bus_factory
 from daq.service import Service
@@ -334,3 +336,23 @@ def test_fleet_routes_in_process() -> None:
             assert get(url + missing)[0] == 404, missing
         service.close()  # its token goes: gone
         wait_for_json(url + "api/fleet", lambda doc: doc["machines"][0]["state"] == "gone")
+
+
+def test_a_machine_back_with_other_legs_is_plotted_with_them() -> None:
+    """A machine id that comes back with another config (other legs): its page's plot
+    kept the first legs for ever, every new point a gap."""
+
+    def ground(t_s: float, legs: tuple[str, ...]) -> Item:
+        payload = {"t": t_s, "legs": {leg: {"pressure_Pa": 1e5, "valid": True} for leg in legs}}
+        return Item("portal/rig/ground", json.dumps(payload).encode(), t_s)
+
+    with zenoh.open(peer_config()) as session:
+        dashboard = FleetDashboard(session, FleetSettings("portal"), ("127.0.0.1", 0))
+        dashboard._apply(Item("portal/rig/alive", b"", 0.0, True))
+        dashboard._apply(ground(1.0, ("A1", "A2")))
+        dashboard._apply(ground(2.0, ("B1", "B2", "B3")))  # restarted as another rig
+        code, _, body = dashboard.respond("/machine/rig/api/history", {})
+    history = json.loads(body)
+    assert code == 200 and history["generation"] == 1  # the page starts its plot anew
+    assert history["t"] == [2.0]
+    assert history["pressure_Pa"] == {"B1": [1e5], "B2": [1e5], "B3": [1e5]}

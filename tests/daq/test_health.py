@@ -106,6 +106,9 @@ def test_messages_zenoh_failed_to_put_are_counted_and_unhealthy(tmp_path: Path) 
     )
     config = load_service_config(path)
     with live_service(config) as service, sender(config) as bus:
+        # The loop's first status must be behind us: taken after the session closed, it
+        # took the first failures' period, and the test's own call below said "+19" of 21.
+        wait_until(lambda: service._lost_mark)
         first = service.status()
         service.session.close()
         for message in leg_messages(encoder_for(config), 2, time.time()):

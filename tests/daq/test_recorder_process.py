@@ -2,6 +2,7 @@
 recorder in a thread writes it, losses are counted, signals do not stop it."""
 
 import os
+import resource
 import signal
 import time
 from pathlib import Path
@@ -9,6 +10,7 @@ from pathlib import Path
 import pytest
 from mcap.reader import make_reader
 
+from daq import recorder_process
 from daq.errors import RecordingError
 from daq.frames import BusEvent
 from daq.mcap_file import RecordBatch
@@ -97,3 +99,35 @@ def test_a_dead_child_is_not_alive_and_what_it_never_took_is_counted(tmp_path: P
         recorder.submit(RecordBatch.of(results(4), signals=False))
         recorder.submit(BusEvent(1010.0, "down", "test"))
     assert recorder.dropped == 4 + 1  # the batch's frames and the event, never written
+
+
+def policies(pid: int) -> set[int]:
+    """The scheduling policies of the threads of process ``pid``."""
+    return {os.sched_getscheduler(int(tid)) for tid in os.listdir(f"/proc/{pid}/task")}
+
+
+@pytest.mark.skipif(
+    os.geteuid() != 0 and resource.getrlimit(resource.RLIMIT_NICE)[0] < 20,
+    reason="leaving SCHED_IDLE needs CAP_SYS_NICE or an RLIMIT_NICE of 20 (LimitNICE=+0)",
+)
+def test_on_close_the_child_leaves_sched_idle_to_finish_its_file(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # At SCHED_IDLE on a CPU that other work saturated (two CPU hogs), the child got ~1 %
+    # of a core: it was killed after JOIN_S with its file cut and what was queued lost.
+    _, database = example_machine()
+    leave_idle = recorder_process._leave_idle
+    seen: list[tuple[set[int], set[int]]] = []
+
+    def watched(pid: int) -> None:
+        before = policies(pid)
+        leave_idle(pid)
+        seen.append((before, policies(pid)))
+
+    monkeypatch.setattr(recorder_process, "_leave_idle", watched)
+    recorder = RecorderProcess(RecordingSettings(directory=tmp_path), database, machine_id="m")
+    with recorder:
+        recorder.submit(RecordBatch.of(results(7), signals=False))
+    [(before, after)] = seen  # once, the child still running
+    assert os.SCHED_IDLE in before and after == {os.SCHED_OTHER}  # every thread
+    assert recorder.dropped == 0 and len(raw_times(recorder.paths[0])) == 7

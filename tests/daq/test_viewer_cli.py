@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from daq.live.command import add_viewer_arguments
+from daq.live.command import add_viewer_arguments, load_fleet
 from tests.daq.service_support import WAIT_S, free_port, write_service_config
 from tests.helpers import EXAMPLE_CONFIG, ROOT
 
@@ -154,3 +154,20 @@ def test_a_fleet_root_that_is_no_key_prefix_is_a_usage_error(
     assert exit_info.value.code == 2
     last = capsys.readouterr().err.strip().splitlines()[-1]
     assert last.startswith(f"portal-daq monitor: error: argument --root: {root!r} {reason}")
+
+
+def test_the_fleet_root_of_a_config_is_its_key_prefix_without_the_machine_id(
+    tmp_path: Path,
+) -> None:
+    """With --config of a service whose key prefix is site7/pam, the fleet looked under
+    portal and said "no machine yet" for ever."""
+    path = write_service_config(tmp_path, port=free_port())
+    path.write_text(path.read_text().replace("[zenoh]\n", '[zenoh]\nkey_prefix = "site7/pam"\n'))
+    parser = argparse.ArgumentParser(prog="portal-daq monitor")
+    add_viewer_arguments(parser)
+    fleet = load_fleet(parser.parse_args(["--fleet", "--config", str(path)]))
+    assert fleet.settings.root == "site7" and fleet.settings.prefix == "site7/*"
+    given = load_fleet(parser.parse_args(["--fleet", "--config", str(path), "--root", "lab"]))
+    assert given.settings.root == "lab"
+    alone = parser.parse_args(["--fleet", "--connect", "tcp/127.0.0.1:7447"])
+    assert load_fleet(alone).settings.root == "portal"

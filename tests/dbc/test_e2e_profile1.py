@@ -95,6 +95,16 @@ def test_a_counter_of_15_and_another_senders_nibble_are_faults() -> None:
     assert pipeline.bad == {"crc": 2}
 
 
+@pytest.mark.parametrize("written", ["alt", "ALT", "E2E_P01_DATAID_ALT", "DATAID_ALT"])
+def test_a_data_id_mode_is_taken_as_autosar_tools_write_it(written: str) -> None:
+    """VR's mode as the profile's DataIDMode is named in an ARXML or a tool's export: its
+    frames' CRCs then use the high byte of the data ID on odd counters (a wrong mode taken
+    silently would make every other frame a crc fault)."""
+    text = TOML.replace('data_id_mode = "alt"', f'data_id_mode = "{written}"')
+    config, _ = machine_from_toml(tomllib.loads(text), "m.toml", STRANGER)
+    assert config.protection["ZYL_VR"].data_id_mode == "alt"
+
+
 def test_profiles_11_and_22_read_what_their_senders_send() -> None:
     """HR as profile 11 (nibble) and the machine state as profile 22 (DataIDList): the
     frames of a real sender valid, the 14 -> 0 wrap one step; the state's CRC as
