@@ -70,8 +70,9 @@ from daq.zenoh_session import connect_endpoints
 
 logger = logging.getLogger(__name__)
 
-#: Numbers in a problem's text: a change of only those is not logged again.
-_NUMBER = re.compile(r"\d+(\.\d+)?")
+#: Numbers in a problem's text: a change of only those is not logged again (not the
+#: digits of a name: legs A1 and A2 silent in turn are two events).
+_NUMBER = re.compile(r"(?<![\w.])\d+(\.\d+)?")
 #: A thread whose loop has not turned for this long is hung: no WATCHDOG=1.
 HEARTBEAT_MAX_AGE_S = 2.0
 #: A saturated 1 Mbit/s bus: an 8-byte standard frame takes up to ~111 us.
@@ -172,6 +173,8 @@ class Service:
         #: any frame at all (monotonic); their count at the previous status.
         self._last_frame_monotonic = self._last_heard_monotonic = time.monotonic()
         self._decoded_mark = 0
+        #: Each leg's latest sample (bus time) at the previous status (:meth:`_silent_legs`).
+        self._heard_at_mark: dict[str, float] = {}
         #: The pipeline's error frames by kind at the previous status: a rise is a problem.
         self._error_frames_mark: dict[str, int] = {}
         #: :func:`losses` at the previous status: what rose since is a problem.
@@ -371,22 +374,27 @@ class Service:
         }
         self._tell_other_owners(status["zenoh"]["same_prefix"])
         error_frames = dict(self.pipeline.error_frame_kinds)
+        silent_s = now - self._last_frame_monotonic
+        silent_legs = self._silent_legs()
+        if len(silent_legs) == len(self.config.machine.legs) and silent_s >= self.silence_s:
+            silent_legs = {}  # no frame of the DBC at all: that one problem says it
         found = problems(
             status,
             alive=self.alive(),
+            silent_legs=silent_legs,
             error_frames={
                 kind: n - self._error_frames_mark.get(kind, 0)
                 for kind, n in error_frames.items()
                 if n > self._error_frames_mark.get(kind, 0)
             },
             lost_before=self._lost_mark,
-            silent_s=now - self._last_frame_monotonic,
+            silent_s=silent_s,
             heard_s=now - self._last_heard_monotonic,
             silence_s=self.silence_s,
         )
         self._lost_mark = losses(status)
         self._error_frames_mark = error_frames
-        kinds = [_NUMBER.sub("N", problem) for problem in found]  # "dropped.rx +N"
+        kinds = [problem_kind(problem) for problem in found]
         if kinds != self._reported_problems:
             if found:
                 logger.warning("not healthy: %s", "; ".join(found))
@@ -396,6 +404,20 @@ class Service:
         status["healthy"] = not found
         status["problems"] = found
         return status
+
+    def _silent_legs(self) -> dict[str, float]:
+        """The legs whose sensors are silent while other frames go by: no sample for
+        :attr:`silence_s` of bus time (a leg never heard: since the first frame), nor since
+        the previous status (a clock stepped forward adds its step to the bus time at
+        once; the legs that talked through it are not silent); with that bus time."""
+        estimator = self.pipeline.estimator
+        bus_time_s, heard_at_s = estimator.bus_time_s, estimator.heard_at_s()
+        before, self._heard_at_mark = self._heard_at_mark, heard_at_s
+        return {
+            leg: bus_time_s - t_s
+            for leg, t_s in heard_at_s.items()
+            if bus_time_s - t_s >= self.silence_s and before.get(leg) == t_s
+        }
 
     def _tell_other_owners(self, others: list[str]) -> None:
         """One line per other service seen under the key prefix, with what to do."""
@@ -441,6 +463,16 @@ class Service:
                 total,
                 self.reader.rcvbuf_bytes,
             )
+
+
+def problem_kind(problem: str) -> str:
+    """A problem without its numbers: a change of those alone is not logged again; the
+    digits of a name stay (legs A1 and A2 silent in turn are two events).
+
+    >>> problem_kind("dropped.rx +12"), problem_kind("legs silent: A1 2.5 s")
+    ('dropped.rx +N', 'legs silent: A1 N s')
+    """
+    return _NUMBER.sub("N", problem)
 
 
 def hold_overflow(config: ServiceConfig, rcvbuf_bytes: int | None) -> str | None:
@@ -518,11 +550,14 @@ def problems(
     heard_s: float,
     silence_s: float,
     error_frames: Mapping[str, int] = {},
+    silent_legs: Mapping[str, float] = {},
 ) -> list[str]:
     """What makes ``status`` unhealthy (see the module docstring); empty when healthy.
     ``lost_before`` is :func:`losses` of the previous status; ``silent_s`` the time since
     a frame of the DBC came in, ``heard_s`` since any frame did; ``error_frames`` what
-    the error frames of the period reported, by kind (a CAN bus in order has none).
+    the error frames of the period reported, by kind (a CAN bus in order has none);
+    ``silent_legs`` the legs silent for ``silence_s`` or more of bus time (the other
+    frames went by without theirs), with that time.
 
     >>> problems({"dropped": {"rx": 5, "kernel": 2}, "recording": None,
     ...           "zenoh": {"unreached": []}}, alive=True, lost_before={"dropped.rx": 5},
@@ -535,6 +570,10 @@ def problems(
     ...          alive=True, lost_before={}, silent_s=0.0, heard_s=0.0, silence_s=1.0,
     ...          error_frames={"rx overflow": 2, "bus off": 1})
     ['CAN controller: rx overflow +2, bus off +1 (error frames)']
+    >>> problems({"dropped": {}, "recording": None, "zenoh": {"unreached": []}},
+    ...          alive=True, lost_before={}, silent_s=0.0, heard_s=0.0, silence_s=1.0,
+    ...          silent_legs={"SB1_F3": 12.34})
+    ['legs silent: SB1_F3 12.3 s']
     """
     found = [] if alive else ["a service thread hangs or died"]
     bus = status.get("bus") or {}
@@ -546,6 +585,9 @@ def problems(
     for name, count in losses(status).items():
         if count > lost_before.get(name, 0):
             found.append(f"{name} +{count - lost_before.get(name, 0)}")
+    if silent_legs:
+        silent = ", ".join(f"{leg} {s:.1f} s" for leg, s in silent_legs.items())
+        found.append(f"legs silent: {silent}")
     if error_frames:
         reported = ", ".join(f"{kind} +{n}" for kind, n in error_frames.items())
         found.append(f"CAN controller: {reported} (error frames)")

@@ -101,6 +101,11 @@ class MachineEstimator:
             stability=stability(estimates.values(), feet_m) if feet_m is not None else None,
         )
 
+    def heard_at_s(self) -> dict[str, float]:
+        """The bus time (:attr:`bus_time_s`) at each leg's latest sample; 0.0 (the first
+        frame's) for a leg never heard."""
+        return {name: 0.0 if math.isnan(t_s) else t_s for name, t_s in self._heard_at_s.items()}
+
     def restarting_legs(self) -> dict[str, tuple[int, int]]:
         """Legs whose filter restarted at most of their valid samples: (restarts, valid
         samples). Sent less often than the stale time (its cycle time, from the DBC or the

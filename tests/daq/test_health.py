@@ -45,6 +45,7 @@ from tests.daq.test_consumer_coalescing import (
 )
 from tests.daq.test_service_live import encoder_for, live_service, sender, zenoh_port
 from tests.daq.test_service_watchdog import wait_until
+from tests.helpers import LEGS
 
 
 def status(**changes: object) -> dict:  # type: ignore[type-arg]
@@ -494,3 +495,51 @@ def test_error_frames_make_their_period_unhealthy_naming_what_they_report(
     # The next period has no error frame: the problem is gone.
     assert not [p for p in after["problems"] if p.startswith("CAN controller")]
     assert after["bad"] == {"error_frame": 1}
+
+
+def test_a_sensor_silent_while_the_others_talk_is_a_problem_until_it_is_back(
+    tmp_path: Path,
+) -> None:
+    # A leg's sensor that stopped while the bus went on (the others talking), or was
+    # never heard, left no trace on /status nor in the log: healthy, only /ground's
+    # "stale" said it.
+    path = write_service_config(
+        tmp_path, channel=f"test-{uuid.uuid4().hex}", port=free_port(), status_period_s=0.2
+    )
+    config = load_service_config(path)
+    prefix = config.zenoh.key_prefix
+    encoder = encoder_for(config)
+    others = [leg for leg in LEGS if leg not in ("SB1_F2", "SB1_F3")]
+    t0 = time.time()
+    # 3 s of frame time (bus time), SB1_F3 heard for its first 0.5 s only, SB1_F2 never;
+    # then both are back.
+    silent = sorted(
+        leg_messages(encoder, 300, t0, others) + leg_messages(encoder, 50, t0, ["SB1_F3"]),
+        key=lambda message: message.timestamp,
+    )
+    back = leg_messages(encoder, 10, t0 + 3.0)
+    with live_service(config), subscriber_session(zenoh_port(config)) as session:
+        collector = Collector(session, f"{prefix}/status")
+        collector.wait_for(f"{prefix}/status")
+        with sender(config) as bus:
+            for message in silent:
+                bus.send(message)
+            reported = collector.wait_for(
+                f"{prefix}/status",
+                lambda s: (
+                    s["frames"]["processed"] == len(silent)
+                    and any(p.startswith("legs silent") and "SB1_F3" in p for p in s["problems"])
+                ),
+            )
+            for message in back:
+                bus.send(message)
+            after = collector.wait_for(
+                f"{prefix}/status", lambda s: s["frames"]["processed"] == len(silent) + len(back)
+            )
+    # 299 steps of 10 ms of frames without SB1_F2's, 250 without SB1_F3's; none of the
+    # others silent.
+    assert [p for p in reported["problems"] if p.startswith("legs")] == [
+        "legs silent: SB1_F2 3.0 s, SB1_F3 2.5 s"
+    ]
+    assert reported["healthy"] is False
+    assert not [p for p in after["problems"] if p.startswith("legs")]
