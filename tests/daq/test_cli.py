@@ -211,7 +211,12 @@ def test_notify_order_and_clean_sigterm(tmp_path: Path) -> None:
     # How fast it stops is not asserted (a loaded machine takes seconds; speed is bench's):
     # a stop that hangs fails the wait above, a recorder's process killed for taking too
     # long leaves the file without its summary.
-    (path,) = (tmp_path / "rec").iterdir()
+    assert_one_finished_recording(tmp_path / "rec")
+
+
+def assert_one_finished_recording(directory: Path) -> None:
+    """``directory`` holds one recording, finished: a cut file has no summary."""
+    (path,) = directory.iterdir()
     with open(path, "rb") as file:
         assert make_reader(file).get_summary() is not None
 
@@ -307,9 +312,7 @@ def test_sighup_stops_the_service_and_finishes_the_file(tmp_path: Path) -> None:
             stderr = process.communicate()[1]
     assert status == 0, stderr
     assert "Traceback" not in stderr
-    (path,) = (tmp_path / "rec").iterdir()
-    with open(path, "rb") as file:
-        assert make_reader(file).get_summary() is not None
+    assert_one_finished_recording(tmp_path / "rec")
 
 
 def children(pid: int) -> list[int]:
@@ -361,6 +364,4 @@ def test_a_signal_to_the_group_while_the_recorder_starts_is_a_clean_stop(
         stderr = process.communicate()[1]
     assert status == 0, stderr
     assert "Traceback" not in stderr and "KeyboardInterrupt" not in stderr
-    (path,) = (tmp_path / "rec").iterdir()
-    with open(path, "rb") as file:
-        assert make_reader(file).get_summary() is not None
+    assert_one_finished_recording(tmp_path / "rec")
