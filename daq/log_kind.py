@@ -46,7 +46,7 @@ _MAGIC = {
 _LINES = (
     # candump -L, and candump's readable output with a time (-ta, -tz, -tA)
     (re.compile(r"\s*\([^)]+\)\s+\S+\s+[0-9A-Fa-f]{1,8}#"), ".log"),
-    (re.compile(r"\s*\([^)]+\)\s+\S+\s+[0-9A-Fa-f]{3,8}\s+\[\d{1,2}\]"), ".log"),
+    (re.compile(r"\s*\([^)]+\)\s+\S+\s+(?:[RT]X\s+\S+\s+\S+\s+)?[0-9A-Fa-f]{3,8}\s+[\[{]"), ".log"),
     (re.compile(r"\s*(date\s+\w+|base\s+(hex|dec)\b|begin\s+triggerblock)", re.IGNORECASE), ".asc"),
     (re.compile(r"\s*\d+\.\d+\s+(\d+|CANFD\s+\d+)\s+[0-9A-Fa-f]{1,8}x?\s+[RT]x\s", re.I), ".asc"),
     (re.compile(r";\$FILEVERSION=|;\s+Start time:"), ".trc"),
