@@ -401,6 +401,17 @@ def can_log_frames(path: Path, channel: str | None = None) -> Iterator[RawFrame 
     if count == 0 and (hint := _what_it_looks_like(path)):  # an ASC reader skips every line
         suffix = _log_suffix(path)[0]
         raise RecordingError(path, f"no frame of {FORMATS.get(suffix, suffix)} in it{hint}")
+    if isinstance(reader, AscReader | TrcReader) and reader.skipped.first is not None:
+        number, text = reader.skipped.first
+        logger.warning(
+            "%s: %d line%s left out, neither a frame nor an event of %s (the first, line %d: %r)",
+            path,
+            reader.skipped.count,
+            "" if reader.skipped.count == 1 else "s",
+            FORMATS[_log_suffix(path)[0]],
+            number,
+            text,
+        )
     cut = cut or (lines.cut if lines is not None else blf_cut(path, reader))
     if cut is not None:
         logger.warning("%s is cut short (%s): read up to frame %d", path, cut, count)
