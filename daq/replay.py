@@ -393,7 +393,8 @@ def can_log_frames(path: Path, channel: str | None = None) -> Iterator[RawFrame 
                     path.suffix.lower(), ""
                 )
                 reason = f"{str(exc) or type(exc).__name__}{hint}"  # BLFParseError(): nothing
-                raise RecordingError(path, f"unreadable after frame {count}: {reason}") from exc
+                at = f" (line {lines.number})" if lines is not None and lines.number else ""
+                raise RecordingError(path, f"unreadable after frame {count}{at}: {reason}") from exc
     if isinstance(reader, CandumpReader) and reader.dropped_frames != dropped:  # at the end
         yield _loss(t_s, reader.dropped_frames - dropped)
     if isinstance(reader, AscReader | TrcReader | BlfReader | CandumpReader):

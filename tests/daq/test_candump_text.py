@@ -119,7 +119,9 @@ def test_a_dash_l_line_with_an_odd_number_of_hex_digits_stops_the_replay(
     assert replay_main([str(log), "--config", str(EXAMPLE_CONFIG), "--out", "/dev/null"]) == 1
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1, err
-    assert err[0].startswith(f"portal-daq: {log}: unreadable after frame 7: an odd number of hex")
+    assert err[0].startswith(
+        f"portal-daq: {log}: unreadable after frame 7 (line 8): an odd number of hex"
+    )
 
 
 @pytest.mark.parametrize(
@@ -127,19 +129,20 @@ def test_a_dash_l_line_with_an_odd_number_of_hex_digits_stops_the_replay(
     [
         (
             "  can0  100   [8]  00 00 00 00 00 00 00 00\n",
-            "unreadable after frame 0: a candump line without a time: candump -L (or -ta) "
+            "unreadable after frame 0 (line 1): a candump line without a time: candump -L (or -ta) "
             "writes the frame times a replay needs",
         ),
         (
             # frames of no DBC message (a LEG_SB1_F1 of one byte is logged as wrong_dlc)
             " (000.000000)  can0  7F0   [1]  00\n (000.010000)  can0  7F0   [1]  00\n"
             " (000.000250)  can0  7F1   [1]  00\n",
-            "unreadable after frame 2: frame times go backwards (0.010000 then 0.000250): "
+            "unreadable after frame 2 (line 3): frame times go backwards (0.010000 then 0.000250): "
             "candump -td's steps between frames? candump -L (or -ta) writes the frame times",
         ),
         (
             " (1.000000)  can0  100   [8]  00 00 00\n",
-            "unreadable after frame 0: [8] and its data bytes differ: '(1.000000)  can0  100",
+            "unreadable after frame 0 (line 1): [8] and its data bytes differ: "
+            "'(1.000000)  can0  100",
         ),
     ],
 )

@@ -99,7 +99,7 @@ def test_an_asc_frame_line_with_fewer_data_bytes_than_its_length_stops_the_repla
     with pytest.raises(RecordingError) as refused:
         list(can_log_frames(log))
     assert str(refused.value) == (
-        f"{log}: unreadable after frame 1: a frame line with 2 of its 8 data bytes"
+        f"{log}: unreadable after frame 1 (line 7): a frame line with 2 of its 8 data bytes"
     )
 
 
@@ -175,13 +175,13 @@ def test_candump_error_frames_keep_to_the_channel_asked_and_are_counted(
             "estimates.csv",
             b"leg,t,force_N,force_raw_N,pressure_Pa,p_piston_Pa,p_rod_Pa,contact,valid\n"
             b"SB1_F1,0.0,1.0,1.0,1.0,1.0,1.0,1,1,\n",
-            "unreadable after frame 0: too many values to unpack (expected 7) (python-can's "
-            "CSV: timestamp,arbitration_id,extended,remote,error,dlc,data)",
+            "unreadable after frame 0 (line 1): too many values to unpack (expected 7) "
+            "(python-can's CSV: timestamp,arbitration_id,extended,remote,error,dlc,data)",
         ),
         (  # candump -L always names the interface; some tools leave it out
             "no_interface.log",
             b"(1750000000.000000) 100#0000000000000000\n",
-            "unreadable after frame 0: not enough values to unpack (expected 3, got 2) "
+            "unreadable after frame 0 (line 1): not enough values to unpack (expected 3, got 2) "
             "(a candump -L line is '(TIME) INTERFACE ID#DATA', candump -ta's "
             "'(TIME)  INTERFACE  ID   [LENGTH]  DATA')",
         ),
@@ -481,7 +481,7 @@ def test_a_stray_byte_in_a_candump_line_names_the_frame_before_it(tmp_path: Path
     log = tmp_path / "stray.log"
     good = "".join(f"({1_750_000_000 + k / 100:.6f}) can0 100#00\n" for k in range(400))
     log.write_bytes(good.encode() + b"(1750000004.000000) can0 100#00\xff\xfe\n" + good.encode())
-    with pytest.raises(RecordingError, match="unreadable after frame 400: "):
+    with pytest.raises(RecordingError, match=r"unreadable after frame 400 \(line 401\): "):
         list(can_log_frames(log))
 
 
@@ -691,7 +691,9 @@ def test_a_frame_time_that_is_no_time_is_one_line(
     for command in ("replay", "report", "calibrate"):
         assert main([command, str(log), "--config", str(EXAMPLE_CONFIG)]) == 1
         err = capsys.readouterr().err.strip().splitlines()
-        assert err[-1].startswith(f"portal-daq: {log}: unreadable after frame 2: frame time ")
+        assert err[-1].startswith(
+            f"portal-daq: {log}: unreadable after frame 2 (line 3): frame time "
+        )
         assert "is no time" in err[-1] and "Traceback" not in "\n".join(err)
 
 

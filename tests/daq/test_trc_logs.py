@@ -69,7 +69,7 @@ def test_a_trc_frame_line_cut_in_the_middle_of_the_log_stops_the_replay(
     path.write_text(_log(version, [lines[0], cut, lines[2]]), newline="")
     with pytest.raises(RecordingError) as refused:
         list(can_log_frames(path))
-    assert str(refused.value).startswith(f"{path}: unreadable after frame 1: ")
+    assert str(refused.value).startswith(f"{path}: unreadable after frame 1 (line ")
     assert repr(cut.strip()) in str(refused.value)
 
 
@@ -237,5 +237,5 @@ def test_a_2x_frame_line_with_fewer_data_bytes_than_its_length_stops_the_replay(
     with pytest.raises(RecordingError) as refused:
         list(can_log_frames(path))
     assert str(refused.value) == (
-        f"{path}: unreadable after frame 1: a frame line with 6 of its 8 data bytes"
+        f"{path}: unreadable after frame 1 (line 8): a frame line with 6 of its 8 data bytes"
     )
