@@ -83,23 +83,21 @@ _NO_CONTENT = re.compile(r"\s*(?:$|;|//)")
 
 
 def _no_log(head: bytes) -> str | None:
-    """What a text log's first bytes ``head`` (of no format :func:`content_suffix`
-    knows) are instead of a log, in words; None when they hold nothing to say so (blank
-    lines, comments: an empty log)."""
-    if head.startswith(_UTF16_BOMS):
-        return "it is UTF-16 text: a CAN log is read as UTF-8 (or ASCII); save it so"
+    """That a text log's first bytes ``head`` (of no format :func:`content_suffix` knows)
+    look like no CAN log, in words; None when they hold nothing to say so (blank lines,
+    comments: an empty log)."""
     lines = head.decode("utf-8", errors="replace").lstrip("\ufeff").splitlines()[:_HEAD_LINES]
     if all(_NO_CONTENT.match(line) for line in lines):
         return None
     return "nothing in its first lines looks like a line of a CAN log of any format"
 
 
-def looks_like(path: Path, suffix: str, gzipped: bool = False) -> str | None:
+def looks_like(path: Path, suffix: str, gzipped: bool = False, at_all: bool = False) -> str | None:
     """What ``path``, read as a log of ``suffix`` (``gzipped``: ``.gz`` after it), looks
     like instead, in words with the name that reads it (``it looks like a candump log:
-    name it .log``), or, for a text log, that it looks like no CAN log at all; None when
-    it looks like what its name says, holds nothing to tell (blank lines, comments), or
-    cannot be read."""
+    name it .log``; UTF-16 text); with ``at_all``, also that a text log looks like no CAN
+    log at all; None when it looks like what its name says, holds nothing to tell (blank
+    lines, comments), or cannot be read."""
     try:
         with open(path, "rb") as file:
             head = file.read(_HEAD_BYTES)
@@ -114,7 +112,9 @@ def looks_like(path: Path, suffix: str, gzipped: bool = False) -> str | None:
         kind = found or suffix
         return f"it is {FORMATS.get(kind, 'a log')} compressed by gzip: name it {kind}.gz"
     if found is None and suffix not in _BINARY:
-        return _no_log(head)
+        if head.startswith(_UTF16_BOMS):
+            return "it is UTF-16 text: a CAN log is read as UTF-8 (or ASCII); save it so"
+        return _no_log(head) if at_all else None
     if found is None or found == suffix:
         return None
     return f"it looks like {FORMATS[found]}: name it {found}{'.gz' if compressed else ''}"

@@ -88,13 +88,18 @@ def test_an_asc_log_of_a_header_only_is_still_an_empty_log(
     assert f"{log}: no CAN frame in it: the CSV has its header only" in caplog.text
 
 
-@pytest.mark.parametrize("suffix", [".log", ".asc", ".trc", ".csv"])
 @pytest.mark.parametrize(
-    ("content", "reason"),
+    ("suffix", "content", "reason"),
     [
-        (b"meeting notes\nnothing here\n", "nothing in its first lines looks like a line of a CAN"),
-        (b"\x00" * 512, "nothing in its first lines looks like a line of a CAN log"),
-        ("(1.0) can0 100#00\n".encode("utf-16"), "it is UTF-16 text: a CAN log is read as UTF-8"),
+        *(
+            (suffix, content, "nothing in its first lines looks like a line of a CAN log")
+            for suffix in (".asc", ".trc")
+            for content in (b"meeting notes\nnothing here\n", b"\x00" * 512)
+        ),
+        *(
+            (suffix, "(1.0) can0 100#00\n".encode("utf-16"), "it is UTF-16 text: a CAN log is")
+            for suffix in (".log", ".asc", ".trc", ".csv")
+        ),
     ],
 )
 def test_a_file_that_is_no_can_log_is_one_line(
@@ -102,7 +107,8 @@ def test_a_file_that_is_no_can_log_is_one_line(
 ) -> None:
     """python-can's ASC reader skips every line it does not take: a text file of anything
     named .asc (or a log saved as UTF-16, a file of zeros left by a crash) replayed to the
-    CSV's header and exit 0; the other readers stopped in their own words."""
+    CSV's header and exit 0; the other readers stopped in their own words (a candump or
+    CSV line says what its line should be: test_foreign_logs)."""
     from daq.replay_command import replay_main
 
     log = tmp_path / f"notes{suffix}"
