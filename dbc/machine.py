@@ -837,9 +837,12 @@ def _cycle_time_s(
             )
         return _positive_ms(table) / 1000.0
     if message.name not in cycle_times_ms:
+        given = "no GenMsgCycleTime"
+        if message.cycle_time:  # below MIN_CYCLE_TIME_MS: no period (-5, a typo)
+            given = f"GenMsgCycleTime {message.cycle_time:g}, no period,"
         raise table.error(
             key,
-            f"message {message.name} has no GenMsgCycleTime in the DBC: set "
+            f"message {message.name} has {given} in the DBC: set "
             f"[messages.{message.name}] cycle_time_ms (staleness and skew are judged on it)",
         )
     return cycle_times_ms[message.name] / 1000.0
@@ -859,11 +862,13 @@ def _positive_ms(table: TomlTable) -> float:
 
 def _cycle_times_ms(table: TomlTable, database: Database) -> dict[str, float]:
     """Each message's cycle time, ms: ``[messages.<MESSAGE>] cycle_time_ms``, else the
-    DBC's ``GenMsgCycleTime`` (vendor DBCs, J1939 ones especially, often give none)."""
+    DBC's ``GenMsgCycleTime`` (vendor DBCs, J1939 ones especially, often give none)
+    where it is a period: one below :data:`MIN_CYCLE_TIME_MS` (``-5``) is none, as 0 is
+    (it was taken, and told as the leg's ``max_skew_s`` "must be >= 0")."""
     times = {
         message.name: float(message.cycle_time)
         for message in database.messages
-        if message.cycle_time
+        if message.cycle_time and message.cycle_time >= MIN_CYCLE_TIME_MS
     }
     for name, message_table in table.subtables():
         message_table.reject_unknown(MESSAGE_KEYS)
