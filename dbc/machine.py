@@ -37,7 +37,7 @@ from dbc.protection import (
 from dbc.signal_range import decoded_bounds, named_values, value_range
 from dbc.stability_config import StabilityConfig, angle_signal, parse_stability
 from dbc.toml_table import TomlTable
-from dbc.units import ACCEPTED_PRESSURE_UNITS, angle_factor_to_rad, chamber_unit
+from dbc.units import ACCEPTED_PRESSURE_UNITS, chamber_unit
 from estimator.geometry import LegGeometry
 from estimator.settings import EstimatorSettings
 
@@ -457,7 +457,7 @@ def parse_machine_config(
             named_ref,
             lambda name: _find_signal(name, database),
             lambda table, key: angle_signal(table, key, signal_ref, signal_unit),
-            lambda ref: angle_factor_to_rad(signal_unit(ref) or ""),
+            lambda ref: signal_unit(ref) or "",
         ),
     )
 
