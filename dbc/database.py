@@ -230,9 +230,19 @@ def _load(text: str, source: str, strict: bool) -> object:
             text = left
 
 
+#: The most bytes a CAN frame carries (CAN FD).
+CAN_FD_MAX_BYTES = 64
+
+
 def unsound(message: Message) -> str | None:
     """Why cantools' checks refuse ``message`` (signals that overlap, or do not fit in
-    its length); None where they pass."""
+    its length), or why no frame can be it (longer than a CAN FD frame: cantools takes
+    it, and every frame on the bus was ``wrong_dlc``); None where they pass."""
+    if message.length > CAN_FD_MAX_BYTES:
+        return (
+            f"{message.name} is {message.length} bytes long: a CAN frame carries "
+            f"{CAN_FD_MAX_BYTES} at most (CAN FD)"
+        )
     try:
         message.refresh(strict=True)
     except CantoolsError as exc:

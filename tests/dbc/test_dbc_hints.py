@@ -1,10 +1,12 @@
 """A DBC refused says what to change where cantools' words alone do not."""
 
+from pathlib import Path
+
 import pytest
 
 from dbc.database import load_database_string
-from dbc.errors import DbcError
-from tests.helpers import dbc_text
+from dbc.errors import ConfigError, DbcError
+from tests.helpers import dbc_text, machine_on
 
 
 def test_a_29_bit_id_without_the_extended_flag_names_the_id_to_write() -> None:
@@ -153,3 +155,25 @@ def test_a_string_given_to_a_number_attribute_is_pointed_at(attributes: str, hin
     assert str(refused.value) == (
         "script.dbc: not a valid DBC: DBC: \"[<class 'decimal.ConversionSyntax'>]\" " + hint
     )
+
+
+def test_a_message_longer_than_a_can_fd_frame_stops_the_config(tmp_path: Path) -> None:
+    """cantools takes a 65-byte message (a typo for 64, or 8): no frame on the bus can be
+    it, every one was wrong_dlc, and `check` passed it."""
+    text = dbc_text(
+        'BO_ 256 HUB: 65 Hub\n SG_ pA : 0|16@1+ (0.01,0) [0|600] "bar" DAQ\n'
+        ' SG_ pB : 16|16@1+ (0.01,0) [0|600] "bar" DAQ\n',
+        'BA_ "GenMsgCycleTime" BO_ 256 10;\n',
+    )
+    with pytest.raises(ConfigError) as refused:
+        machine_on(tmp_path, text, '[legs.A]\npiston = "HUB.pA"\nrod = "HUB.pB"\n')
+    assert str(refused.value) == (
+        f"{tmp_path / 'm.toml'}: legs.A.piston: message HUB of the DBC: HUB is 65 bytes "
+        "long: a CAN frame carries 64 at most (CAN FD)"
+    )
+    config, _ = machine_on(
+        tmp_path,
+        text.replace("HUB: 65", "HUB: 64"),
+        '[legs.A]\npiston = "HUB.pA"\nrod = "HUB.pB"\n',
+    )
+    assert config.legs["A"].piston.message == "HUB"
