@@ -27,7 +27,11 @@ _BOM_ENCODINGS = (
 )
 #: CAN databases of other formats (cantools reads them; the config takes a DBC, which a
 #: recording embeds): what their text starts with, and the format's name.
-_OTHER_FORMATS = (("<NetworkDefinition", "KCD"), ("<AUTOSAR", "ARXML"), ("FormatVersion=", "SYM"))
+_OTHER_FORMATS = (
+    ("<NetworkDefinition", "a KCD"),
+    ("<AUTOSAR", "an ARXML"),
+    ("FormatVersion=", "a SYM"),
+)
 
 
 def load_database(path: str | Path) -> Database:
@@ -53,7 +57,7 @@ def load_database(path: str | Path) -> Database:
         dbc_path = Path(path).with_suffix(".dbc")
         raise DbcError(
             path,
-            f"a {kind} file, not a DBC: portal-daq reads DBC only; convert it with "
+            f"{kind} file, not a DBC: portal-daq reads DBC only; convert it with "
             f"`cantools convert {path} {dbc_path}`",
         ) from exc
 
