@@ -842,10 +842,27 @@ def _cycle_time_s(
             given = f"GenMsgCycleTime {message.cycle_time:g}, no period,"
         raise table.error(
             key,
-            f"message {message.name} has {given} in the DBC: set "
-            f"[messages.{message.name}] cycle_time_ms (staleness and skew are judged on it)",
+            f"message {message.name} has {given} in the DBC{_other_cycle_time(message)}: "
+            f"set [messages.{message.name}] cycle_time_ms (staleness and skew are judged on it)",
         )
     return cycle_times_ms[message.name] / 1000.0
+
+
+def _other_cycle_time(message: Message) -> str:
+    """Where the DBC gives ``message`` a cycle time under another name than
+    ``GenMsgCycleTime`` (``CycleTime``, ``GenMsgCycleTimeFast``: other tools' names,
+    which cantools does not read): that attribute and its value, to copy if it is the
+    message's period; else nothing."""
+    if message.dbc is None:
+        return ""
+    own = message.dbc.attributes
+    for name, definition in (message.dbc.attribute_definitions or {}).items():
+        if name == "GenMsgCycleTime" or "cycle" not in name.lower() or definition.kind != "BO_":
+            continue
+        value = own[name].value if name in own else definition.default_value
+        if value:
+            return f" (it has {name} {value}: its period?)"
+    return ""
 
 
 def _positive_ms(table: TomlTable) -> float:

@@ -123,6 +123,28 @@ def test_a_dbc_cycle_time_that_is_no_period_is_none() -> None:
     )
 
 
+def test_a_cycle_time_under_another_attribute_name_is_shown() -> None:
+    """Some tools write a message's period as "CycleTime" (cantools reads GenMsgCycleTime
+    only): the refusal shows it, so the user need not open the DBC to find the number."""
+    text = UNITS_DB.read_text() + (
+        '\nBA_DEF_ BO_ "CycleTime" INT 0 10000;\nBA_DEF_DEF_ "CycleTime" 0;\n'
+        'BA_ "CycleTime" BO_ 2566869246 20;\n'
+    )
+    database = load_database_string(text, "vendor.dbc")
+    with pytest.raises(ConfigError) as refused:
+        parse_machine_config(
+            tomllib.loads(UNITS_TOML.replace("[messages.XDCR]\ncycle_time_ms = 20\n", "")),
+            "m.toml",
+            database,
+            UNITS_DB,
+        )
+    assert str(refused.value) == (
+        "m.toml: legs.front.piston.signal: message XDCR has no GenMsgCycleTime in the DBC "
+        "(it has CycleTime 20: its period?): set [messages.XDCR] cycle_time_ms (staleness "
+        "and skew are judged on it)"
+    )
+
+
 @pytest.mark.parametrize(
     ("value", "key", "reason"),
     [
