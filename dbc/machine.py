@@ -984,6 +984,15 @@ def _attach_leg_status(
         and chamber.status is None
         and _in_frames_of(message, signal, chamber.mux_ids)
     }
+    if not attached and not any(c.message == message.name for c in chambers.values()):
+        carrying = " and ".join(sorted({chamber.message for chamber in chambers.values()}))
+        raise table.error(
+            "status",
+            f"{message.name}.{signal} is not in the chambers' message ({carrying}): a "
+            "status is judged with the frame that carries it and the pressures; one sent "
+            "in a message of its own cannot be (leave status out: the leg is not judged "
+            "by status)",
+        )
     if not attached:
         raise table.error(
             "status",
