@@ -115,6 +115,31 @@ def test_not_toml(tmp_path: Path) -> None:
     assert "not valid TOML" in str(error)
 
 
+@pytest.mark.parametrize(
+    ("old", "new", "key"),
+    [
+        # float(10**48) is fine, but TOML's integers stop at 64 bits; 10**400 crashed
+        # float() with an OverflowError traceback.
+        ("mass_kg = 18800.0", f"mass_kg = {10**400}", "machine.mass_kg"),
+        ("mass_kg = 18800.0", f"mass_kg = -{10**20}", "machine.mass_kg"),
+        ("median_window = 11", f"median_window = {2**64 + 1}", "estimator.median_window"),
+    ],
+)
+def test_an_integer_beyond_64_bits_is_refused_naming_the_key(
+    tmp_path: Path, old: str, new: str, key: str
+) -> None:
+    assert old in EXAMPLE
+    error = refused(tmp_path, EXAMPLE.replace(old, new, 1))
+    assert error.key == key
+    assert "must fit in 64 bits" in error.reason
+
+
+def test_a_number_too_long_to_read_is_not_valid_toml(tmp_path: Path) -> None:
+    # Python's int() refuses more than 4,300 digits with a ValueError: a traceback.
+    error = refused(tmp_path, EXAMPLE.replace("mass_kg = 18800.0", "mass_kg = 1" + "0" * 5000))
+    assert error.key == "" and "not valid TOML: a number too long to read" in error.reason
+
+
 def test_missing_file(tmp_path: Path) -> None:
     with pytest.raises(ConfigError, match="no such file"):
         load_machine_config(tmp_path / "absent.toml")
