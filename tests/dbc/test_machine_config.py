@@ -87,6 +87,12 @@ def test_leg_table_overrides_leg_defaults(tmp_path: Path) -> None:
             "stale between two of its frames",
         ),
         ("l_gb_m = 0.55", "l_gb = 0.55", "leg_defaults.l_gb", "unknown key"),
+        (
+            "near_constant_window_s = 5.0",
+            "near_constant_window_s = 1e-300",
+            "estimator.near_constant_window_s",
+            "must be at least 0.01 s",
+        ),
         ('crc = "SB1_F1_CRC"', 'crc = "SB1_F1_Counter"', "protection.LEG_SB1_F1.crc", "8-bit"),
         ("[legs.SB1_F1]", "[legs.SB1_F1]\nfoot = 1", "legs.SB1_F1.foot", "unknown key"),
     ],
