@@ -21,6 +21,7 @@ from cantools.database.can import Database
 
 from dbc.machine import MachineConfig, machine_from_toml, read_toml
 from dbc.toml_table import TomlTable
+from dbc.zenoh_config import not_a_file
 
 #: What Zenoh keys reserve (wildcards ``*``, ``$*``; ``?`` and ``#``, forbidden).
 KEY_RESERVED = "*$?#"
@@ -317,8 +318,9 @@ def _zenoh(table: TomlTable, config_dir: Path, machine_id: str) -> ZenohSettings
     config_file = None
     if "config_file" in table:
         config_file = table.file("config_file", config_dir)
-        if not config_file.is_file():
-            raise table.error("config_file", f"no such file: {config_file}")
+        reason = not_a_file(config_file)
+        if reason is not None:
+            raise table.error("config_file", f"{reason}: {config_file}")
     multicast = table.boolean("multicast_scouting") if "multicast_scouting" in table else None
     return ZenohSettings(
         config_file=config_file,
