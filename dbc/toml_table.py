@@ -43,7 +43,10 @@ class TomlTable:
         return default
 
     def number(self, name: str, default: Any = _MISSING) -> float:
-        value = self._get(name, default)
+        return self.finite(name, self._get(name, default))
+
+    def finite(self, name: str, value: Any) -> float:
+        """``value``, given under ``name`` (a key, or one of its items), as a finite float."""
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise self.error(name, f"must be a number, got {value!r}")
         if isinstance(value, int):
