@@ -34,7 +34,7 @@ from dbc.protection import (
     Protection,
     counter_modulo,
 )
-from dbc.signal_range import decoded_bounds, named_values, value_range
+from dbc.signal_range import decoded_bounds, j1939_signed_codes, named_values, value_range
 from dbc.stability_config import StabilityConfig, angle_signal, parse_stability
 from dbc.toml_table import TomlTable
 from dbc.units import ACCEPTED_PRESSURE_UNITS, angle_factor_to_rad, chamber_unit
@@ -189,6 +189,10 @@ class ChamberSignal:
     #: allows (J1939's error and "not available" codes lie above it). Unbounded where
     #: neither bounds it (:func:`dbc.signal_range.value_range`).
     range_Pa: tuple[float, float] = (-math.inf, math.inf)
+    #: Values inside ``range_Pa`` that are codes all the same, Pa: J1939's indicators of a
+    #: signed parameter, read two's complement just below 0
+    #: (:func:`dbc.signal_range.j1939_signed_codes`); (inf, inf) where none are.
+    codes_Pa: tuple[float, float] = (math.inf, math.inf)
     #: The signal's value-table entries that name a pressure inside that range
     #: (``0 "Zero"``), by name, Pa; any other name in its place is a code: NaN
     #: (:func:`dbc.signal_range.named_values`).
@@ -679,6 +683,7 @@ def _chamber(
     factor, atmosphere_Pa = in_Pa
     low, high = value_range(signal, is_j1939(message))
     named = named_values(signal, is_j1939(message))
+    code_low, code_high = j1939_signed_codes(signal, is_j1939(message)) or (math.inf, math.inf)
     return ChamberSignal(
         message=message.name,
         signal=signal_name,
@@ -689,6 +694,7 @@ def _chamber(
         mux_ids=mux_ids,
         page=page,
         range_Pa=(low * factor - atmosphere_Pa, high * factor - atmosphere_Pa),
+        codes_Pa=(code_low * factor - atmosphere_Pa, code_high * factor - atmosphere_Pa),
         named_Pa={name: value * factor - atmosphere_Pa for name, value in named.items()},
         atmosphere_Pa=atmosphere_Pa,
     )

@@ -187,12 +187,16 @@ def _pressure_Pa(value: SignalValue, chamber: ChamberSignal) -> float:
     absolute transducer); NaN, which the estimator judges out of range, for a code the DBC
     says is no pressure: a value-table name in its place (a transducer's "not available"
     or "error") other than one naming a pressure in the signal's range (``named_Pa``: ``0
-    "Zero"`` is 0 Pa), or a value outside ``range_Pa`` (a code unnamed)."""
+    "Zero"`` is 0 Pa), or a value outside ``range_Pa`` or inside ``codes_Pa`` (a code
+    unnamed)."""
     if isinstance(value, str):
         return chamber.named_Pa.get(value, math.nan)
     p_Pa = float(value) - chamber.atmosphere_Pa
     low_Pa, high_Pa = chamber.range_Pa
-    return p_Pa if low_Pa <= p_Pa <= high_Pa else math.nan
+    code_low_Pa, code_high_Pa = chamber.codes_Pa
+    if low_Pa <= p_Pa <= high_Pa and not code_low_Pa <= p_Pa <= code_high_Pa:
+        return p_Pa
+    return math.nan
 
 
 def _with_status(
