@@ -101,7 +101,7 @@ def named_values(signal: Signal, j1939: bool) -> dict[str, float]:
     (``[min|max]``, and J1939's valid range in a J1939 message: :func:`value_range`),
     e.g. ``0 "Zero"`` of a pressure in ``[0|642.55]``; else it is a code ("not
     available", "error", usually at the top of the raw range). So is an entry at the end
-    of what the bits hold (:func:`_codes_at_the_ends`) whatever the declared range: a
+    of what the bits hold (:func:`codes_at_the_ends`) whatever the declared range: a
     range that reaches the top of the bits (CANdb++'s default) does not make ``4095
     "SNA"`` of a 12-bit 250 bar transducer a valid 204.75 bar. Without a declared range
     (``[0|0]``) every entry is a code: nothing tells a code from a value. A name given
@@ -123,7 +123,7 @@ def named_values(signal: Signal, j1939: bool) -> dict[str, float]:
         return {}
     low, high = value_range(signal, j1939)
     code_low, code_high = j1939_signed_codes(signal, j1939) or (math.inf, math.inf)
-    codes = _codes_at_the_ends(signal)
+    codes = codes_at_the_ends(signal)
     values: dict[str, float] = {}
     names: list[str] = []
     for raw, choice in signal.choices.items():
@@ -135,7 +135,7 @@ def named_values(signal: Signal, j1939: bool) -> dict[str, float]:
     return {name: value for name, value in values.items() if names.count(name) == 1}
 
 
-def _codes_at_the_ends(signal: Signal) -> set[int]:
+def codes_at_the_ends(signal: Signal) -> set[int]:
     """The raw values of ``signal``'s value table that are codes by their place: the
     named value at the top of what the bits hold (all ones; a signed signal's greatest,
     and its least too) and the named values next to it, one after another (``4095
