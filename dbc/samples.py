@@ -34,6 +34,7 @@ class _Paired:
     #: The two chambers' signal names (looked up in every frame).
     piston: str
     rod: str
+    #: The J1939 sender whose frames are the leg's (:func:`_sender`); None: any.
     source_address: int | None
     statuses: tuple[StatusCheck, ...]
     #: The two chambers, for how their values are read (:func:`_pressure_Pa`).
@@ -52,6 +53,8 @@ class _Route:
     triggers: bool
     #: The chamber's page (:attr:`~dbc.machine.ChamberSignal.page`); None: any frame.
     page: tuple[str, frozenset[int | str]] | None
+    #: The J1939 sender whose frames are the chamber's (:func:`_sender`); None: any.
+    source_address: int | None
 
 
 @dataclass(frozen=True, slots=True)
@@ -76,9 +79,9 @@ class LegSampler:
             piston, rod = leg.piston, leg.rod
             # A chamber on one page of a signal sent on several (an I/O module's channels)
             # goes by route, which looks at the page; the usual pairs need not.
-            if (piston.message, piston.source_address, piston.mux_ids, None, None) == (
+            if (piston.message, _sender(piston), piston.mux_ids, None, None) == (
                 rod.message,
-                rod.source_address,
+                _sender(rod),
                 rod.mux_ids,
                 piston.page,
                 rod.page,
@@ -91,7 +94,7 @@ class LegSampler:
                         leg.name,
                         piston.signal,
                         rod.signal,
-                        piston.source_address,
+                        _sender(piston),
                         statuses,
                         piston,
                         rod,
@@ -101,7 +104,9 @@ class LegSampler:
             for chamber in TRIGGERS:
                 signal: ChamberSignal = getattr(leg, chamber)
                 self._routes.setdefault(signal.message, []).append(
-                    _Route(leg, chamber, signal, chamber == leg.trigger, signal.page)
+                    _Route(
+                        leg, chamber, signal, chamber == leg.trigger, signal.page, _sender(signal)
+                    )
                 )
         self._latest: dict[tuple[str, str], _Reading] = {}
 
@@ -141,7 +146,7 @@ class LegSampler:
         by_sender = [
             route
             for route in routes
-            if route.signal.source_address is None or route.signal.source_address == source_address
+            if route.source_address is None or route.source_address == source_address
         ]
         if not senders and not by_sender:
             return None
@@ -180,6 +185,14 @@ class LegSampler:
     def reset(self) -> None:
         """Forget the latest chamber values (after a gap in reception)."""
         self._latest.clear()
+
+
+def _sender(chamber: ChamberSignal) -> int | None:
+    """The J1939 source address whose frames are ``chamber``'s: its ``source_address``,
+    else the one its message's DBC ID gives (``dbc_source_address``); None: any sender."""
+    if chamber.source_address is not None:
+        return chamber.source_address
+    return chamber.dbc_source_address
 
 
 def _pressure_Pa(value: SignalValue, chamber: ChamberSignal) -> float:
