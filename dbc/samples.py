@@ -11,6 +11,14 @@ uses the other chamber's latest value if that is at most ``max_skew_s`` older
 (default: one cycle time of the other chamber's message), else the sample is
 invalid with ``rod_stale`` (or ``piston_stale``). The sample's time is the trigger
 frame's. Both chambers in one frame: skew 0, one sample per frame.
+
+"Older" is measured on *bus time*, as the estimator judges staleness
+(:mod:`estimator.machine`): the sum of the forward steps between successive frame
+times of these messages. Frame times follow the wall clock, which NTP may step back:
+a rod value from before a step back of an hour would otherwise look an hour *younger*
+than every piston value after it, and pair with them for that hour although its
+transducer fell silent. A step back adds nothing, so chambers that keep sending stay
+fresh across it, and a silent one still ages.
 """
 
 import math
@@ -62,6 +70,8 @@ class _Reading:
     """The latest value of one chamber and what its frame's checks said."""
 
     t_s: float
+    #: The sampler's bus time when it came (what its age is measured on).
+    bus_s: float
     p_Pa: float
     faults: tuple[str, ...]
 
@@ -109,6 +119,9 @@ class LegSampler:
                     )
                 )
         self._latest: dict[tuple[str, str], _Reading] = {}
+        #: Bus time of the chambers' frames (module docstring), and the latest frame time.
+        self._bus_s = 0.0
+        self._last_t_s = math.nan
 
     def samples(self, frame: DecodedFrame) -> list[tuple[str, LegSample]] | None:
         """The (leg name, sample) pairs that ``frame`` makes; empty for other messages.
@@ -150,6 +163,10 @@ class LegSampler:
         ]
         if not senders and not by_sender:
             return None
+        step_s = t_s - self._last_t_s
+        if step_s > 0.0:  # NaN (the first frame) and a step back add nothing
+            self._bus_s += step_s
+        self._last_t_s = t_s
         matched = [
             route
             for route in by_sender
@@ -161,6 +178,7 @@ class LegSampler:
             chamber_faults = _with_status(faults, (status,) if status else (), signals)
             self._latest[(route.leg.name, route.chamber)] = _Reading(
                 t_s,
+                self._bus_s,
                 _pressure_Pa(signals[route.signal.signal], route.signal),
                 chamber_faults,
             )
@@ -171,7 +189,7 @@ class LegSampler:
         trigger = self._latest[(leg.name, leg.trigger)]
         other = self._latest.get((leg.name, other_chamber))
         faults = list(trigger.faults)
-        if other is None or trigger.t_s - other.t_s > leg.max_skew_s + SKEW_ROUNDING_S:
+        if other is None or trigger.bus_s - other.bus_s > leg.max_skew_s + SKEW_ROUNDING_S:
             faults.append(f"{other_chamber}_stale")
             other_p_Pa = other.p_Pa if other is not None else float("nan")
         else:

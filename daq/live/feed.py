@@ -15,11 +15,15 @@ The prefix may hold a wildcard (``portal/*``: every machine, the fleet views).
 With ``liveliness=True`` the feed also follows the services' liveliness tokens
 (``<prefix>/alive``, the ones present at start included): an item with
 ``alive`` True when a token appears, False when it goes (the service stopped,
-or its session's lease expired).
+or its session's lease expired). A liveliness change is never dropped: when the
+queue is full it is kept aside, the latest one per token, and :meth:`LiveFeed.wait`
+hands it out once the queue is empty (a fleet view behind a burst of data must still
+see a machine go).
 """
 
 import logging
 import queue
+import threading
 import time
 from collections.abc import Callable
 from typing import Any, NamedTuple
@@ -63,6 +67,9 @@ class LiveFeed:
         self.liveliness = liveliness
         self._clock = clock
         self._queue: queue.Queue[Item] = queue.Queue(maxsize=queue_size)
+        #: Liveliness changes that found the queue full: the latest one by token key.
+        self._tokens_aside: dict[str, Item] = {}
+        self._tokens_lock = threading.Lock()
         self._entities: list[Any] = []
         self._started = False
         self._closed = False
@@ -122,7 +129,15 @@ class LiveFeed:
             applied += apply_item(state, item)
 
     def wait(self, timeout_s: float) -> Item | None:
-        """The next queued payload, or None after ``timeout_s``."""
+        """The next queued payload (a liveliness change kept aside once the queue is
+        empty), or None after ``timeout_s``."""
+        try:
+            return self._queue.get_nowait()
+        except queue.Empty:
+            pass
+        with self._tokens_lock:
+            if self._tokens_aside:
+                return self._tokens_aside.pop(next(iter(self._tokens_aside)))
         try:
             return self._queue.get(timeout=timeout_s)
         except queue.Empty:
@@ -132,8 +147,17 @@ class LiveFeed:
         self._enqueue(Item(str(sample.key_expr), sample.payload.to_bytes(), self._clock()))
 
     def _on_token(self, sample: zenoh.Sample) -> None:
-        alive = sample.kind == zenoh.SampleKind.PUT
-        self._enqueue(Item(str(sample.key_expr), b"", self._clock(), alive))
+        item = Item(str(sample.key_expr), b"", self._clock(), sample.kind == zenoh.SampleKind.PUT)
+        with self._tokens_lock:
+            # Once one change of a token waits aside, the later ones go after it there
+            # (the latest wins), never ahead of it through the queue.
+            if item.key not in self._tokens_aside:
+                try:
+                    self._queue.put_nowait(item)
+                    return
+                except queue.Full:
+                    pass
+            self._tokens_aside[item.key] = item
 
     def _enqueue(self, item: Item) -> None:
         try:

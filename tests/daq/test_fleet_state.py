@@ -5,12 +5,14 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from types import SimpleNamespace
 from typing import Any
 
 import pytest
+import zenoh
 
-from daq.live.feed import Item
-from daq.live.fleet import FleetSettings, FleetState, fleet_document
+from daq.live.feed import Item, LiveFeed
+from daq.live.fleet import GONE, WAITING, FleetSettings, FleetState, fleet_document
 from daq.monitor.fleet_view import fleet_plain_line, fleet_render
 from daq.monitor.view import ALARM, DIM, OK, WARN
 from tests.daq.live_support import ground_payload, leg_payload, status_payload
@@ -149,3 +151,46 @@ def test_fleet_without_a_router_exits_2() -> None:
     assert "--connect" in line
     line = assert_one_line(run("monitor", "--plain"), 2, "portal-daq monitor: ")
     assert "--config" in line
+
+
+def test_a_machine_going_is_seen_even_when_the_feed_queue_was_full() -> None:
+    """Zenoh's callbacks only enqueue into a bounded queue; a burst of data fills it. A
+    liveliness change then waits aside (the latest per machine) instead of being dropped,
+    and comes out after the queued data: the fleet shows m1 gone, m2 alive."""
+    clock = iter(float(t) for t in range(100)).__next__
+    feed = LiveFeed(None, "portal/*", queue_size=2, clock=clock, liveliness=True)  # type: ignore[arg-type]
+
+    def change(machine_id: str, kind: zenoh.SampleKind) -> None:
+        feed._on_token(SimpleNamespace(key_expr=f"portal/{machine_id}/alive", kind=kind))  # type: ignore[arg-type]
+
+    change("m1", zenoh.SampleKind.PUT)
+    feed._enqueue(data("portal/m1/status", status_payload(0.5), 0.5))  # the queue is full now
+    change("m1", zenoh.SampleKind.DELETE)
+    change("m2", zenoh.SampleKind.PUT)
+    feed._enqueue(data("portal/m1/status", status_payload(0.6), 0.6))  # dropped, counted
+    assert feed.dropped == 1
+    items = []
+    while (item := feed.wait(0.0)) is not None:
+        items.append(item)
+    assert [(i.key, i.alive) for i in items] == [
+        ("portal/m1/alive", True),
+        ("portal/m1/status", None),
+        ("portal/m1/alive", False),
+        ("portal/m2/alive", True),
+    ]
+    fleet = FleetState(SETTINGS)
+    for item in items:
+        fleet.apply(item)
+    assert {s.machine_id: s.state for s in fleet.summaries(10.0)} == {"m1": GONE, "m2": WAITING}
+    # m1 comes and goes while the queue is full: once one change waits aside, the later
+    # ones follow it there (the latest wins) even when the queue has room again, never
+    # overtaking it through the queue.
+    feed._enqueue(data("portal/m2/status", status_payload(0.7), 0.7))
+    feed._enqueue(data("portal/m2/status", status_payload(0.8), 0.8))
+    change("m1", zenoh.SampleKind.PUT)  # aside: the queue is full
+    assert feed.wait(0.0) == data("portal/m2/status", status_payload(0.7), 0.7)
+    change("m1", zenoh.SampleKind.DELETE)  # room in the queue, but m1 has one aside
+    assert [(i.key, i.alive) for i in iter(lambda: feed.wait(0.0), None)] == [
+        ("portal/m2/status", None),
+        ("portal/m1/alive", False),
+    ]

@@ -350,6 +350,39 @@ def test_the_other_chamber_exactly_max_skew_older_is_fresh_at_unix_times() -> No
     assert all(r == () for r in reasons[1:]), [r for r in reasons[1:] if r]
 
 
+def test_a_clock_step_back_neither_freshens_a_silent_chamber_nor_ages_live_ones() -> None:
+    """NTP steps the wall clock (the frames' clock) back an hour. J1's rod transducer fell
+    silent just before: its last value, an hour "younger" than every piston frame after
+    the step by the time stamps, must not pair with them. J2's chambers keep sending
+    across the step and stay fresh."""
+    bench = Bench()
+    rod_silent, rod_live = j1939_id(6, 0x22), j1939_id(6, 0x24)
+    piston_silent, piston_live = j1939_id(6, 0x21), j1939_id(6, 0x23)
+    t0_s = 1_795_400_000.0
+    for k in range(5):  # before the step: both legs fresh
+        t_s = t0_s + k * 0.002
+        bench.raw(rod_silent, pressure_bytes(5.0), t_s, True)
+        bench.raw(rod_live, pressure_bytes(6.0), t_s, True)
+        (j1,) = bench.raw(piston_silent, pressure_bytes(90.0), t_s + 0.0012, True)
+        (j2,) = bench.raw(piston_live, pressure_bytes(80.0), t_s + 0.0012, True)
+        assert j1.valid and j2.valid
+    after = t0_s + 0.010 - 3600.0  # stepped back; J1's rod says nothing more
+    reasons: dict[str, list[tuple[str, ...]]] = {"J1": [], "J2": []}
+    for k in range(10):
+        t_s = after + k * 0.002
+        bench.raw(rod_live, pressure_bytes(6.0), t_s, True)
+        (j1,) = bench.raw(piston_silent, pressure_bytes(90.0), t_s + 0.0012, True)
+        (j2,) = bench.raw(piston_live, pressure_bytes(80.0), t_s + 0.0012, True)
+        reasons["J1"].append(j1.reasons)
+        reasons["J2"].append(j2.reasons)
+    assert reasons["J2"] == [()] * 10
+    # Bus time: J1's last rod value at 0.008, the last frame before the step at 0.0092;
+    # the step adds nothing, so J1's piston frames after it come at 0.0104 + 0.002 k:
+    # 0.0024 + 0.002 k after the rod value, beyond J1's max_skew_s (0.010, the rod
+    # message's cycle) from k = 4 on. By the time stamps it is an hour the other way.
+    assert reasons["J1"] == [()] * 4 + [("rod_stale",)] * 6
+
+
 def test_rod_trigger_and_each_chambers_status_follows_its_own_frame() -> None:
     text = BASE.replace("max_skew_s = 0.004", 'max_skew_s = 0.004\ntrigger = "rod"')
     bench = Bench(text)
