@@ -355,6 +355,10 @@ def read_toml(path: str | Path) -> dict[str, Any]:
             f"not UTF-8 (byte 0x{exc.object[exc.start]:02x} at offset {exc.start})"
             + (_no_config(path) or "; save the file as UTF-8"),
         ) from exc
+    except ValueError as exc:  # int() of a number of more than 4,300 digits
+        raise ConfigError(
+            source, "", f"not valid TOML: a number too long to read ({str(exc).split(':')[0]})"
+        ) from exc
 
 
 def _no_config(path: str | Path) -> str:
