@@ -34,7 +34,7 @@ from dbc.protection import (
     Protection,
     counter_modulo,
 )
-from dbc.signal_range import decoded_bounds, named_values, value_range
+from dbc.signal_range import decoded_bounds, j1939_signed_codes, named_values, value_range
 from dbc.stability_config import StabilityConfig, angle_signal, parse_stability
 from dbc.toml_table import TomlTable
 from dbc.units import ACCEPTED_PRESSURE_UNITS, chamber_unit
@@ -189,6 +189,15 @@ class ChamberSignal:
     #: allows (J1939's error and "not available" codes lie above it). Unbounded where
     #: neither bounds it (:func:`dbc.signal_range.value_range`).
     range_Pa: tuple[float, float] = (-math.inf, math.inf)
+    #: A J1939 chamber pinning no ``source_address``: the address in its message's DBC ID,
+    #: whose frames alone are the chamber's (another node sending the PGN is counted
+    #: ``unmapped_source``; its frames were read as the chamber's); None where that is
+    #: the null address 0xFE or the global 0xFF (a DBC's placeholder: any sender).
+    dbc_source_address: int | None = None
+    #: Values inside ``range_Pa`` that are codes all the same, Pa: J1939's indicators of a
+    #: signed parameter, read two's complement just below 0
+    #: (:func:`dbc.signal_range.j1939_signed_codes`); (inf, inf) where none are.
+    codes_Pa: tuple[float, float] = (math.inf, math.inf)
     #: The signal's value-table entries that name a pressure inside that range
     #: (``0 "Zero"``), by name, Pa; any other name in its place is a code: NaN
     #: (:func:`dbc.signal_range.named_values`).
@@ -683,6 +692,9 @@ def _chamber(
     factor, atmosphere_Pa = in_Pa
     low, high = value_range(signal, is_j1939(message))
     named = named_values(signal, is_j1939(message))
+    code_low, code_high = j1939_signed_codes(signal, is_j1939(message)) or (math.inf, math.inf)
+    dbc_address = int(message.frame_id & 0xFF)
+    dbc_sender = source_address is None and is_j1939(message) and dbc_address < J1939_NULL_ADDRESS
     return ChamberSignal(
         message=message.name,
         signal=signal_name,
@@ -693,6 +705,8 @@ def _chamber(
         mux_ids=mux_ids,
         page=page,
         range_Pa=(low * factor - atmosphere_Pa, high * factor - atmosphere_Pa),
+        codes_Pa=(code_low * factor - atmosphere_Pa, code_high * factor - atmosphere_Pa),
+        dbc_source_address=dbc_address if dbc_sender else None,
         named_Pa={name: value * factor - atmosphere_Pa for name, value in named.items()},
         atmosphere_Pa=atmosphere_Pa,
     )
@@ -775,6 +789,11 @@ def _in_frames_of(message: Message, signal_name: str, mux_ids: tuple[int, ...] |
     return own is None or (mux_ids is not None and set(mux_ids) <= set(own))
 
 
+#: J1939-81's null address: a node that could not claim an address sends its Cannot
+#: Claim from it and nothing else; 0xFF, above it, is the global destination.
+J1939_NULL_ADDRESS = 0xFE
+
+
 def _source_address(table: TomlTable, message: Message, database: Database) -> int | None:
     """The pinned J1939 sender: the configured one; for a message that shares its PGN with
     others (one DBC message per sender) the address in its own ID; else None (any).
@@ -793,7 +812,7 @@ def _source_address(table: TomlTable, message: Message, database: Database) -> i
             f"{message.name} is not a J1939 message: its 11-bit ID has no source address",
         )
     address = table.integer("source_address")
-    if not 0 <= address <= 253:
+    if not 0 <= address < J1939_NULL_ADDRESS:
         # 254 and 255 are no sender's: J1939-81's null address (a node that could not
         # claim one may send only its Cannot Claim from it) and the global destination.
         special = {254: " (0xFE: the null address, a node without a claimed one)"}
