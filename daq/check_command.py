@@ -1,7 +1,8 @@
 """``portal-daq check --config FILE``: check a configuration against its DBC, no bus.
 
-Reads the service configuration (a machine configuration alone too) and the DBC it
-names as ``run`` and ``replay`` do, and prints what each leg reads: each chamber's
+Reads the service configuration (a machine configuration alone too), the DBC it
+names and the Zenoh file and endpoints of ``[zenoh]`` as ``run`` and ``replay`` do (the
+session is not opened), and prints what each leg reads: each chamber's
 ``MESSAGE.SIGNAL`` (with its J1939 sender and multiplexer page), unit, cycle time and
 status. A wrong key is the one line ``FILE: KEY: reason``, exit 2, as ``run`` says it; a
 user with the wheel alone had no way to see a config's mapping without a bus or a log.
@@ -16,6 +17,7 @@ from cantools.database.can import Database, Message
 
 from daq.service_config import load_service_config
 from daq.subcommand import PROG, Subcommand, fail, setup_logging
+from daq.zenoh_session import session_config
 from dbc.errors import ConfigError, DbcError
 from dbc.machine import ChamberSignal, MachineConfig, StatusCheck
 from dbc.protection import CRC_ALGORITHMS, DEFAULT_CRC_ALGORITHM, Protection, counter_modulo
@@ -34,6 +36,9 @@ def check_main(args: Sequence[str]) -> int:
     setup_logging("WARNING")
     try:
         config = load_service_config(options.config)
+        # The Zenoh file and endpoints, as run opens its session with them: a JSON5 file
+        # Zenoh refuses, port 99999 or an access control gap passed here and stopped run.
+        session_config(config.zenoh, config.source)
     except (ConfigError, DbcError) as exc:
         return fail(exc, 2)
     sys.stdout.write(describe(config.machine, config.database))
@@ -100,7 +105,9 @@ def _equation(name: str, g: LegGeometry) -> str:
 def _chamber(chamber: ChamberSignal) -> str:
     status = f", status {_status(chamber.status)}" if chamber.status is not None else ""
     gauge = " (absolute: less the standard atmosphere)" if chamber.atmosphere_Pa else ""
-    return f"{chamber} in {chamber.unit!r}{gauge}, every {1000 * chamber.cycle_time_s:g} ms{status}"
+    sender = chamber.dbc_source_address
+    where = f"{chamber}" if sender is None else f"{chamber} from 0x{sender:02X} (its DBC ID's)"
+    return f"{where} in {chamber.unit!r}{gauge}, every {1000 * chamber.cycle_time_s:g} ms{status}"
 
 
 def _status(status: StatusCheck) -> str:

@@ -14,13 +14,14 @@ machine part, naming file and key.
 
 from dataclasses import dataclass, fields
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import can
 from cantools.database.can import Database
 
 from dbc.machine import MachineConfig, machine_from_toml, read_toml
 from dbc.toml_table import TomlTable
+from dbc.zenoh_config import not_a_file
 
 #: What Zenoh keys reserve (wildcards ``*``, ``$*``; ``?`` and ``#``, forbidden).
 KEY_RESERVED = "*$?#"
@@ -95,7 +96,7 @@ class ZenohSettings:
 class PublishSettings:
     """``[publish]``: what goes out on Zenoh, and how often."""
 
-    #: Rate of the all-legs ``<prefix>/ground`` message.
+    #: Rate of the all-legs ``<prefix>/ground`` message (:data:`GROUND_RATE_MAX_HZ` at most).
     ground_rate_hz: float = 10.0
     #: Publish decoded messages on ``<prefix>/signals/<MESSAGE>``.
     signals: bool = True
@@ -104,7 +105,8 @@ class PublishSettings:
     #: reads; the leg estimates go out with every frame regardless); every frame of a
     #: saturated bus would cost the service about a third of its CPU (bench/).
     signals_max_rate_hz: float = 10.0
-    #: Period of ``<prefix>/status``, ``<prefix>/metrics`` and systemd's STATUS=.
+    #: Period of ``<prefix>/status``, ``<prefix>/metrics`` and systemd's STATUS=
+    #: (:data:`STATUS_PERIOD_MIN_S` .. :data:`STATUS_PERIOD_MAX_S`).
     status_period_s: float = 1.0
     #: Messages waiting for the Zenoh thread; beyond, they are dropped and counted.
     queue_size: int = 10_000
@@ -185,13 +187,6 @@ def _keys(settings: type) -> list[str]:
     return [field.name for field in fields(settings)]
 
 
-def _positive(table: TomlTable, name: str, default: float) -> float:
-    value = table.number(name, default)
-    if value <= 0:
-        raise table.error(name, f"must be > 0, got {value}")
-    return value
-
-
 def _not_negative(table: TomlTable, name: str, default: float) -> float:
     value = table.number(name, default)
     if value < 0:
@@ -204,6 +199,57 @@ def _positive_int(table: TomlTable, name: str, default: int) -> int:
     if value <= 0:
         raise table.error(name, f"must be > 0, got {value}")
     return value
+
+
+N = TypeVar("N", int, float)
+
+
+def _between(table: TomlTable, name: str, value: N, low: N, high: N, why: str = "") -> N:
+    """``value`` of ``name``, checked to be ``low`` .. ``high``; ``why`` ends the refusal."""
+    if not low <= value <= high:
+        raise table.error(
+            name, f"must be between {_shown(low)} and {_shown(high)}, got {_shown(value)}{why}"
+        )
+    return value
+
+
+def _at_least(table: TomlTable, name: str, default: float, low: float, why: str) -> float:
+    """The number ``name``, at least ``low``; ``why`` ends the refusal."""
+    value = table.number(name, default)
+    if not value >= low:
+        raise table.error(name, f"must be at least {low:g}, got {value:g}{why}")
+    return value
+
+
+def _shown(value: float) -> str:
+    return str(value) if isinstance(value, int) else f"{value:g}"
+
+
+#: Bounds of ``[publish] ground_rate_hz``: at 1,000 Hz the event loop took a third of a
+#: core taking snapshots with no frame coming in, at 1e6 a whole core, and the recorder's
+#: and publisher's queues overflowed; the DBC's legs send every 10 ms, so a faster
+#: ``/ground`` repeats their estimates. At least one every 100 s.
+GROUND_RATE_MIN_HZ, GROUND_RATE_MAX_HZ = 0.01, 100.0
+#: Bounds of ``[publish] status_period_s``: a status is built of every counter; at 1e-300
+#: the service built nothing else (a third of a core, no frame coming in), at 1e300 the
+#: wait for it was an OverflowError traceback. An hour at most: "no frame" is judged
+#: once a period, and the viewers call a status stale after three.
+STATUS_PERIOD_MIN_S, STATUS_PERIOD_MAX_S = 0.01, 3600.0
+#: Shortest ``[recording] flush_period_s``: the recorder's thread waits for items at most
+#: this long; at 1e-300 it spun (all of a core), writing out a chunk each time.
+FLUSH_PERIOD_MIN_S = 0.01
+#: Shortest ``[recording] max_duration_s``: below a second a file is begun at nearly every
+#: hand-over (ten a second).
+MAX_DURATION_MIN_S = 1.0
+#: Largest ``queue_size`` of ``[bus]``, ``[publish]`` and ``[recording]``: what bounds the
+#: memory a stall takes (a million frames are ~2 minutes of a saturated bus); the
+#: recorder's process queue takes at most 2**31 - 1 (a larger one was an OverflowError
+#: traceback at start).
+QUEUE_SIZE_MAX = 1_000_000
+
+
+def _queue_size(table: TomlTable, default: int) -> int:
+    return _between(table, "queue_size", table.integer("queue_size", default), 1, QUEUE_SIZE_MAX)
 
 
 def _choice(table: TomlTable, name: str, choices: tuple[str, ...], default: Any) -> Any:
@@ -225,15 +271,15 @@ POLL_PERIOD_MAX_MS = 250.0
 def _service(table: TomlTable) -> ServiceSettings:
     defaults = ServiceSettings()
     table.reject_unknown(_keys(ServiceSettings))
-    poll_period_ms = table.number("poll_period_ms", defaults.poll_period_ms)
-    if not 0.0 <= poll_period_ms <= POLL_PERIOD_MAX_MS:
-        raise table.error(
-            "poll_period_ms",
-            f"must be between 0 and {POLL_PERIOD_MAX_MS:g}, got {poll_period_ms:g}",
-        )
     return ServiceSettings(
         event_loop=table.boolean("event_loop", defaults.event_loop),
-        poll_period_ms=poll_period_ms,
+        poll_period_ms=_between(
+            table,
+            "poll_period_ms",
+            table.number("poll_period_ms", defaults.poll_period_ms),
+            0.0,
+            POLL_PERIOD_MAX_MS,
+        ),
     )
 
 
@@ -250,7 +296,7 @@ def _bus(table: TomlTable) -> BusSettings:
         channel=table.string("channel", defaults.channel),
         receive_own_messages=table.boolean("receive_own_messages", False),
         kernel_filters=table.boolean("kernel_filters", False),
-        queue_size=_positive_int(table, "queue_size", defaults.queue_size),
+        queue_size=_queue_size(table, defaults.queue_size),
         receive_buffer_bytes=_receive_buffer(table, defaults.receive_buffer_bytes),
     )
 
@@ -262,13 +308,9 @@ RECEIVE_BUFFER_MAX_BYTES = 1024 * 1024 * 1024
 
 def _receive_buffer(table: TomlTable, default: int) -> int:
     value = table.integer("receive_buffer_bytes", default)
-    if not RECEIVE_BUFFER_MIN_BYTES <= value <= RECEIVE_BUFFER_MAX_BYTES:
-        raise table.error(
-            "receive_buffer_bytes",
-            f"must be between {RECEIVE_BUFFER_MIN_BYTES} and {RECEIVE_BUFFER_MAX_BYTES}, "
-            f"got {value}",
-        )
-    return value
+    return _between(
+        table, "receive_buffer_bytes", value, RECEIVE_BUFFER_MIN_BYTES, RECEIVE_BUFFER_MAX_BYTES
+    )
 
 
 def _zenoh(table: TomlTable, config_dir: Path, machine_id: str) -> ZenohSettings:
@@ -276,8 +318,9 @@ def _zenoh(table: TomlTable, config_dir: Path, machine_id: str) -> ZenohSettings
     config_file = None
     if "config_file" in table:
         config_file = table.file("config_file", config_dir)
-        if not config_file.is_file():
-            raise table.error("config_file", f"no such file: {config_file}")
+        reason = not_a_file(config_file)
+        if reason is not None:
+            raise table.error("config_file", f"{reason}: {config_file}")
     multicast = table.boolean("multicast_scouting") if "multicast_scouting" in table else None
     return ZenohSettings(
         config_file=config_file,
@@ -335,13 +378,26 @@ def _publish(table: TomlTable) -> PublishSettings:
     defaults = PublishSettings()
     table.reject_unknown(_keys(PublishSettings))
     return PublishSettings(
-        ground_rate_hz=_positive(table, "ground_rate_hz", defaults.ground_rate_hz),
+        ground_rate_hz=_between(
+            table,
+            "ground_rate_hz",
+            table.number("ground_rate_hz", defaults.ground_rate_hz),
+            GROUND_RATE_MIN_HZ,
+            GROUND_RATE_MAX_HZ,
+            " (the legs' estimates go out with every frame; /ground is their summary)",
+        ),
         signals=table.boolean("signals", defaults.signals),
         signals_max_rate_hz=_not_negative(
             table, "signals_max_rate_hz", defaults.signals_max_rate_hz
         ),
-        status_period_s=_positive(table, "status_period_s", defaults.status_period_s),
-        queue_size=_positive_int(table, "queue_size", defaults.queue_size),
+        status_period_s=_between(
+            table,
+            "status_period_s",
+            table.number("status_period_s", defaults.status_period_s),
+            STATUS_PERIOD_MIN_S,
+            STATUS_PERIOD_MAX_S,
+        ),
+        queue_size=_queue_size(table, defaults.queue_size),
     )
 
 
@@ -358,11 +414,23 @@ def _recording(table: TomlTable, config_dir: Path) -> RecordingSettings:
     return RecordingSettings(
         directory=directory,
         max_bytes=max_bytes,
-        max_duration_s=_positive(table, "max_duration_s", defaults.max_duration_s),
+        max_duration_s=_at_least(
+            table,
+            "max_duration_s",
+            defaults.max_duration_s,
+            MAX_DURATION_MIN_S,
+            " (a file would be begun at nearly every hand-over to the recorder)",
+        ),
         compression=_choice(table, "compression", COMPRESSIONS, defaults.compression),
         chunk_size=chunk_size,
-        flush_period_s=_positive(table, "flush_period_s", defaults.flush_period_s),
-        queue_size=_positive_int(table, "queue_size", defaults.queue_size),
+        flush_period_s=_at_least(
+            table,
+            "flush_period_s",
+            defaults.flush_period_s,
+            FLUSH_PERIOD_MIN_S,
+            " (the recorder would do nothing but write out chunks)",
+        ),
+        queue_size=_queue_size(table, defaults.queue_size),
         truth=table.boolean("truth", defaults.truth),
         signals=table.boolean("signals", defaults.signals),
         process=table.boolean("process", defaults.process),

@@ -66,17 +66,25 @@ def zenoh_config(settings: ZenohSettings, source: str = "") -> zenoh.Config:
     return config
 
 
-def open_session(settings: ZenohSettings, source: str = "") -> zenoh.Session:
-    """Open the session; a failure (e.g. the listen port is taken) is a ZenohError, an
-    access control that leaves the key prefix open (:func:`access_control_gap`) a
-    ConfigError naming the file."""
+def session_config(settings: ZenohSettings, source: str = "") -> zenoh.Config:
+    """:func:`zenoh_config`, and an access control that leaves the key prefix open
+    (:func:`access_control_gap`) a ConfigError naming the file: what the service's session
+    is opened with, checked without opening it (``portal-daq check`` too)."""
     config = zenoh_config(settings, source)
-    where = "[zenoh] listen/connect"
-    if settings.config_file is not None:  # where the endpoints come from when not set here
-        where += f" (or listen/connect in {settings.config_file})"
+    if settings.config_file is not None:
         gap = access_control_gap(config, settings.key_prefix)
         if gap is not None:
             raise ConfigError(settings.config_file, "access_control", gap)
+    return config
+
+
+def open_session(settings: ZenohSettings, source: str = "") -> zenoh.Session:
+    """Open the session (:func:`session_config`); a failure (e.g. the listen port is
+    taken) is a ZenohError."""
+    config = session_config(settings, source)
+    where = "[zenoh] listen/connect"
+    if settings.config_file is not None:  # where the endpoints come from when not set here
+        where += f" (or listen/connect in {settings.config_file})"
     return open_config_session(
         config,
         f"check {where}: is the port taken by another process, is the address on this host?",

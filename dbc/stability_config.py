@@ -158,10 +158,8 @@ def _base(name: str, table: TomlTable) -> BaseLayout:
 
 
 def _point(table: TomlTable, key: str, value: Any) -> Point:
-    if (
-        not isinstance(value, list)
-        or len(value) != 2
-        or not all(isinstance(v, int | float) and not isinstance(v, bool) for v in value)
-    ):
+    """``[x, y]``, each a finite number (NaN and inf were taken: the stability margin
+    was NaN; an integer beyond 64 bits was an OverflowError traceback)."""
+    if not isinstance(value, list) or len(value) != 2:
         raise table.error(key, f"must be [x, y] in metres, got {value!r}")
-    return (float(value[0]), float(value[1]))
+    return (table.finite(key, value[0]), table.finite(key, value[1]))

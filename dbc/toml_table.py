@@ -11,6 +11,9 @@ from dbc.errors import ConfigError
 T = TypeVar("T")
 
 _MISSING: Any = object()
+#: TOML's integers are 64-bit signed (the spec: an integer that cannot be held losslessly
+#: is an error); Python's reader takes any, so ``1e400`` written as digits came through.
+INT64_MIN, INT64_MAX = -(2**63), 2**63 - 1
 # The first word of an estimator ValueError names the offending field.
 _FIELD_NAME = re.compile(r"^([A-Za-z_][A-Za-z0-9_]*)\b")
 
@@ -40,9 +43,14 @@ class TomlTable:
         return default
 
     def number(self, name: str, default: Any = _MISSING) -> float:
-        value = self._get(name, default)
+        return self.finite(name, self._get(name, default))
+
+    def finite(self, name: str, value: Any) -> float:
+        """``value``, given under ``name`` (a key, or one of its items), as a finite float."""
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise self.error(name, f"must be a number, got {value!r}")
+        if isinstance(value, int):
+            value = self._int64(name, value)  # float() of a longer one raised OverflowError
         if not math.isfinite(value):
             raise self.error(name, f"must be finite, got {value!r}")
         return float(value)
@@ -51,6 +59,12 @@ class TomlTable:
         value = self._get(name, default)
         if isinstance(value, bool) or not isinstance(value, int):
             raise self.error(name, f"must be an integer, got {value!r}")
+        return self._int64(name, value)
+
+    def _int64(self, name: str, value: int) -> int:
+        if not INT64_MIN <= value <= INT64_MAX:
+            bits = value.bit_length()
+            raise self.error(name, f"must fit in 64 bits (TOML's integers), got a {bits}-bit one")
         return value
 
     def string(self, name: str, default: Any = _MISSING, pattern: str | None = None) -> str:

@@ -25,8 +25,8 @@ def read_config_file(path: Path, option: str) -> zenoh.Config:
     """The :class:`zenoh.Config` in ``path`` (given by ``option``, e.g. ``--config``);
     a file missing, a directory or one Zenoh refuses is a ConfigError naming it, as is
     an endpoint no session could ever use (:func:`endpoint_problem`)."""
-    if not path.is_file():
-        reason = "it is a directory" if path.is_dir() else "no such file"
+    reason = not_a_file(path)
+    if reason is not None:
         raise ConfigError(path, "", f"{reason}; give {option} a Zenoh JSON5 file")
     try:
         config = zenoh.Config.from_file(str(path))
@@ -38,6 +38,15 @@ def read_config_file(path: Path, option: str) -> zenoh.Config:
         for endpoints in lists:
             _check_endpoints(endpoints, key, source=str(path), name=key)
     return config
+
+
+def not_a_file(path: Path) -> str | None:
+    """Why ``path`` is no file to read a config from; None when it is one."""
+    if path.is_file():
+        return None
+    if path.is_dir():
+        return "it is a directory"
+    return "not a regular file" if path.exists() else "no such file"
 
 
 def put(config: zenoh.Config, key: str, value: object, *, source: str, name: str = "") -> None:

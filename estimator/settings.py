@@ -5,6 +5,9 @@ from dataclasses import dataclass
 from estimator._checks import require_finite, require_positive
 from estimator.hampel import check_hampel
 
+#: Shortest ``near_constant_window_s``: the DBC's legs send every 10 ms.
+NEAR_CONSTANT_WINDOW_MIN_S = 0.01
+
 
 @dataclass(frozen=True, slots=True)
 class EstimatorSettings:
@@ -78,7 +81,16 @@ class EstimatorSettings:
                 f"({self.contact_on_N}): the gap between them is the hysteresis"
             )
         require_positive("pressure_limit_Pa", self.pressure_limit_Pa)
-        require_positive("near_constant_window_s", self.near_constant_window_s)
+        require_finite("near_constant_window_s", self.near_constant_window_s)
+        if not self.near_constant_window_s >= NEAR_CONSTANT_WINDOW_MIN_S:
+            # Shorter than the resolution of a frame time (1e-300 s), the window dropped
+            # the sample just added: a ZeroDivisionError; shorter than a frame cycle, it
+            # holds one sample and its mean is the peak.
+            raise ValueError(
+                f"near_constant_window_s must be at least {NEAR_CONSTANT_WINDOW_MIN_S:g} s, "
+                f"got {self.near_constant_window_s!r}: the window of the mean pressure spans "
+                "several frames of a leg"
+            )
 
     def stale_after_s(self, cycle_time_s: float) -> float:
         """How long a leg sent every ``cycle_time_s`` may go without a sample before it is

@@ -64,6 +64,9 @@ TIME_UNITS = {"s": 1.0, "ms": 1e-3}
 PRESSURE_UNITS = {"Pa": 1.0, "kPa": 1e3, "MPa": 1e6, "bar": 1e5}
 FORCE_UNITS = {"N": 1.0, "kN": 1e3}
 DEFAULT_DT_S = 0.01
+#: Most samples the uniform grid may have (per column, 8 bytes each): dt_s = 1e-9 asked
+#: numpy for 7.45 GiB (MemoryError), 1e-300 for more than it can index (ValueError).
+MAX_GRID_SAMPLES = 10_000_000
 
 Columns = Mapping[str, FloatArray]
 
@@ -169,8 +172,8 @@ class _Grid:
         value = table.data[key]
         if isinstance(value, bool) or not isinstance(value, (str, int, float)):
             raise table.error(key, f"must be a column name or a number, got {value!r}")
-        if not isinstance(value, str):
-            return np.full(self.time_s.shape, float(value))
+        if not isinstance(value, str):  # nan and inf were sent; 10**400 an OverflowError
+            return np.full(self.time_s.shape, table.finite(key, value))
         values = _lookup(table, key, self.columns, self.data_source)
         if values.shape != self.time_s.shape:
             raise table.error(
@@ -200,8 +203,8 @@ def _scale(table: TomlTable, unit_key: str, scale_key: str, units: Mapping[str, 
         raise table.error(scale_key, f"give {unit_key} or {scale_key}, not both")
     if scale_key in table:
         scale = table.number(scale_key)
-        if scale == 0:
-            raise table.error(scale_key, "must not be 0")
+        if not scale > 0:  # a negative pressure scale sent every pressure negated
+            raise table.error(scale_key, f"must be > 0 (a factor to SI units), got {scale:g}")
         return scale
     unit = table.string(unit_key, next(iter(units)))
     if unit not in units:
@@ -253,6 +256,14 @@ def build_result(
     time_s = _lookup(head, "time", columns, data_source) * time_scale
     if time_s.size < 2 or np.any(np.diff(time_s) <= 0):
         raise head.error("time", "the time column must increase strictly over 2+ samples")
+    samples = (time_s[-1] - time_s[0]) / dt_s
+    if not samples <= MAX_GRID_SAMPLES:
+        raise head.error(
+            "dt_s",
+            f"{dt_s:g} s over the export's {time_s[-1] - time_s[0]:g} s makes {samples:.3g} "
+            f"samples, more than {MAX_GRID_SAMPLES:,}: give a larger dt_s (the bus takes "
+            "the legs every 10 ms)",
+        )
     data = _Grid(columns, data_source, time_s, dt_s)
     n = data.grid_s.size
     if n < 2:

@@ -95,6 +95,38 @@ def test_a_wrong_key_is_one_line_and_exit_2(
     )
 
 
+@pytest.mark.parametrize(
+    ("zenoh_lines", "json5", "where", "reason"),
+    [
+        ('connect = ["tcp/10.0.0.1:99999"]', None, "zenoh.connect", "port 99999 is beyond 65535"),
+        ('config_file = "z.json5"', "{ mode: 3 }", "z.json5", "not a valid Zenoh config"),
+        ('config_file = "."', None, "zenoh.config_file", "it is a directory"),
+        ('config_file = "/dev/null"', None, "zenoh.config_file", "not a regular file"),
+    ],
+)
+def test_the_zenoh_part_is_checked_as_run_opens_it(
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    zenoh_lines: str,
+    json5: str | None,
+    where: str,
+    reason: str,
+) -> None:
+    # check said fine (exit 0) where run then stopped with exit 2: the JSON5 file and the
+    # endpoints were only read when the session was opened.
+    assert init_main([str(tmp_path)]) == 0
+    config = tmp_path / "portal-daq.toml"
+    text = config.read_text()
+    config.write_text(text.replace('config_file = "zenoh.json5"', zenoh_lines, 1))
+    if json5 is not None:
+        (tmp_path / "z.json5").write_text(json5)
+    capsys.readouterr()
+    assert main(["check", "--config", str(config)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("portal-daq: ") and err.count("\n") == 1
+    assert f"{where}: " in err and reason in err
+
+
 def test_each_protected_message_shows_how_it_is_checked(
     capsys: pytest.CaptureFixture[str],
 ) -> None:

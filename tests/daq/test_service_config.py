@@ -57,7 +57,7 @@ def refused(tmp_path: Path, text: str) -> ConfigError:
         ('[bus]\nchanel = "can0"', "bus.chanel", "unknown key"),
         ('[bus]\ninterface = "socketcam"', "bus.interface", "unknown python-can interface"),
         ("[bus]\nreceive_own_messages = 1", "bus.receive_own_messages", "true or false"),
-        ("[bus]\nqueue_size = 0", "bus.queue_size", "> 0"),
+        ("[bus]\nqueue_size = 0", "bus.queue_size", "between 1 and 1000000, got 0"),
         ("[bus]\nreceive_buffer_bytes = 100", "bus.receive_buffer_bytes", "between 1024 and"),
         ('[bus]\nreceive_buffer_bytes = "4M"', "bus.receive_buffer_bytes", "integer"),
         ('[zenoh]\nmode = "peers"', "zenoh.mode", "must be one of"),
@@ -68,9 +68,9 @@ def refused(tmp_path: Path, text: str) -> ConfigError:
         # A verbatim chunk: neither the access control's portal/** nor portal/* matched it.
         ('[zenoh]\nkey_prefix = "portal/@pam"', "zenoh.key_prefix", "starts with '@'"),
         ('[zenoh]\nconfig_file = "absent.json5"', "zenoh.config_file", "no such file"),
-        ("[publish]\nground_rate_hz = -1", "publish.ground_rate_hz", "> 0"),
+        ("[publish]\nground_rate_hz = -1", "publish.ground_rate_hz", "between 0.01 and 100"),
         ('[publish]\nsignals = "yes"', "publish.signals", "true or false"),
-        ("[publish]\nstatus_period_s = 0", "publish.status_period_s", "> 0"),
+        ("[publish]\nstatus_period_s = 0", "publish.status_period_s", "between 0.01 and 3600"),
         ('[recording]\ncompression = "gzip"', "recording.compression", "must be one of"),
         ("[recording]\nmax_bytes = 100", "recording.max_bytes", ">= chunk_size"),
         ('[recording]\nmax_duration_s = "1h"', "recording.max_duration_s", "must be a number"),
@@ -84,6 +84,23 @@ def refused(tmp_path: Path, text: str) -> ConfigError:
         ("[service]\npoll_period_ms = -1", "service.poll_period_ms", "between 0 and 250"),
         ("[service]\npoll_period_ms = 1000", "service.poll_period_ms", "between 0 and 250"),
         ('[service]\npoll_period_ms = "20 ms"', "service.poll_period_ms", "a number"),
+        # Periods and rates that spun a loop or overflowed a wait (no frame coming in: a
+        # third of a core or all of one; status_period_s = 1e300 an OverflowError).
+        ("[publish]\nground_rate_hz = 1e6", "publish.ground_rate_hz", "got 1e+06 (the legs'"),
+        ("[publish]\nground_rate_hz = 1e-300", "publish.ground_rate_hz", "between 0.01 and"),
+        ("[publish]\nground_rate_hz = nan", "publish.ground_rate_hz", "finite"),
+        ("[publish]\nstatus_period_s = 1e-300", "publish.status_period_s", "between 0.01 and"),
+        ("[publish]\nstatus_period_s = 1e300", "publish.status_period_s", "and 3600, got 1e+300"),
+        ("[publish]\nstatus_period_s = inf", "publish.status_period_s", "finite"),
+        ("[recording]\nflush_period_s = 1e-300", "recording.flush_period_s", "at least 0.01"),
+        ("[recording]\nflush_period_s = 0", "recording.flush_period_s", "at least 0.01"),
+        ("[recording]\nmax_duration_s = 0.001", "recording.max_duration_s", "at least 1, got"),
+        ("[recording]\nmax_duration_s = -1", "recording.max_duration_s", "at least 1, got"),
+        # A queue bounds memory; the recorder process's took 2**31 - 1 at most (a traceback).
+        ("[recording]\nqueue_size = 4611686018427387904", "recording.queue_size", "and 1000000"),
+        ("[publish]\nqueue_size = 1000001", "publish.queue_size", "between 1 and 1000000"),
+        ("[bus]\nqueue_size = 2.5", "bus.queue_size", "must be an integer"),
+        ("[bus]\nqueue_size = -1", "bus.queue_size", "between 1 and 1000000, got -1"),
     ],
 )
 def test_wrong_service_table_is_refused_naming_the_key(

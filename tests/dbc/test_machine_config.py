@@ -87,6 +87,12 @@ def test_leg_table_overrides_leg_defaults(tmp_path: Path) -> None:
             "stale between two of its frames",
         ),
         ("l_gb_m = 0.55", "l_gb = 0.55", "leg_defaults.l_gb", "unknown key"),
+        (
+            "near_constant_window_s = 5.0",
+            "near_constant_window_s = 1e-300",
+            "estimator.near_constant_window_s",
+            "must be at least 0.01 s",
+        ),
         ('crc = "SB1_F1_CRC"', 'crc = "SB1_F1_Counter"', "protection.LEG_SB1_F1.crc", "8-bit"),
         ("[legs.SB1_F1]", "[legs.SB1_F1]\nfoot = 1", "legs.SB1_F1.foot", "unknown key"),
     ],
@@ -113,6 +119,31 @@ def test_no_legs(tmp_path: Path) -> None:
 def test_not_toml(tmp_path: Path) -> None:
     error = refused(tmp_path, "[machine\nid = 3")
     assert "not valid TOML" in str(error)
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "key"),
+    [
+        # float(10**48) is fine, but TOML's integers stop at 64 bits; 10**400 crashed
+        # float() with an OverflowError traceback.
+        ("mass_kg = 18800.0", f"mass_kg = {10**400}", "machine.mass_kg"),
+        ("mass_kg = 18800.0", f"mass_kg = -{10**20}", "machine.mass_kg"),
+        ("median_window = 11", f"median_window = {2**64 + 1}", "estimator.median_window"),
+    ],
+)
+def test_an_integer_beyond_64_bits_is_refused_naming_the_key(
+    tmp_path: Path, old: str, new: str, key: str
+) -> None:
+    assert old in EXAMPLE
+    error = refused(tmp_path, EXAMPLE.replace(old, new, 1))
+    assert error.key == key
+    assert "must fit in 64 bits" in error.reason
+
+
+def test_a_number_too_long_to_read_is_not_valid_toml(tmp_path: Path) -> None:
+    # Python's int() refuses more than 4,300 digits with a ValueError: a traceback.
+    error = refused(tmp_path, EXAMPLE.replace("mass_kg = 18800.0", "mass_kg = 1" + "0" * 5000))
+    assert error.key == "" and "not valid TOML: a number too long to read" in error.reason
 
 
 def test_missing_file(tmp_path: Path) -> None:

@@ -91,7 +91,21 @@ def test_without_the_table_there_is_no_margin(tmp_path: Path) -> None:
             "SB1_F1 = [1.6, 0.0]",
             "SB1_F1 = [1.6, true]",
             "stability.bases.SB1.feet_m.SB1_F1",
-            "[x, y]",
+            "must be a number, got True",
+        ),
+        # NaN and inf were taken (the margin was NaN), 10**400 an OverflowError traceback.
+        (
+            "SB1_F1 = [1.6, 0.0]",
+            "SB1_F1 = [nan, 0.0]",
+            "stability.bases.SB1.feet_m.SB1_F1",
+            "finite",
+        ),
+        ("axis_m = [0.07, 0.0]", "axis_m = [0.07, -inf]", "stability.bases.SB1.axis_m", "finite"),
+        (
+            "axis_m = [0.07, 0.0]",
+            f"axis_m = [{10**400}, 0.0]",
+            "stability.bases.SB1.axis_m",
+            "must fit in 64 bits",
         ),
         ("SB1_F1 = [1.6, 0.0], ", "", "stability.bases", "missing ['SB1_F1']"),
         ("SB1_F1 = [1.6, 0.0]", "SB1_F9 = [1.6, 0.0]", "stability.bases", "not legs ['SB1_F9']"),

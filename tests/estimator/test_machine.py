@@ -65,6 +65,8 @@ def test_every_leg_needs_a_cycle_time() -> None:
         ({"contact_off_N": 9000.0}, "contact_off_N"),
         ({"pressure_min_Pa": 5e7}, "pressure_min_Pa"),
         ({"near_constant_window_s": 0.0}, "near_constant_window_s"),
+        # Below a frame time's resolution the window lost its own sample: ZeroDivisionError.
+        ({"near_constant_window_s": 1e-300}, "near_constant_window_s must be at least 0.01"),
         ({"stale_after_cycles": -1.0}, "stale_after_cycles"),
         # One cycle or less: every next frame would be an outage (median, metrics restart).
         ({"stale_after_cycles": 1.0}, "stale_after_cycles must be > 1"),

@@ -139,6 +139,32 @@ def test_a_typo_in_the_mapping_is_refused(tmp_path: Path) -> None:
     assert "input.dt: unknown key" in refused(tmp_path, mapping)
 
 
+@pytest.mark.parametrize(
+    ("old", "new", "key", "reason"),
+    [
+        # numpy was asked for 7.45 GiB (MemoryError), or more than it indexes (ValueError).
+        ("dt_s = 0.01", "dt_s = 1e-9", "input.dt_s", "samples, more than 10,000,000"),
+        ("dt_s = 0.01", "dt_s = 1e-300", "input.dt_s", "give a larger dt_s"),
+        # Every pressure was sent negated.
+        ('pressure_unit = "bar"', "pressure_scale = -1e5", "input.pressure_scale", "> 0"),
+        ("fold = 12.5", "fold = nan", "signals.fold", "must be finite"),
+        ("fold = 12.5", "fold = -inf", "signals.fold", "must be finite"),
+        ("fold = 12.5", f"fold = {10**400}", "signals.fold", "must fit in 64 bits"),
+    ],
+)
+def test_a_mapping_value_that_cannot_be_played_is_refused_naming_the_key(
+    tmp_path: Path, old: str, new: str, key: str, reason: str
+) -> None:
+    csv = write_csv(tmp_path / "export.csv", export_columns())
+    mapping = MAPPING.format(legs=leg_tables())
+    assert old in mapping
+    (tmp_path / "map.toml").write_text(mapping.replace(old, new, 1))
+    with pytest.raises(ConfigError) as info:
+        load_external(csv, tmp_path / "map.toml")
+    assert info.value.key == key
+    assert reason in str(info.value)
+
+
 def test_time_must_increase(tmp_path: Path) -> None:
     columns = export_columns()
     columns["time_ms"][10] = columns["time_ms"][9]
