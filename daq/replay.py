@@ -27,6 +27,7 @@ import math
 import sqlite3
 import struct
 import tomllib
+import zlib
 from array import array
 from collections import Counter
 from collections.abc import Iterable, Iterator, Sequence
@@ -79,6 +80,9 @@ Machine = tuple[MachineConfig, Database]
 
 #: What python-can's log parsers raise for a file they cannot read (SQLite's for ``.db``).
 _READER_ERRORS = (ValueError, IndexError, KeyError, struct.error, sqlite3.Error, BLFParseError)
+#: What reading a compressed log raises where its data is cut or damaged: a gzip stream's
+#: (a text log's are :class:`LogLines`'), or zlib's in a BLF's container (tracebacks).
+_COMPRESSION_ERRORS = (EOFError, gzip.BadGzipFile, zlib.error)
 
 #: No frame of a log is stamped this late (2100-01-01, Unix s): a time beyond it (inf,
 #: 1e300: a corrupted line) is no time; at 1e300, adding a second changes nothing, and
@@ -354,7 +358,8 @@ def can_log_frames(path: Path, channel: str | None = None) -> Iterator[RawFrame 
         return
     try:
         reader, lines = _log_reader(path)
-    except (OSError, NotImplementedError, *_READER_ERRORS) as exc:  # NotImplemented: no asammdf
+    except (OSError, NotImplementedError, *_COMPRESSION_ERRORS, *_READER_ERRORS) as exc:
+        # NotImplementedError: .mf4 without asammdf
         hint = _what_it_looks_like(path)
         raise RecordingError(path, f"cannot read it as a CAN log: {exc}{hint}") from exc
     count = 0
@@ -387,6 +392,11 @@ def can_log_frames(path: Path, channel: str | None = None) -> Iterator[RawFrame 
                 if channel is None or name in (None, channel):
                     yield from_can_message(message)
                 t_s = message.timestamp
+        except _COMPRESSION_ERRORS as exc:
+            if not _log_suffix(path)[1]:  # a BLF's container
+                reason = f"{exc} (a compressed container of the BLF is damaged)"
+                raise RecordingError(path, f"unreadable after frame {count}: {reason}") from exc
+            cut = str(exc)  # a gzipped binary log cut short or damaged, as a text log's
         except _READER_ERRORS as exc:
             cut = blf_cut(path, reader)
             if cut is None:

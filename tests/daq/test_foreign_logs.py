@@ -562,6 +562,49 @@ def test_a_blf_log_not_closed_or_cut_is_read_to_its_last_object_with_a_warning(
     ], err
 
 
+def test_a_damaged_or_cut_compressed_blf_is_one_line_or_read_to_its_cut(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """zlib's error on a BLF container damaged inside its compressed bytes was a
+    traceback; a gzipped BLF cut short (gzip's EOFError) too, and one whose gzip check
+    fails was 'portal-daq: CRC check failed ...' (no file named) after its rows, exit 1.
+    A gzipped BLF is read as a gzipped text log is: up to its cut, with a warning."""
+    import gzip
+
+    from daq.replay_command import replay_main
+
+    whole = tmp_path / "whole.blf"
+    with can.BLFWriter(whole) as writer:  # two containers (of 128 KiB before zlib)
+        for k in range(4000):
+            writer.on_message_received(
+                can.Message(timestamp=1_750_000_000 + k / 100, arbitration_id=0x7F0, data=bytes(8))
+            )
+    data = whole.read_bytes()
+    second = data.index(b"LOBJ", data.index(b"LOBJ") + 4)  # the second container
+    packed = gzip.compress(data)
+    cut = tmp_path / "cut.blf.gz"
+    cut.write_bytes(packed[: len(packed) * 3 // 4])
+    checked = tmp_path / "checked.blf.gz"  # its CRC-32 zeroed
+    checked.write_bytes(packed[:-8] + bytes(4) + packed[-4:])
+    for path, reason, whole_read in (
+        (cut, "Compressed file ended before the end-of-stream marker was reached", False),
+        (checked, "CRC check failed 0x0 != ", True),
+    ):
+        count = len(list(can_log_frames(path)))
+        assert (count == 4000) == whole_read and count > 0
+        message = caplog.records[-1].getMessage()
+        assert message.startswith(f"{path} is cut short ({reason}"), message
+        assert message.endswith(f"): read up to frame {count}"), message
+    # (replay_main's logging last: its handler takes the log lines from caplog)
+    damaged = tmp_path / "damaged.blf"  # zeros in the second container's zlib stream
+    damaged.write_bytes(data[: second + 200] + bytes(40) + data[second + 240 :])
+    assert replay_main([str(damaged), "--config", str(EXAMPLE_CONFIG), "--out", "/dev/null"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"portal-daq: {damaged}: unreadable after frame ")
+    assert "while decompressing data" in err[0], err
+    assert err[0].endswith("(a compressed container of the BLF is damaged)"), err
+
+
 def test_a_log_whose_frames_all_have_one_time_stamp_is_reported(tmp_path: Path) -> None:
     # A logger that stamps nothing (one time for every frame): the cycle has no duration,
     # no time just before its end; the time axis' NaN limit was a ValueError traceback.
