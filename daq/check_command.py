@@ -105,7 +105,9 @@ def _equation(name: str, g: LegGeometry) -> str:
 def _chamber(chamber: ChamberSignal) -> str:
     status = f", status {_status(chamber.status)}" if chamber.status is not None else ""
     gauge = " (absolute: less the standard atmosphere)" if chamber.atmosphere_Pa else ""
-    return f"{chamber} in {chamber.unit!r}{gauge}, every {1000 * chamber.cycle_time_s:g} ms{status}"
+    sender = chamber.dbc_source_address
+    where = f"{chamber}" if sender is None else f"{chamber} from 0x{sender:02X} (its DBC ID's)"
+    return f"{where} in {chamber.unit!r}{gauge}, every {1000 * chamber.cycle_time_s:g} ms{status}"
 
 
 def _status(status: StatusCheck) -> str:

@@ -27,7 +27,11 @@ _BOM_ENCODINGS = (
 )
 #: CAN databases of other formats (cantools reads them; the config takes a DBC, which a
 #: recording embeds): what their text starts with, and the format's name.
-_OTHER_FORMATS = (("<NetworkDefinition", "KCD"), ("<AUTOSAR", "ARXML"), ("FormatVersion=", "SYM"))
+_OTHER_FORMATS = (
+    ("<NetworkDefinition", "a KCD"),
+    ("<AUTOSAR", "an ARXML"),
+    ("FormatVersion=", "a SYM"),
+)
 
 
 def load_database(path: str | Path) -> Database:
@@ -53,13 +57,15 @@ def load_database(path: str | Path) -> Database:
         dbc_path = Path(path).with_suffix(".dbc")
         raise DbcError(
             path,
-            f"a {kind} file, not a DBC: portal-daq reads DBC only; convert it with "
+            f"{kind} file, not a DBC: portal-daq reads DBC only; convert it with "
             f"`cantools convert {path} {dbc_path}`",
         ) from exc
 
 
 def load_database_string(text: str, source: str) -> Database:
     """Load a DBC from its text (e.g. one embedded in a recording); ``source`` names it."""
+    if not text.strip():
+        raise DbcError(source, "is empty: no CAN messages")
     text = _with_attribute_definitions(_with_extended_flags(text, source), source)
     try:
         database = _load(text, source, strict=True)
@@ -95,7 +101,7 @@ def _without_layout_checks(text: str, source: str, refused: Exception) -> Databa
         database = _load(text, source, strict=False)
     except (UnsupportedDatabaseFormatError, ValueError, KeyError):
         reason = _first_line(refused)
-        raise DbcError(source, f"not a valid DBC: {reason}{_hint(reason)}") from refused
+        raise DbcError(source, f"not a valid DBC: {reason}{_hint(reason, text)}") from refused
     if not isinstance(database, Database):
         raise DbcError(source, "holds no CAN messages")
     problems = [problem for problem in map(unsound, database.messages) if problem]
@@ -228,9 +234,19 @@ def _load(text: str, source: str, strict: bool) -> object:
             text = left
 
 
+#: The most bytes a CAN frame carries (CAN FD).
+CAN_FD_MAX_BYTES = 64
+
+
 def unsound(message: Message) -> str | None:
     """Why cantools' checks refuse ``message`` (signals that overlap, or do not fit in
-    its length); None where they pass."""
+    its length), or why no frame can be it (longer than a CAN FD frame: cantools takes
+    it, and every frame on the bus was ``wrong_dlc``); None where they pass."""
+    if message.length > CAN_FD_MAX_BYTES:
+        return (
+            f"{message.name} is {message.length} bytes long: a CAN frame carries "
+            f"{CAN_FD_MAX_BYTES} at most (CAN FD)"
+        )
     try:
         message.refresh(strict=True)
     except CantoolsError as exc:
@@ -262,10 +278,39 @@ _NO_EXTENDED_FLAG = re.compile(r"Standard frame id (0x[0-9a-fA-F]+) is more than
 #: cantools' words for a statement it could not read from the start of a line: the
 #: one before it did not end (a ``VAL_`` or ``BA_`` without its ``;``, by hand).
 _AT_A_LINES_START = re.compile(r"Invalid syntax at line (\d+), column 1:")
+#: cantools' words for where it could not read on.
+_AT_LINE = re.compile(r"Invalid syntax at line (\d+), column \d+:")
 
 
-def _hint(reason: str) -> str:
-    """What to change where cantools' ``reason`` alone does not say it."""
+#: The statements in which a '"' opens a name, unit or value that closes on the same
+#: line (a comment, ``CM_``, may span lines).
+_ONE_LINE_STATEMENT = re.compile(r"[ \t]*(?:BO_|SG_|BA_|BA_DEF_|BA_DEF_DEF_|VAL_|VAL_TABLE_)[ \t]")
+#: An attribute's definition with its type: ``BA_DEF_ BO_ "GenMsgSendType" ENUM "Cyclic",...;``.
+_DEFINED_TYPE = re.compile(
+    r'^[ \t]*BA_DEF_[ \t]+(?:(?:BU_|BO_|SG_|EV_)[ \t]+)?"(?P<name>[^"]*)"[ \t]+'
+    r"(?P<type>INT|HEX|FLOAT|ENUM)\b(?P<values>[^;]*);",
+    re.M,
+)
+
+
+def _hint(reason: str, text: str) -> str:
+    """What to change where cantools' ``reason`` alone does not say it (``text``: the
+    DBC's)."""
+    line = _AT_LINE.search(reason)
+    if line is not None:
+        before = text.splitlines()[: int(line[1])]
+        unclosed = next(
+            (
+                number
+                for number, statement in enumerate(before, 1)
+                if _ONE_LINE_STATEMENT.match(statement) and statement.count('"') % 2
+            ),
+            None,
+        )
+        if unclosed is not None:
+            return f" (line {unclosed} opens a '\"' it does not close)"
+    if "ConversionSyntax" in reason:
+        return _string_for_a_number(text)
     start = _AT_A_LINES_START.search(reason)
     if start is not None and int(start[1]) > 1:
         return f" (does the statement before line {start[1]} end with its ';'?)"
@@ -277,6 +322,40 @@ def _hint(reason: str) -> str:
         f" (a 29-bit ID is written with bit 31 set in a DBC: BO_ {frame_id | 0x80000000}, "
         f"not BO_ {frame_id})"
     )
+
+
+def _string_for_a_number(text: str) -> str:
+    """Where cantools' reason is ``decimal.ConversionSyntax`` alone: the first value given
+    in quotes to an attribute defined as a number or an enumeration, and what to write."""
+    types = {match["name"]: match for match in _DEFINED_TYPE.finditer(text)}
+    for match in _ASSIGNED.finditer(text):
+        definition = types.get(match["name"])
+        value = match["value"]
+        if definition is None or not value.startswith('"') or _is_number(value[1:-1]):
+            continue  # cantools reads a number in quotes ("20")
+        number = text.count("\n", 0, match.start()) + 1
+        statement = match[0].strip()
+        if definition["type"] != "ENUM":
+            return (
+                f" (line {number}: {statement} gives a string to the {definition['type']} "
+                "attribute: write a number)"
+            )
+        names = re.findall(r'"([^"]*)"', definition["values"])
+        index = names.index(value[1:-1]) if value[1:-1] in names else None
+        which = f", {index} for {value}" if index is not None else f"; {value} is none of them"
+        return (
+            f" (line {number}: {statement} gives a string to the ENUM attribute: write "
+            f"its value's index{which})"
+        )
+    return ""
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
 
 
 def _first_line(exc: BaseException) -> str:

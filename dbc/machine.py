@@ -34,10 +34,10 @@ from dbc.protection import (
     Protection,
     counter_modulo,
 )
-from dbc.signal_range import decoded_bounds, named_values, value_range
+from dbc.signal_range import decoded_bounds, j1939_signed_codes, named_values, value_range
 from dbc.stability_config import StabilityConfig, angle_signal, parse_stability
 from dbc.toml_table import TomlTable
-from dbc.units import ACCEPTED_PRESSURE_UNITS, angle_factor_to_rad, chamber_unit
+from dbc.units import ACCEPTED_PRESSURE_UNITS, chamber_unit
 from estimator.geometry import LegGeometry
 from estimator.settings import EstimatorSettings
 
@@ -193,6 +193,15 @@ class ChamberSignal:
     #: allows (J1939's error and "not available" codes lie above it). Unbounded where
     #: neither bounds it (:func:`dbc.signal_range.value_range`).
     range_Pa: tuple[float, float] = (-math.inf, math.inf)
+    #: A J1939 chamber pinning no ``source_address``: the address in its message's DBC ID,
+    #: whose frames alone are the chamber's (another node sending the PGN is counted
+    #: ``unmapped_source``; its frames were read as the chamber's); None where that is
+    #: the null address 0xFE or the global 0xFF (a DBC's placeholder: any sender).
+    dbc_source_address: int | None = None
+    #: Values inside ``range_Pa`` that are codes all the same, Pa: J1939's indicators of a
+    #: signed parameter, read two's complement just below 0
+    #: (:func:`dbc.signal_range.j1939_signed_codes`); (inf, inf) where none are.
+    codes_Pa: tuple[float, float] = (math.inf, math.inf)
     #: The signal's value-table entries that name a pressure inside that range
     #: (``0 "Zero"``), by name, Pa; any other name in its place is a code: NaN
     #: (:func:`dbc.signal_range.named_values`).
@@ -465,7 +474,7 @@ def parse_machine_config(
             named_ref,
             lambda name: _find_signal(name, database),
             lambda table, key: angle_signal(table, key, signal_ref, signal_unit),
-            lambda ref: angle_factor_to_rad(signal_unit(ref) or ""),
+            lambda ref: signal_unit(ref) or "",
         ),
     )
 
@@ -687,6 +696,9 @@ def _chamber(
     factor, atmosphere_Pa = in_Pa
     low, high = value_range(signal, is_j1939(message))
     named = named_values(signal, is_j1939(message))
+    code_low, code_high = j1939_signed_codes(signal, is_j1939(message)) or (math.inf, math.inf)
+    dbc_address = int(message.frame_id & 0xFF)
+    dbc_sender = source_address is None and is_j1939(message) and dbc_address < J1939_NULL_ADDRESS
     return ChamberSignal(
         message=message.name,
         signal=signal_name,
@@ -697,6 +709,8 @@ def _chamber(
         mux_ids=mux_ids,
         page=page,
         range_Pa=(low * factor - atmosphere_Pa, high * factor - atmosphere_Pa),
+        codes_Pa=(code_low * factor - atmosphere_Pa, code_high * factor - atmosphere_Pa),
+        dbc_source_address=dbc_address if dbc_sender else None,
         named_Pa={name: value * factor - atmosphere_Pa for name, value in named.items()},
         atmosphere_Pa=atmosphere_Pa,
     )
@@ -779,6 +793,11 @@ def _in_frames_of(message: Message, signal_name: str, mux_ids: tuple[int, ...] |
     return own is None or (mux_ids is not None and set(mux_ids) <= set(own))
 
 
+#: J1939-81's null address: a node that could not claim an address sends its Cannot
+#: Claim from it and nothing else; 0xFF, above it, is the global destination.
+J1939_NULL_ADDRESS = 0xFE
+
+
 def _source_address(table: TomlTable, message: Message, database: Database) -> int | None:
     """The pinned J1939 sender: the configured one; for a message that shares its PGN with
     others (one DBC message per sender) the address in its own ID; else None (any).
@@ -797,7 +816,7 @@ def _source_address(table: TomlTable, message: Message, database: Database) -> i
             f"{message.name} is not a J1939 message: its 11-bit ID has no source address",
         )
     address = table.integer("source_address")
-    if not 0 <= address <= 253:
+    if not 0 <= address < J1939_NULL_ADDRESS:
         # 254 and 255 are no sender's: J1939-81's null address (a node that could not
         # claim one may send only its Cannot Claim from it) and the global destination.
         special = {254: " (0xFE: the null address, a node without a claimed one)"}
@@ -845,12 +864,32 @@ def _cycle_time_s(
             )
         return _positive_ms(table) / 1000.0
     if message.name not in cycle_times_ms:
+        given = "no GenMsgCycleTime"
+        if message.cycle_time:  # below MIN_CYCLE_TIME_MS: no period (-5, a typo)
+            given = f"GenMsgCycleTime {message.cycle_time:g}, no period,"
         raise table.error(
             key,
-            f"message {message.name} has no GenMsgCycleTime in the DBC: set "
-            f"[messages.{message.name}] cycle_time_ms (staleness and skew are judged on it)",
+            f"message {message.name} has {given} in the DBC{_other_cycle_time(message)}: "
+            f"set [messages.{message.name}] cycle_time_ms (staleness and skew are judged on it)",
         )
     return cycle_times_ms[message.name] / 1000.0
+
+
+def _other_cycle_time(message: Message) -> str:
+    """Where the DBC gives ``message`` a cycle time under another name than
+    ``GenMsgCycleTime`` (``CycleTime``, ``GenMsgCycleTimeFast``: other tools' names,
+    which cantools does not read): that attribute and its value, to copy if it is the
+    message's period; else nothing."""
+    if message.dbc is None:
+        return ""
+    own = message.dbc.attributes
+    for name, definition in (message.dbc.attribute_definitions or {}).items():
+        if name == "GenMsgCycleTime" or "cycle" not in name.lower() or definition.kind != "BO_":
+            continue
+        value = own[name].value if name in own else definition.default_value
+        if value:
+            return f" (it has {name} {value}: its period?)"
+    return ""
 
 
 def _positive_ms(table: TomlTable) -> float:
@@ -874,11 +913,13 @@ def _positive_ms(table: TomlTable) -> float:
 
 def _cycle_times_ms(table: TomlTable, database: Database) -> dict[str, float]:
     """Each message's cycle time, ms: ``[messages.<MESSAGE>] cycle_time_ms``, else the
-    DBC's ``GenMsgCycleTime`` (vendor DBCs, J1939 ones especially, often give none)."""
+    DBC's ``GenMsgCycleTime`` (vendor DBCs, J1939 ones especially, often give none)
+    where it is a period: one below :data:`MIN_CYCLE_TIME_MS` (``-5``) is none, as 0 is
+    (it was taken, and told as the leg's ``max_skew_s`` "must be >= 0")."""
     times = {
         message.name: float(message.cycle_time)
         for message in database.messages
-        if message.cycle_time
+        if message.cycle_time and message.cycle_time >= MIN_CYCLE_TIME_MS
     }
     for name, message_table in table.subtables():
         message_table.reject_unknown(MESSAGE_KEYS)
@@ -977,6 +1018,15 @@ def _attach_leg_status(
         and chamber.status is None
         and _in_frames_of(message, signal, chamber.mux_ids)
     }
+    if not attached and not any(c.message == message.name for c in chambers.values()):
+        carrying = " and ".join(sorted({chamber.message for chamber in chambers.values()}))
+        raise table.error(
+            "status",
+            f"{message.name}.{signal} is not in the chambers' message ({carrying}): a "
+            "status is judged with the frame that carries it and the pressures; one sent "
+            "in a message of its own cannot be (leave status out: the leg is not judged "
+            "by status)",
+        )
     if not attached:
         raise table.error(
             "status",

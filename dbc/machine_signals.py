@@ -9,8 +9,8 @@ none where the DBC has no such signal. Example (``tests/files/renamed/machine.to
     [signals]
     phase = "VEHICLE_STATE.StepPhase"            # movement phase (value-table names)
     cycle_count = "VEHICLE_STATE.StepCount"      # completed movement cycles
-    cycle_time = "VEHICLE_STATE.StepTime_s"      # time since the cycle started, s
-    carriage = "BRIDGE_DRIVE.Trolley_m"          # crane carriage, m (+ towards SB1)
+    cycle_time = "VEHICLE_STATE.StepTime_s"      # time since the cycle started: s, ms, min
+    carriage = "BRIDGE_DRIVE.Trolley_m"          # crane carriage: m, cm, mm (+ towards SB1)
     [signals.bases.near]                         # a base of [stability.bases]
     inclination = "BRIDGE_GEOMETRY.TiltNear_deg" # deg, rad or mrad, as [stability]'s angles
     piston = "TILT_NEAR.TILT_NEAR_pPiston"       # inclination cylinder's chambers
@@ -23,15 +23,19 @@ bridge sends all of them (the others only it uses; the service publishes them un
 ``/signals/<MESSAGE>`` whatever they are called).
 """
 
+import logging
 import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from dbc.toml_table import TomlTable
+from dbc.units import angle_factor_to_rad, length_factor_to_m, time_factor_to_s
 
 if TYPE_CHECKING:
     from dbc.machine import SignalRef
+
+logger = logging.getLogger(__name__)
 
 #: Machine-state keys and the default signal names.
 STATE_DEFAULTS = {
@@ -118,6 +122,10 @@ class MachineSignals:
     bases: tuple[BaseSignals, BaseSignals]
     #: Their names: ``[stability.bases]``'s, else the simulation's.
     base_names: tuple[str, str] = SIMULATED_BASES
+    #: Seconds per unit of ``cycle_time``'s values, metres per unit of ``carriage``'s
+    #: (their DBC units: a time in cycle in ms, a carriage in mm).
+    cycle_time_s_per_unit: float = 1.0
+    carriage_m_per_unit: float = 1.0
 
     @property
     def state_message(self) -> str | None:
@@ -146,15 +154,16 @@ def parse_signals(
     signal: Callable[[TomlTable, str], "SignalRef"],
     find: Callable[[str], "SignalRef | None"],
     angle: Callable[[TomlTable, str], tuple["SignalRef", float]],
-    angle_unit: Callable[["SignalRef"], float | None],
+    unit_of: Callable[["SignalRef"], str],
 ) -> MachineSignals:
     """The ``[signals]`` table (may be empty).
 
     ``base_names``: the ``[stability.bases]`` names in order (None: no ``[stability]``,
     the bases are ``SB1``, ``SB2``); ``signal`` resolves a ``MESSAGE.SIGNAL`` key against
     the DBC, ``find`` a default signal name (the first message that has it), ``angle`` an
-    angle key (as ``[stability]``'s: its signal and radians per unit), ``angle_unit`` the
-    radians per unit of a signal's DBC unit (None: no angle unit; degrees are assumed).
+    angle key (as ``[stability]``'s: its signal and radians per unit), ``unit_of`` a
+    signal's DBC unit (an inclination without an angle unit is in degrees, a time in cycle
+    without a time unit in seconds, a carriage without a length unit in metres).
     """
     table.reject_unknown(SIGNALS_KEYS)
 
@@ -191,7 +200,7 @@ def parse_signals(
         if "inclination" in at:
             inclination, rad_per_unit = angle(at, "inclination")
         elif (inclination := find(defaults["inclination"])) is not None:
-            rad_per_unit = angle_unit(inclination) or rad_per_unit
+            rad_per_unit = angle_factor_to_rad(unit_of(inclination)) or rad_per_unit
         bases.append(
             BaseSignals(
                 inclination=inclination,
@@ -201,11 +210,45 @@ def parse_signals(
                 status=ref(at, "status", defaults["status"]),
             )
         )
+    carriage = ref(table, "carriage", CARRIAGE_DEFAULT)
     return MachineSignals(
         phase=state["phase"],
         cycle_count=state["cycle_count"],
         cycle_time=state["cycle_time"],
-        carriage=ref(table, "carriage", CARRIAGE_DEFAULT),
+        carriage=carriage,
         bases=(bases[0], bases[1]),
         base_names=(names[0], names[1]),
+        cycle_time_s_per_unit=_per_unit(
+            table, "cycle_time", state["cycle_time"], unit_of, time_factor_to_s, "s, ms, min"
+        ),
+        carriage_m_per_unit=_per_unit(
+            table, "carriage", carriage, unit_of, length_factor_to_m, "m, cm, mm"
+        ),
     )
+
+
+def _per_unit(
+    table: TomlTable,
+    key: str,
+    ref: "SignalRef | None",
+    unit_of: Callable[["SignalRef"], str],
+    factor: Callable[[str], float | None],
+    accepted: str,
+) -> float:
+    """SI per unit of ``ref``'s values, by its DBC unit; 1 (SI) where it has none, or
+    one ``factor`` does not know (one warning line: its number is taken as SI)."""
+    if ref is None:
+        return 1.0
+    unit = unit_of(ref)
+    per_unit = factor(unit)
+    if per_unit is None and unit.strip():
+        logger.warning(
+            "%s: %s: %s has unit %r, none of %s: its values are taken in %s",
+            table.source,
+            table.key(key),
+            ref,
+            unit,
+            accepted,
+            accepted.split(",")[0],
+        )
+    return per_unit or 1.0

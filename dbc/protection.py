@@ -44,6 +44,8 @@ from dataclasses import dataclass
 from cantools.database.can import Message, Signal
 from crc import Calculator, Configuration, Crc8, Crc16
 
+from dbc.signal_range import codes_at_the_ends
+
 #: Counter faults, as they appear in an estimate's ``reasons``.
 COUNTER_REPEAT = "counter_repeat"
 COUNTER_JUMP = "counter"
@@ -318,7 +320,11 @@ def counter_modulo(
     can hold, or fewer where the DBC declares a range ``[0|max]`` below that, so the wrap
     from max to 0 is one step. AUTOSAR E2E profile 1's 4-bit counter counts 0..14 whatever
     the DBC declares (CANdb++ fills in ``[0|15]``), as profile 11's does: a real
-    sender's wrap 14 -> 0 was a lost frame, and its 15 a valid value.
+    sender's wrap 14 -> 0 was a lost frame, and its 15 a valid value. So does a counter
+    whose value table names the top of its bits (``15 "NotAvailable"``, J1939's way, and
+    the named values right below it: :func:`dbc.signal_range.codes_at_the_ends`): the
+    sender never counts through its code, so its wrap 14 -> 0 counted a frame lost each
+    turn, and its 15 was a count.
 
     >>> from cantools.database import load_string
     >>> db = load_string('BO_ 1 M: 1 A\\n SG_ C : 0|4@1+ (1,0) [0|14] "" A\\n', "dbc")
@@ -328,12 +334,20 @@ def counter_modulo(
     >>> counter_modulo(db.get_message_by_name("M"), "C"), counter_modulo(
     ...     db.get_message_by_name("M"), "C", "e2e_p1")
     (16, 15)
+    >>> db = load_string('BO_ 1 M: 1 A\\n SG_ C : 0|4@1+ (1,0) [0|15] "" A\\n'
+    ...                  'VAL_ 1 C 15 "NotAvailable" 14 "Error" ;\\n', "dbc")
+    >>> counter_modulo(db.get_message_by_name("M"), "C")
+    14
     """
     signal = message.get_signal_by_name(counter)
     modulo: int = 2**signal.length
     profile_modulo = CRC_ALGORITHMS[crc_algorithm].counter_modulo
     if profile_modulo is not None and signal.length == 4:
         return profile_modulo
+    # The codes named at the top; a table naming most values names counts, not codes.
+    codes = codes_at_the_ends(signal) & set(range(modulo // 2, modulo))
+    if len(codes) < modulo // 4:
+        modulo -= len(codes)
     low, high = signal.minimum, signal.maximum
     if (
         low == 0

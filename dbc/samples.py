@@ -42,6 +42,7 @@ class _Paired:
     #: The two chambers' signal names (looked up in every frame).
     piston: str
     rod: str
+    #: The J1939 sender whose frames are the leg's (:func:`_sender`); None: any.
     source_address: int | None
     statuses: tuple[StatusCheck, ...]
     #: The two chambers, for how their values are read (:func:`_pressure_Pa`).
@@ -60,6 +61,8 @@ class _Route:
     triggers: bool
     #: The chamber's page (:attr:`~dbc.machine.ChamberSignal.page`); None: any frame.
     page: tuple[str, frozenset[int | str]] | None
+    #: The J1939 sender whose frames are the chamber's (:func:`_sender`); None: any.
+    source_address: int | None
 
 
 @dataclass(frozen=True, slots=True)
@@ -86,9 +89,9 @@ class LegSampler:
             piston, rod = leg.piston, leg.rod
             # A chamber on one page of a signal sent on several (an I/O module's channels)
             # goes by route, which looks at the page; the usual pairs need not.
-            if (piston.message, piston.source_address, piston.mux_ids, None, None) == (
+            if (piston.message, _sender(piston), piston.mux_ids, None, None) == (
                 rod.message,
-                rod.source_address,
+                _sender(rod),
                 rod.mux_ids,
                 piston.page,
                 rod.page,
@@ -101,7 +104,7 @@ class LegSampler:
                         leg.name,
                         piston.signal,
                         rod.signal,
-                        piston.source_address,
+                        _sender(piston),
                         statuses,
                         piston,
                         rod,
@@ -111,7 +114,9 @@ class LegSampler:
             for chamber in TRIGGERS:
                 signal: ChamberSignal = getattr(leg, chamber)
                 self._routes.setdefault(signal.message, []).append(
-                    _Route(leg, chamber, signal, chamber == leg.trigger, signal.page)
+                    _Route(
+                        leg, chamber, signal, chamber == leg.trigger, signal.page, _sender(signal)
+                    )
                 )
         self._latest: dict[tuple[str, str], _Reading] = {}
         #: Bus time of the chambers' frames (module docstring), and the latest frame time.
@@ -154,7 +159,7 @@ class LegSampler:
         by_sender = [
             route
             for route in routes
-            if route.signal.source_address is None or route.signal.source_address == source_address
+            if route.source_address is None or route.source_address == source_address
         ]
         if not senders and not by_sender:
             return None
@@ -200,17 +205,29 @@ class LegSampler:
         self._latest.clear()
 
 
+def _sender(chamber: ChamberSignal) -> int | None:
+    """The J1939 source address whose frames are ``chamber``'s: its ``source_address``,
+    else the one its message's DBC ID gives (``dbc_source_address``); None: any sender."""
+    if chamber.source_address is not None:
+        return chamber.source_address
+    return chamber.dbc_source_address
+
+
 def _pressure_Pa(value: SignalValue, chamber: ChamberSignal) -> float:
     """A decoded value of ``chamber`` as gauge pressure (less its ``atmosphere_Pa``, for an
     absolute transducer); NaN, which the estimator judges out of range, for a code the DBC
     says is no pressure: a value-table name in its place (a transducer's "not available"
     or "error") other than one naming a pressure in the signal's range (``named_Pa``: ``0
-    "Zero"`` is 0 Pa), or a value outside ``range_Pa`` (a code unnamed)."""
+    "Zero"`` is 0 Pa), or a value outside ``range_Pa`` or inside ``codes_Pa`` (a code
+    unnamed)."""
     if isinstance(value, str):
         return chamber.named_Pa.get(value, math.nan)
     p_Pa = float(value) - chamber.atmosphere_Pa
     low_Pa, high_Pa = chamber.range_Pa
-    return p_Pa if low_Pa <= p_Pa <= high_Pa else math.nan
+    code_low_Pa, code_high_Pa = chamber.codes_Pa
+    if low_Pa <= p_Pa <= high_Pa and not code_low_Pa <= p_Pa <= code_high_Pa:
+        return p_Pa
+    return math.nan
 
 
 def _with_status(

@@ -12,6 +12,11 @@ Any integer signal's last raw value (all ones; a signed signal's least too) is n
 measurement either, whatever the declared range: it is a code ("not available" in most
 vendors' DBCs) or a transducer saturated there, whose true pressure may be anything
 above; read as a value, a 3000 psi transducer at 3127 psi was a valid 3000 psi.
+
+J1939 has no two's complement: its SLOTs give a parameter negative values by an offset
+(1/128 kPa/bit, offset -250 kPa), and a transducer sends its indicators as those bits
+whatever its DBC declares. A J1939 pressure a DBC declares signed reads "not available"
+(0xFFFF) as -1 step, -0.01 bar at 0.01 bar/bit: :func:`j1939_signed_codes`.
 """
 
 import math
@@ -48,6 +53,35 @@ def value_range(signal: Signal, j1939: bool) -> tuple[float, float]:
     return (max(low, ends[0]), min(high, ends[1]))
 
 
+def j1939_signed_codes(signal: Signal, j1939: bool) -> tuple[float, float] | None:
+    """The physical values (DBC unit, half a step wider) that J1939's indicator codes
+    decode to in ``signal`` where it is a signed parameter of 1, 2 or 4 bytes in a J1939
+    message (``j1939``): the raw bits above 0xFA, 0xFAFF, 0xFAFFFFFF read two's
+    complement, -5..-1, -1280..-1, -83886080..-1 steps; None for any other signal.
+
+    A transducer's 0xFFFF ("not available") in a 16-bit signed ``(0.01,0) "bar"``
+    signal decodes to -0.01 bar: a gauge pressure near 0, valid within any range that
+    reaches below 0, where the transducer has no value at all. J1939 sends no two's
+    complement (see the module docstring), so these are codes; a vendor's sender that
+    does count below 0 so gets its readings between -12.8 and -0.01 bar (at 0.01
+    bar/bit) flagged, never a code read as a pressure.
+
+    >>> from cantools.database.can import Signal
+    >>> from cantools.database.conversion import BaseConversion
+    >>> p = Signal("p", 0, 16, is_signed=True, conversion=BaseConversion.factory(0.01, 0))
+    >>> j1939_signed_codes(p, j1939=True)
+    (-12.805, -0.005)
+    >>> j1939_signed_codes(p, j1939=False) is None
+    True
+    """
+    raw_max = J1939_VALID_RAW_MAX.get(signal.length)
+    if not (j1939 and signal.is_signed and raw_max is not None) or signal.is_float:
+        return None
+    first = raw_max + 1 - (1 << signal.length)  # 0xFB00 read two's complement: -1280
+    ends = sorted(raw * signal.scale + signal.offset for raw in (first - 0.5, -0.5))
+    return (ends[0], ends[1])
+
+
 def decoded_bounds(signal: Signal) -> tuple[float, float]:
     """The least and greatest value the signal's bits decode to (scale and offset
     applied; a float signal: unbounded)."""
@@ -67,7 +101,7 @@ def named_values(signal: Signal, j1939: bool) -> dict[str, float]:
     (``[min|max]``, and J1939's valid range in a J1939 message: :func:`value_range`),
     e.g. ``0 "Zero"`` of a pressure in ``[0|642.55]``; else it is a code ("not
     available", "error", usually at the top of the raw range). So is an entry at the end
-    of what the bits hold (:func:`_codes_at_the_ends`) whatever the declared range: a
+    of what the bits hold (:func:`codes_at_the_ends`) whatever the declared range: a
     range that reaches the top of the bits (CANdb++'s default) does not make ``4095
     "SNA"`` of a 12-bit 250 bar transducer a valid 204.75 bar. Without a declared range
     (``[0|0]``) every entry is a code: nothing tells a code from a value. A name given
@@ -88,19 +122,20 @@ def named_values(signal: Signal, j1939: bool) -> dict[str, float]:
     if not signal.minimum < signal.maximum:
         return {}
     low, high = value_range(signal, j1939)
-    codes = _codes_at_the_ends(signal)
+    code_low, code_high = j1939_signed_codes(signal, j1939) or (math.inf, math.inf)
+    codes = codes_at_the_ends(signal)
     values: dict[str, float] = {}
     names: list[str] = []
     for raw, choice in signal.choices.items():
         name = choice.name if isinstance(choice, NamedSignalValue) else str(choice)
         names.append(name)
         value = float(raw * signal.scale + signal.offset)  # as the decoders compute it
-        if low <= value <= high and raw not in codes:
+        if low <= value <= high and raw not in codes and not code_low <= value <= code_high:
             values[name] = value
     return {name: value for name, value in values.items() if names.count(name) == 1}
 
 
-def _codes_at_the_ends(signal: Signal) -> set[int]:
+def codes_at_the_ends(signal: Signal) -> set[int]:
     """The raw values of ``signal``'s value table that are codes by their place: the
     named value at the top of what the bits hold (all ones; a signed signal's greatest,
     and its least too) and the named values next to it, one after another (``4095

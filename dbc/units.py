@@ -1,6 +1,8 @@
 """Units of DBC signals and their factor to SI: the one table of them.
 
-Pressures (the legs' chambers) go to Pa; the bridge angles of ``[stability]`` to radians.
+Pressures (the legs' chambers) go to Pa; the bridge angles of ``[stability]`` to radians;
+the machine state's time in cycle to seconds and the carriage position and leg strokes to
+metres (the report reads the first, the simulator bridge sends them all).
 
 A DBC signal's physical value is in the unit its ``unit`` string names; the
 service works in SI inside, so every pressure signal is converted to Pa when it
@@ -138,12 +140,54 @@ ACCEPTED_ANGLE_UNITS = "deg, \u00b0, degree, rad, mrad"
 
 
 def angle_factor_to_rad(unit: str) -> float | None:
-    """Radians per one ``unit`` (case-insensitive, surrounding blanks ignored); None if
-    unknown.
+    """Radians per one ``unit`` (case-insensitive, surrounding blanks and brackets
+    ignored); None if unknown.
 
     >>> angle_factor_to_rad(" Deg ") == math.pi / 180
     True
-    >>> angle_factor_to_rad("mrad")
+    >>> angle_factor_to_rad("[mrad]")
     0.001
     """
-    return ANGLE_UNITS_TO_RAD.get(unit.strip().lower())
+    return ANGLE_UNITS_TO_RAD.get(_bare(unit))
+
+
+#: Accepted time units (lower case) and what one of them is in seconds: the machine
+#: state's time in cycle (``[signals] cycle_time``).
+TIME_UNITS_TO_S: dict[str, float] = {
+    "s": 1.0,
+    "sec": 1.0,
+    "second": 1.0,
+    "seconds": 1.0,
+    "ms": 1.0e-3,
+    "msec": 1.0e-3,
+    "min": 60.0,
+}
+#: Accepted length units (lower case) and what one of them is in metres: the carriage
+#: position (``[signals] carriage``) and the leg strokes (``<LEG>_Stroke``).
+LENGTH_UNITS_TO_M: dict[str, float] = {"m": 1.0, "cm": 1.0e-2, "mm": 1.0e-3}
+
+
+def time_factor_to_s(unit: str) -> float | None:
+    """Seconds per one ``unit`` (as :func:`angle_factor_to_rad`); None if unknown.
+
+    >>> time_factor_to_s("ms"), time_factor_to_s(" S "), time_factor_to_s("%")
+    (0.001, 1.0, None)
+    """
+    return TIME_UNITS_TO_S.get(_bare(unit))
+
+
+def length_factor_to_m(unit: str) -> float | None:
+    """Metres per one ``unit`` (as :func:`angle_factor_to_rad`); None if unknown.
+
+    >>> length_factor_to_m("mm"), length_factor_to_m("[m]"), length_factor_to_m("deg")
+    (0.001, 1.0, None)
+    """
+    return LENGTH_UNITS_TO_M.get(_bare(unit))
+
+
+def _bare(unit: str) -> str:
+    """``unit`` in lower case without surrounding blanks and brackets (``[mm]``)."""
+    name = unit.strip().lower()
+    if name[:1] == "[" and name[-1:] == "]":
+        name = name[1:-1].strip()
+    return name

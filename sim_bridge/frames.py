@@ -47,7 +47,7 @@ from dbc.machine import TRIGGERS, ChamberSignal, LegConfig, MachineConfig
 from dbc.protection import Protection
 from dbc.signal_range import decoded_bounds
 from dbc.units import chamber_unit
-from sim_bridge.getters import Getter, configured_getters, in_angle_unit, named_getters
+from sim_bridge.getters import Getter, configured_getters, in_signal_unit, named_getters
 from sim_bridge.leg_map import LegMap, leg_map
 from sim_bridge.result import SimulationResult
 from sim_bridge.schedule import NS_PER_MS, NS_PER_S, MessageCycle
@@ -426,7 +426,7 @@ def _plan(
         elif f"{message.name}.{signal.name}" in getters:
             named.append((signal, getters[f"{message.name}.{signal.name}"], factor))
         elif signal.name in getters:
-            named.append((signal, in_angle_unit(signal, getters[signal.name]), factor))
+            named.append((signal, in_signal_unit(signal, getters[signal.name]), factor))
         else:
             constants.append((signal, clip(signal, 0.0, factor)))
 

@@ -14,7 +14,7 @@ from cantools.database.can import Database, Signal
 from dbc.decoding import SignalValue
 from dbc.machine import MachineConfig, SignalRef
 from dbc.machine_signals import phase_values
-from dbc.units import angle_factor_to_rad
+from dbc.units import angle_factor_to_rad, length_factor_to_m
 from sim_bridge.result import LEGS, SimulationResult
 
 #: A signal's value at one row: (result, row, completed cycles) -> physical value or name.
@@ -41,13 +41,17 @@ def degrees_in(getter: Getter, rad_per_unit: float) -> Getter:
     return scaled(getter, math.radians(1.0) / rad_per_unit)
 
 
-def in_angle_unit(signal: Signal, getter: Getter) -> Getter:
-    """A getter of degrees (the ``Bridge_...Angle`` getters) for ``signal``, in its DBC
-    unit where that is another angle unit (rad, mrad)."""
-    rad_per_unit = angle_factor_to_rad(signal.unit or "")
-    if not signal.name.endswith("Angle") or rad_per_unit is None:
-        return getter
-    return degrees_in(getter, rad_per_unit)
+def in_signal_unit(signal: Signal, getter: Getter) -> Getter:
+    """A getter of :func:`named_getters` for ``signal``, in its DBC unit: the
+    ``Bridge_...Angle`` getters' degrees where that is another angle unit (rad, mrad),
+    the ``<LEG>_Stroke`` getters' metres where it is another length unit (cm, mm: sent
+    as metres, a 1.2 m stroke was 1.2 mm)."""
+    unit = signal.unit or ""
+    if signal.name.endswith("Angle") and (rad_per_unit := angle_factor_to_rad(unit)):
+        return degrees_in(getter, rad_per_unit)
+    if signal.name.endswith("_Stroke") and (m_per_unit := length_factor_to_m(unit)):
+        return scaled(getter, 1.0 / m_per_unit)
+    return getter
 
 
 def phase_getter(signal: Signal) -> Getter:
@@ -91,8 +95,8 @@ def configured_getters(config: MachineConfig, database: Database) -> dict[str, G
     status_ok = config.status_ok[0]
     series: list[tuple[SignalRef | None, Getter]] = [
         (signals.cycle_count, lambda result, row, cycle: cycle),
-        (signals.cycle_time, series_getter("t_s")),
-        (signals.carriage, series_getter("carriage_m")),
+        (signals.cycle_time, scaled(series_getter("t_s"), 1.0 / signals.cycle_time_s_per_unit)),
+        (signals.carriage, scaled(series_getter("carriage_m"), 1.0 / signals.carriage_m_per_unit)),
     ]
     if (phase := signals.phase) is not None:
         message = database.get_message_by_name(phase.message)

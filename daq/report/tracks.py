@@ -140,6 +140,9 @@ class StateSignals:
     cycle_count: str = "Machine_CycleCount"
     cycle_time: str = "Machine_CycleTime"
     phase: str = "Machine_Phase"
+    #: Seconds per unit of ``cycle_time``'s values (its DBC unit: ms, a time in cycle of
+    #: 22,500 ms was 22,500 s).
+    cycle_time_s_per_unit: float = 1.0
 
     @classmethod
     def of(cls, machine: MachineConfig | None) -> "StateSignals | None":
@@ -150,13 +153,11 @@ class StateSignals:
         message = signals.state_message
         if message is None:
             return None
-        return cls(
-            message,
-            *(
-                ref.signal if ref is not None else ""
-                for ref in (signals.cycle_count, signals.cycle_time, signals.phase)
-            ),
+        count, time, phase = (
+            ref.signal if ref is not None else ""
+            for ref in (signals.cycle_count, signals.cycle_time, signals.phase)
         )
+        return cls(message, count, time, phase, signals.cycle_time_s_per_unit)
 
     @property
     def topic(self) -> str:
@@ -186,7 +187,7 @@ class StateTrack:
         return (
             _number(payload["t"]),
             int(count),
-            _number(signals.get(names.cycle_time)),
+            _number(signals.get(names.cycle_time)) * names.cycle_time_s_per_unit,
             str(signals.get(names.phase, "")),
         )
 

@@ -7,6 +7,7 @@ invalid samples let in, the wrong truth sample picked) gives a different number.
 
 import json
 import math
+import tomllib
 import tracemalloc
 
 import numpy as np
@@ -25,7 +26,7 @@ from daq.report.deviation import (
     sample_period_s,
 )
 from daq.report.figures import leg_styles
-from daq.report.tracks import LegTrack, RecordingCollector, StateTrack, TruthTrack
+from daq.report.tracks import LegTrack, RecordingCollector, StateSignals, StateTrack, TruthTrack
 
 NAN = math.nan
 
@@ -397,3 +398,23 @@ def test_a_leg_track_is_kept_in_typed_columns() -> None:
     finally:
         tracemalloc.stop()
     assert kept_bytes / rows < 64
+
+
+def test_a_time_in_cycle_in_ms_is_read_in_seconds() -> None:
+    """A DBC whose time in cycle is in ms ([signals] cycle_time): its 22,500 was read as
+    22,500 s, the cycles' clocks 1000 times too fast."""
+    from dbc.database import load_database_string
+    from dbc.machine import DEFAULT_DBC_PATH, parse_machine_config
+    from tests.helpers import EXAMPLE_CONFIG
+
+    text = DEFAULT_DBC_PATH.read_text(encoding="cp1252").replace(
+        'Machine_CycleTime : 24|16@1+ (0.01,0) [0|655.35] "s"',
+        'Machine_CycleTime : 24|16@1+ (10,0) [0|655350] "ms"',
+    )
+    database = load_database_string(text, "ms.dbc")
+    machine = parse_machine_config(tomllib.loads(EXAMPLE_CONFIG.read_text()), "ms.toml", database)
+    names = StateSignals.of(machine)
+    assert names is not None and names.cycle_time_s_per_unit == 0.001
+    payload = {"t": 5.0, "signals": {"Machine_CycleCount": 2, "Machine_CycleTime": 22500}}
+    assert StateTrack.row(payload, names) == (5.0, 2, 22.5, "")
+    assert StateTrack.row(payload, StateSignals()) == (5.0, 2, 22500.0, "")

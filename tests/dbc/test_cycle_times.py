@@ -15,7 +15,7 @@ from cantools.j1939 import frame_id_pack
 
 from daq.frames import RawFrame
 from daq.pipeline import Pipeline
-from dbc.database import load_database
+from dbc.database import load_database, load_database_string
 from dbc.errors import ConfigError
 from dbc.machine import MachineConfig, load_machine_config, parse_machine_config
 from tests.dbc.test_held_out_machines import PSI_PA, STRANGER, eq4_N, press_a
@@ -97,6 +97,51 @@ def test_a_message_without_a_cycle_time_names_the_key_to_add() -> None:
     assert str(error) == (
         "m.toml: legs.front.piston.signal: message XDCR has no GenMsgCycleTime in the DBC: "
         "set [messages.XDCR] cycle_time_ms (staleness and skew are judged on it)"
+    )
+
+
+def test_a_dbc_cycle_time_that_is_no_period_is_none() -> None:
+    """BA_ "GenMsgCycleTime" BO_ ... -5; (a typo; cantools does not check the attribute's
+    range): it was taken, and the config stopped at the leg's max_skew_s, a key the user
+    never set ("legs.front.max_skew_s: must be >= 0, got -0.005"). The DBC's -5 is told
+    as what it is; the config's cycle time stands in for it."""
+    text = UNITS_DB.read_text() + '\nBA_ "GenMsgCycleTime" BO_ 2566869246 -5;\n'
+    database = load_database_string(text, "vendor.dbc")
+    assert database.get_message_by_name("XDCR").cycle_time == -5
+    config = parse_machine_config(tomllib.loads(UNITS_TOML), "m.toml", database, UNITS_DB)
+    assert config.cycle_times_ms["XDCR"] == 20.0 and config.legs["front"].max_skew_s == 0.020
+    with pytest.raises(ConfigError) as refused:
+        parse_machine_config(
+            tomllib.loads(UNITS_TOML.replace("[messages.XDCR]\ncycle_time_ms = 20\n", "")),
+            "m.toml",
+            database,
+            UNITS_DB,
+        )
+    assert str(refused.value) == (
+        "m.toml: legs.front.piston.signal: message XDCR has GenMsgCycleTime -5, no period, "
+        "in the DBC: set [messages.XDCR] cycle_time_ms (staleness and skew are judged on it)"
+    )
+
+
+def test_a_cycle_time_under_another_attribute_name_is_shown() -> None:
+    """Some tools write a message's period as "CycleTime" (cantools reads GenMsgCycleTime
+    only): the refusal shows it, so the user need not open the DBC to find the number."""
+    text = UNITS_DB.read_text() + (
+        '\nBA_DEF_ BO_ "CycleTime" INT 0 10000;\nBA_DEF_DEF_ "CycleTime" 0;\n'
+        'BA_ "CycleTime" BO_ 2566869246 20;\n'
+    )
+    database = load_database_string(text, "vendor.dbc")
+    with pytest.raises(ConfigError) as refused:
+        parse_machine_config(
+            tomllib.loads(UNITS_TOML.replace("[messages.XDCR]\ncycle_time_ms = 20\n", "")),
+            "m.toml",
+            database,
+            UNITS_DB,
+        )
+    assert str(refused.value) == (
+        "m.toml: legs.front.piston.signal: message XDCR has no GenMsgCycleTime in the DBC "
+        "(it has CycleTime 20: its period?): set [messages.XDCR] cycle_time_ms (staleness "
+        "and skew are judged on it)"
     )
 
 

@@ -23,7 +23,9 @@ def _texts() -> dict[str, str]:
     }
 
 
-@pytest.mark.parametrize(("suffix", "kind"), [("kcd", "KCD"), ("sym", "SYM"), ("arxml", "ARXML")])
+@pytest.mark.parametrize(
+    ("suffix", "kind"), [("kcd", "a KCD"), ("sym", "a SYM"), ("arxml", "an ARXML")]
+)
 def test_a_database_in_another_format_is_named_with_how_to_convert_it(
     tmp_path: Path, suffix: str, kind: str
 ) -> None:
@@ -35,6 +37,6 @@ def test_a_database_in_another_format_is_named_with_how_to_convert_it(
         load_machine_config(tmp_path / "machine.toml")
     path = tmp_path / f"machine.{suffix}"
     assert str(refused.value) == (
-        f"{path}: a {kind} file, not a DBC: portal-daq reads DBC only; convert it with "
+        f"{path}: {kind} file, not a DBC: portal-daq reads DBC only; convert it with "
         f"`cantools convert {path} {path.with_suffix('.dbc')}`"
     )

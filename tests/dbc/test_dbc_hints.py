@@ -1,10 +1,12 @@
 """A DBC refused says what to change where cantools' words alone do not."""
 
+from pathlib import Path
+
 import pytest
 
 from dbc.database import load_database_string
-from dbc.errors import DbcError
-from tests.helpers import dbc_text
+from dbc.errors import ConfigError, DbcError
+from tests.helpers import dbc_text, machine_on
 
 
 def test_a_29_bit_id_without_the_extended_flag_names_the_id_to_write() -> None:
@@ -93,3 +95,85 @@ def test_a_statement_without_its_semicolon_is_pointed_at() -> None:
     with pytest.raises(DbcError) as refused:
         load_database_string("leg,t,force_N\nA,1.0,2.0\n", "estimates.csv")
     assert "statement before" not in str(refused.value)
+
+
+def test_an_empty_file_says_so() -> None:
+    """It was cantools' 'Invalid syntax at line 1, column 1: ">>!<<"'."""
+    for text in ("", "\n  \r\n"):
+        with pytest.raises(DbcError) as refused:
+            load_database_string(text, "empty.dbc")
+        assert str(refused.value) == "empty.dbc: is empty: no CAN messages"
+
+
+def test_a_quote_left_open_is_pointed_at() -> None:
+    """A unit written without its closing '"': cantools reads on to the next '"', lines
+    later, and names where it stopped (line 13, a BA_ the user never touched)."""
+    text = dbc_text(
+        'BO_ 256 HUB: 8 Hub\n SG_ pA : 0|16@1+ (0.01,0) [0|600] "bar DAQ\n'
+        ' SG_ pB : 16|16@1+ (0.01,0) [0|600] "bar" DAQ\n',
+        'BA_ "GenMsgCycleTime" BO_ 256 10;\n',
+    )
+    with pytest.raises(DbcError) as refused:
+        load_database_string(text, "hand.dbc")
+    assert str(refused.value).startswith(
+        'hand.dbc: not a valid DBC: DBC: "Invalid syntax at line 13, column 21:'
+    )
+    assert str(refused.value).endswith(" (line 6 opens a '\"' it does not close)")
+
+
+@pytest.mark.parametrize(
+    ("attributes", "hint"),
+    [
+        (
+            'BA_DEF_ BO_ "GenMsgSendType" ENUM "Cyclic","Event";\n'
+            'BA_ "GenMsgSendType" BO_ 256 "Event";\n',
+            '(line 15: BA_ "GenMsgSendType" BO_ 256 "Event"; gives a string to the ENUM '
+            'attribute: write its value\'s index, 1 for "Event")',
+        ),
+        (
+            'BA_DEF_ BO_ "GenMsgSendType" ENUM "Cyclic","Event";\n'
+            'BA_ "GenMsgSendType" BO_ 256 "cyclic";\n',
+            '(line 15: BA_ "GenMsgSendType" BO_ 256 "cyclic"; gives a string to the ENUM '
+            'attribute: write its value\'s index; "cyclic" is none of them)',
+        ),
+        (  # a number in quotes is read as that number; the word after it is the problem
+            'BA_ "GenMsgCycleTime" BO_ 256 "20";\nBA_ "GenMsgCycleTime" BO_ 257 "fast";\n',
+            '(line 15: BA_ "GenMsgCycleTime" BO_ 257 "fast"; gives a string to the INT '
+            "attribute: write a number)",
+        ),
+    ],
+)
+def test_a_string_given_to_a_number_attribute_is_pointed_at(attributes: str, hint: str) -> None:
+    """cantools' reason was '[<class 'decimal.ConversionSyntax'>]' alone: no line, no name."""
+    text = dbc_text(
+        'BO_ 256 HUB: 8 Hub\n SG_ pA : 0|16@1+ (0.01,0) [0|600] "bar" DAQ\n'
+        'BO_ 257 HUB2: 8 Hub\n SG_ pB : 0|16@1+ (0.01,0) [0|600] "bar" DAQ\n',
+        attributes,
+    )
+    with pytest.raises(DbcError) as refused:
+        load_database_string(text, "script.dbc")
+    assert str(refused.value) == (
+        "script.dbc: not a valid DBC: DBC: \"[<class 'decimal.ConversionSyntax'>]\" " + hint
+    )
+
+
+def test_a_message_longer_than_a_can_fd_frame_stops_the_config(tmp_path: Path) -> None:
+    """cantools takes a 65-byte message (a typo for 64, or 8): no frame on the bus can be
+    it, every one was wrong_dlc, and `check` passed it."""
+    text = dbc_text(
+        'BO_ 256 HUB: 65 Hub\n SG_ pA : 0|16@1+ (0.01,0) [0|600] "bar" DAQ\n'
+        ' SG_ pB : 16|16@1+ (0.01,0) [0|600] "bar" DAQ\n',
+        'BA_ "GenMsgCycleTime" BO_ 256 10;\n',
+    )
+    with pytest.raises(ConfigError) as refused:
+        machine_on(tmp_path, text, '[legs.A]\npiston = "HUB.pA"\nrod = "HUB.pB"\n')
+    assert str(refused.value) == (
+        f"{tmp_path / 'm.toml'}: legs.A.piston: message HUB of the DBC: HUB is 65 bytes "
+        "long: a CAN frame carries 64 at most (CAN FD)"
+    )
+    config, _ = machine_on(
+        tmp_path,
+        text.replace("HUB: 65", "HUB: 64"),
+        '[legs.A]\npiston = "HUB.pA"\nrod = "HUB.pB"\n',
+    )
+    assert config.legs["A"].piston.message == "HUB"

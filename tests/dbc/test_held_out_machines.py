@@ -86,16 +86,18 @@ def test_motorola_psi_hub_gives_eq4_in_si(compiled: bool) -> None:
 @pytest.mark.parametrize("compiled", [True, False])
 def test_a_counter_value_the_dbc_names_is_judged_by_its_number(compiled: bool) -> None:
     """FL_Alive's 15 is named "NotAvailable" in the DBC: the counter check takes the
-    number (a name in its place once crashed the decoder)."""
+    number (a name in its place once crashed the decoder); the counter counts 0..14,
+    its 15 a counter fault (not available, no count: the frame after resynchronises)."""
     pipeline, _, _ = _pipeline("motorola_psi.toml", compiled)
     reasons = []
-    for i, counter in enumerate((13, 14, 15, 0, 0)):
+    for i, counter in enumerate((13, 14, 0, 15, 1, 1)):
         frame = RawFrame(1.0 + 0.02 * i, HUB_FRONT_ID, True, _hub_frame(counter, 15000, 1000))
         result = pipeline.process(frame)
         assert result.decoded is not None
         reasons.append(result.estimates[0].reasons)
-    assert reasons == [(), (), (), (), ("counter_repeat",)]
-    assert dict(pipeline.bad) == {"counter_repeat": 1}
+    assert reasons == [(), (), (), ("counter",), (), ("counter_repeat",)]
+    assert pipeline.frames_lost == 0
+    assert dict(pipeline.bad) == {"counter": 1, "counter_repeat": 1}
 
 
 @pytest.mark.parametrize("encoding", ["utf-8-sig", "utf-16"])

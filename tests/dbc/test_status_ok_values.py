@@ -9,6 +9,7 @@ import pytest
 from dbc.errors import ConfigError
 from dbc.machine import load_machine_config
 from tests.dbc.test_held_out_machines import STRANGER
+from tests.helpers import dbc_text, machine_on
 
 
 def _load(tmp_path: Path, status_ok: str) -> None:
@@ -38,3 +39,23 @@ def test_status_ok_numbers_the_status_signal_cannot_take_stop_the_config(
 @pytest.mark.parametrize("status_ok", ["[0, 7]", "3", '["ok", 1]'])
 def test_one_value_the_status_can_take_is_enough(tmp_path: Path, status_ok: str) -> None:
     _load(tmp_path, status_ok)
+
+
+def test_a_status_in_a_message_of_its_own_is_refused_saying_why(tmp_path: Path) -> None:
+    """A sensor state in a diagnostic message of its own: the refusal said to give it as
+    the chamber's status instead, which stops the config the same way."""
+    text = dbc_text(
+        'BO_ 256 PRESS: 4 Hub\n SG_ pA : 0|16@1+ (0.01,0) [0|400] "bar" DAQ\n'
+        ' SG_ pB : 16|16@1+ (0.01,0) [0|400] "bar" DAQ\n'
+        'BO_ 257 DIAG: 1 Hub\n SG_ SensorState : 0|2@1+ (1,0) [0|3] "" DAQ\n',
+        'BA_ "GenMsgCycleTime" BO_ 256 10;\nVAL_ 257 SensorState 0 "OK" 1 "Fault" ;\n',
+    )
+    legs = '[legs.S]\npiston = "PRESS.pA"\nrod = "PRESS.pB"\nstatus = "DIAG.SensorState"\n'
+    with pytest.raises(ConfigError) as refused:
+        machine_on(tmp_path, text, legs + 'status_ok = "OK"\n')
+    assert str(refused.value) == (
+        f"{tmp_path / 'm.toml'}: legs.S.status: DIAG.SensorState is not in the chambers' "
+        "message (PRESS): a status is judged with the frame that carries it and the "
+        "pressures; one sent in a message of its own cannot be (leave status out: the leg "
+        "is not judged by status)"
+    )

@@ -398,3 +398,64 @@ BO_ 768 HYD: 4 Hub
             assert estimate.p_piston_Pa == pytest.approx(result.p_piston_Pa[row, 0], abs=3500)
         else:
             assert math.isnan(estimate.p_piston_Pa)
+
+
+def test_strokes_carriage_and_time_in_cycle_go_out_in_the_unit_of_their_signal(
+    result: SimulationResult, caplog: pytest.LogCaptureFixture
+) -> None:
+    """A DBC with the strokes and the carriage in mm and the time in cycle in ms got
+    metres and seconds (a 1.2 m stroke went out as 1.2 mm, the service's /signals and
+    recordings showed it, and the report read a time in cycle of 22,500 ms as 22.5 ms).
+    A unit that is no length (here "%") is named once at load, its values taken in m."""
+    from dbc.database import load_database_string
+    from dbc.machine import DEFAULT_DBC_PATH
+
+    text = DEFAULT_DBC_PATH.read_text(encoding="cp1252")
+    for old, new in (
+        (
+            'SB1_F1_Stroke : 0|16@1+ (0.0001,0) [0|2.5] "m"',
+            'SB1_F1_Stroke : 0|16@1+ (0.1,0) [0|2500] "mm"',
+        ),
+        (
+            'SB1_F2_Stroke : 16|16@1+ (0.0001,0) [0|2.5] "m"',
+            'SB1_F2_Stroke : 16|16@1+ (0.01,0) [0|250] "cm"',
+        ),
+        (
+            'Carriage_Position : 16|16@1- (0.001,0) [-10|10] "m"',
+            'Carriage_Position : 16|16@1- (1,0) [-10000|10000] "mm"',
+        ),
+        (
+            'Machine_CycleTime : 24|16@1+ (0.01,0) [0|655.35] "s"',
+            'Machine_CycleTime : 24|16@1+ (10,0) [0|655350] "ms"',
+        ),
+    ):
+        assert text.count(old) == 1
+        text = text.replace(old, new)
+    database = load_database_string(text, "millimetres.dbc")
+    data = tomllib.loads(EXAMPLE_CONFIG.read_text())
+    config = parse_machine_config(data, "mm.toml", database)
+    assert (config.signals.carriage_m_per_unit, config.signals.cycle_time_s_per_unit) == (
+        0.001,
+        0.001,
+    )
+    builder = FrameBuilder(config, database)
+    row = 150
+    strokes = builder.signals("STROKE_SB1", result, row, 0)
+    assert result.stroke_m[row, 0] > 0.1 and result.stroke_m[row, 1] > 0.1
+    assert strokes["SB1_F1_Stroke"] == pytest.approx(1000 * result.stroke_m[row, 0], abs=0.05)
+    assert strokes["SB1_F2_Stroke"] == pytest.approx(100 * result.stroke_m[row, 1], abs=0.005)
+    assert strokes["SB1_F3_Stroke"] == pytest.approx(result.stroke_m[row, 2], abs=1e-4)
+    assert abs(result.carriage_m[row]) > 0.1
+    motion = builder.signals("BRIDGE_MOTION", result, row, 0)
+    assert motion["Carriage_Position"] == pytest.approx(1000 * result.carriage_m[row], abs=0.5)
+    state = builder.signals("MACHINE_STATE", result, row, 0)
+    assert result.t_s[row] > 1.0
+    assert state["Machine_CycleTime"] == pytest.approx(1000 * result.t_s[row], abs=5)
+    assert not caplog.records
+    percent = text.replace('[-10000|10000] "mm"', '[-10000|10000] "%"')
+    config = parse_machine_config(data, "mm.toml", load_database_string(percent, "p.dbc"))
+    assert config.signals.carriage_m_per_unit == 1.0
+    assert [r.getMessage() for r in caplog.records] == [
+        "mm.toml: signals.carriage: BRIDGE_MOTION.Carriage_Position has unit '%', none of "
+        "m, cm, mm: its values are taken in m"
+    ]
