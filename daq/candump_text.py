@@ -7,14 +7,19 @@ prints frames for people otherwise, and that is what an integrator redirects to 
      (1733100000.123456)  can0  18FF2021   [8]  08 07 00 00 00 00 00 00   '........'
      (2024-12-02 05:44:01.908000)  can0  RX - -  100   [8]  46 12 08 07 00 00 00 1C
 
-:func:`dash_l_line` turns such a line (times ``-ta``, ``-tz``, ``-tA``; ``-a``'s ASCII
-column and ``-x``'s direction columns ignored) into the ``-L`` line python-can parses;
-an ``-L`` line passes as it is. A line without a time (plain ``candump can0``) cannot
-be replayed (every rule of the estimator judges frame times): ValueError saying which
-option writes one; so do ``-td``'s steps between frames, which :class:`CandumpReader`
-tells by times going backwards from a time before 2000 (a step is no date). A dated time
-going back is the clock's step (NTP; ``-tA``'s local time when daylight saving ends),
-kept as in a ``-L`` log: the estimator's time rules take it.
+:func:`dash_l_line` turns such a line (times ``-ta``, ``-tz``, ``-tA``, also ``-N``'s
+nanoseconds; ``-a``'s ASCII column, ``-x``'s direction and ``-c``'s colours ignored;
+``-8``'s raw DLC ``{9}`` a classic frame's 8 bytes) into the ``-L`` line python-can
+parses; a CAN FD frame, whose length candump prints in two digits (``[08]``), stays one
+(with ``-x``'s BRS and ESI flags), as its ``-L`` line ``100##1...`` is. An ``-L`` line
+passes as it is, unless its data has an odd number of hex digits (python-can dropped
+the last one: ``1C`` cut to ``1`` read as 0x01). A line without a time (plain
+``candump can0``) cannot be replayed (every rule of the estimator judges frame times):
+ValueError saying which option writes one; so do ``-td``'s steps between frames,
+which :class:`CandumpReader` tells by times going backwards from a time before 2000 (a
+step is no date). A dated time going back is the clock's step (NTP; ``-tA``'s local
+time when daylight saving ends), kept as in a ``-L`` log: the estimator's time rules
+take it.
 
 >>> dash_l_line(" (1733100000.123456)  can0  100   [8]  46 12 08 07 00 00 00 1C  '........'")
 '(1733100000.123456) can0 100#461208070000001C\\n'
@@ -33,15 +38,27 @@ from can.io.canutils import CAN_ERR_BUSERROR, CAN_ERR_FLAG
 
 from daq.frames import DATED_FROM_S, ERROR_CLASSES
 
-#: A readable candump line: time, interface, ``-x``'s direction columns, ID, [length], rest.
+#: A readable candump line: time, interface, ``-x``'s direction and CAN FD flag columns
+#: (``RX B E``: bit rate switch, error state indicator), ID, length (``[8]`` classic,
+#: ``[08]`` CAN FD, ``-8``'s ``{F}`` a classic frame's raw DLC), rest.
 _READABLE = re.compile(
-    r"\s*\((?P<time>[^)]*)\)\s+(?P<interface>\S+)\s+(?:[RT]X\s+\S+\s+\S+\s+)?"
-    r"(?P<id>[0-9A-Fa-f]{3}|[0-9A-Fa-f]{8})\s+\[(?P<length>\d{1,2})\]\s*(?P<rest>.*)"
+    r"\s*\((?P<time>[^)]*)\)\s+(?P<interface>\S+)\s+"
+    r"(?:[RT]X\s+(?P<brs>\S+)\s+(?P<esi>\S+)\s+)?(?P<id>[0-9A-Fa-f]{3}|[0-9A-Fa-f]{8})\s+"
+    r"(?:\[(?P<length>\d)\]|\[(?P<fd_length>\d\d)\]|\{(?P<dlc>[0-9A-Fa-f])\})\s*(?P<rest>.*)"
 )
+#: ``-c``'s colours (ANSI escape sequences) around the interface name.
+_COLOUR = re.compile(r"\x1b\[[0-9;]*m")
+#: The data of an ``-L`` line (after ``#``, or ``##`` and the FD flags), up to its end
+#: or `` R`` / `` T`` (``-x``'s direction).
+_DASH_L_DATA = re.compile(r"[^#]*#(?:#[0-9A-Fa-f])?(?P<data>[0-9A-Fa-f]*)(?:\s|$)")
 #: The same without a time (plain ``candump can0``).
-_WITHOUT_TIME = re.compile(r"\s*\S+\s+(?:[RT]X\s+\S+\s+\S+\s+)?[0-9A-Fa-f]{3,8}\s+\[\d{1,2}\]")
-#: ``-tA``'s local date and time.
-_DATE_FORMAT = "%Y-%m-%d %H:%M:%S.%f"
+_WITHOUT_TIME = re.compile(
+    r"\s*\S+\s+(?:[RT]X\s+\S+\s+\S+\s+)?[0-9A-Fa-f]{3,8}\s+(?:\[\d{1,2}\]|\{[0-9A-Fa-f]\})"
+)
+#: ``-tA``'s local date and time (to the second; then 6 digits, or ``-N``'s 9).
+_DATE_FORMAT = "%Y-%m-%d %H:%M:%S"
+#: The flags of an ``-L`` CAN FD line (``ID##F...``): bit rate switch, error state indicator.
+_FD_FLAGS = {"brs": 0x1, "esi": 0x2}
 #: The most data a classic CAN frame carries; a longer one is a CAN FD frame.
 _CLASSIC_MAX_BYTES = 8
 
@@ -60,15 +77,25 @@ _ERROR_ID = re.compile(r"(?P<head>\s*\(\S+\)\s+\S+\s+)(?P<id>[2-9A-Fa-f][0-9A-Fa
 
 def dash_l_line(line: str) -> str:
     """``line`` as a ``candump -L`` line (unchanged if it is one, or blank)."""
+    if "\x1b" in line:
+        line = _COLOUR.sub("", line)
     match = _READABLE.match(line)
     if match is None:
         if "#" not in line and _WITHOUT_TIME.match(line):
             raise ValueError(f"a candump line without a time: {_NEEDS_TIME}")
+        dash_l = _DASH_L_DATA.match(line)
+        if dash_l is not None and len(dash_l["data"]) % 2:
+            raise ValueError(f"an odd number of hex digits in its data: {line.strip()!r}")
         return line  # a -L line, or python-can's word on it
     time = match["time"]
     if "-" in time:  # -tA: local date and time
-        time = f"{datetime.strptime(time.strip(), _DATE_FORMAT).timestamp():.6f}"
-    length = int(match["length"])
+        date, _, fraction = time.strip().rpartition(".")
+        time = f"{datetime.strptime(date, _DATE_FORMAT).timestamp():.0f}.{fraction}"
+    fd_length = match["fd_length"]
+    if match["dlc"] is not None:  # -8: a classic frame's DLC, 9 to F meaning 8 bytes
+        length = min(int(match["dlc"], 16), _CLASSIC_MAX_BYTES)
+    else:
+        length = int(fd_length or match["length"])
     rest = match["rest"]
     if rest.startswith("remote request"):
         data = f"R{length}"
@@ -77,8 +104,9 @@ def dash_l_line(line: str) -> str:
         if len(octets) != length or not all(re.fullmatch("[0-9A-Fa-f]{2}", o) for o in octets):
             raise ValueError(f"[{length}] and its data bytes differ: {line.strip()!r}")
         data = "".join(octets)
-        if length > _CLASSIC_MAX_BYTES:
-            data = "#0" + data
+        if fd_length is not None:
+            flags = sum(bit for name, bit in _FD_FLAGS.items() if match[name] not in (None, "-"))
+            data = f"#{flags:X}{data}"
     return f"({time}) {match['interface']} {match['id']}#{data}\n"
 
 

@@ -46,7 +46,7 @@ _MAGIC = {
 _LINES = (
     # candump -L, and candump's readable output with a time (-ta, -tz, -tA)
     (re.compile(r"\s*\([^)]+\)\s+\S+\s+[0-9A-Fa-f]{1,8}#"), ".log"),
-    (re.compile(r"\s*\([^)]+\)\s+\S+\s+[0-9A-Fa-f]{3,8}\s+\[\d{1,2}\]"), ".log"),
+    (re.compile(r"\s*\([^)]+\)\s+\S+\s+(?:[RT]X\s+\S+\s+\S+\s+)?[0-9A-Fa-f]{3,8}\s+[\[{]"), ".log"),
     (re.compile(r"\s*(date\s+\w+|base\s+(hex|dec)\b|begin\s+triggerblock)", re.IGNORECASE), ".asc"),
     (re.compile(r"\s*\d+\.\d+\s+(\d+|CANFD\s+\d+)\s+[0-9A-Fa-f]{1,8}x?\s+[RT]x\s", re.I), ".asc"),
     (re.compile(r";\$FILEVERSION=|;\s+Start time:"), ".trc"),
@@ -74,11 +74,30 @@ def content_suffix(head: bytes) -> str | None:
     return None
 
 
-def looks_like(path: Path, suffix: str, gzipped: bool = False) -> str | None:
+#: The binary formats: their first bytes are no text to look at.
+_BINARY = frozenset(_MAGIC.values())
+#: The byte-order marks of UTF-16 text (a log saved by a Windows editor as "Unicode").
+_UTF16_BOMS = (b"\xff\xfe", b"\xfe\xff")
+#: A line of no content: blank, or a comment of a text log (TRC ``;``, ASC ``//``).
+_NO_CONTENT = re.compile(r"\s*(?:$|;|//)")
+
+
+def _no_log(head: bytes) -> str | None:
+    """That a text log's first bytes ``head`` (of no format :func:`content_suffix` knows)
+    look like no CAN log, in words; None when they hold nothing to say so (blank lines,
+    comments: an empty log)."""
+    lines = head.decode("utf-8", errors="replace").lstrip("\ufeff").splitlines()[:_HEAD_LINES]
+    if all(_NO_CONTENT.match(line) for line in lines):
+        return None
+    return "nothing in its first lines looks like a line of a CAN log of any format"
+
+
+def looks_like(path: Path, suffix: str, gzipped: bool = False, at_all: bool = False) -> str | None:
     """What ``path``, read as a log of ``suffix`` (``gzipped``: ``.gz`` after it), looks
     like instead, in words with the name that reads it (``it looks like a candump log:
-    name it .log``); None when it looks like what its name says, like nothing known, or
-    cannot be read."""
+    name it .log``; UTF-16 text); with ``at_all``, also that a text log looks like no CAN
+    log at all; None when it looks like what its name says, holds nothing to tell (blank
+    lines, comments), or cannot be read."""
     try:
         with open(path, "rb") as file:
             head = file.read(_HEAD_BYTES)
@@ -92,6 +111,10 @@ def looks_like(path: Path, suffix: str, gzipped: bool = False) -> str | None:
     if compressed and not gzipped:
         kind = found or suffix
         return f"it is {FORMATS.get(kind, 'a log')} compressed by gzip: name it {kind}.gz"
+    if found is None and suffix not in _BINARY:
+        if head.startswith(_UTF16_BOMS):
+            return "it is UTF-16 text: a CAN log is read as UTF-8 (or ASCII); save it so"
+        return _no_log(head) if at_all else None
     if found is None or found == suffix:
         return None
     return f"it looks like {FORMATS[found]}: name it {found}{'.gz' if compressed else ''}"

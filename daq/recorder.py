@@ -57,8 +57,11 @@ logger = logging.getLogger(__name__)
 
 #: After a write error, the next file is tried this much later.
 RETRY_AFTER_S = 5.0
-#: On close, queued items are still written for at most this long (the rest: dropped).
-DRAIN_S = 0.5
+#: On close, queued items are still written for at most this long (the rest: dropped,
+#: counted). Within the recorder process's join (:data:`daq.recorder_process.JOIN_S`) and
+#: systemd's TimeoutStopSec; at 0.5 s a CPU starved at the stop (deploy/demo.sh in UML on
+#: a busy host) cut the last ~80 items of a recording that 2 s would have kept.
+DRAIN_S = 2.0
 
 Item = RecordBatch | EncodedBatch | BusEvent | TruthRecord | MachineSnapshot
 

@@ -291,10 +291,11 @@ def _log_suffix(path: Path) -> tuple[str, bool]:
     return (suffixes[-1] if suffixes else ""), gzipped
 
 
-def _what_it_looks_like(path: Path) -> str:
+def _what_it_looks_like(path: Path, at_all: bool = False) -> str:
     """'; it looks like ...: name it ...' for a log whose content is of another format
-    than its name says (:func:`daq.log_kind.looks_like`), else ''."""
-    hint = looks_like(path, *_log_suffix(path))
+    than its name says (:func:`daq.log_kind.looks_like`; ``at_all``: also that it looks
+    like no CAN log), else ''."""
+    hint = looks_like(path, *_log_suffix(path), at_all=at_all)
     return "" if hint is None else f"; {hint}"
 
 
@@ -389,18 +390,33 @@ def can_log_frames(path: Path, channel: str | None = None) -> Iterator[RawFrame 
         except _READER_ERRORS as exc:
             cut = blf_cut(path, reader)
             if cut is None:
-                hint = (count == 0 and _what_it_looks_like(path)) or _LINE_FORMATS.get(
-                    path.suffix.lower(), ""
+                hint = (
+                    (count == 0 and _what_it_looks_like(path))
+                    or _LINE_FORMATS.get(path.suffix.lower())  # what its line should be
+                    or (count == 0 and _what_it_looks_like(path, at_all=True))
+                    or ""
                 )
                 reason = f"{str(exc) or type(exc).__name__}{hint}"  # BLFParseError(): nothing
-                raise RecordingError(path, f"unreadable after frame {count}: {reason}") from exc
+                at = f" (line {lines.number})" if lines is not None and lines.number else ""
+                raise RecordingError(path, f"unreadable after frame {count}{at}: {reason}") from exc
     if isinstance(reader, CandumpReader) and reader.dropped_frames != dropped:  # at the end
         yield _loss(t_s, reader.dropped_frames - dropped)
     if isinstance(reader, AscReader | TrcReader | BlfReader | CandumpReader):
         _log_controller_events(path, reader.controller_events, channel)
-    if count == 0 and (hint := _what_it_looks_like(path)):  # an ASC reader skips every line
+    if count == 0 and (hint := _what_it_looks_like(path, at_all=True)):  # ASC skips every line
         suffix = _log_suffix(path)[0]
         raise RecordingError(path, f"no frame of {FORMATS.get(suffix, suffix)} in it{hint}")
+    if isinstance(reader, AscReader | TrcReader) and reader.skipped.first is not None:
+        number, text = reader.skipped.first
+        logger.warning(
+            "%s: %d line%s left out, neither a frame nor an event of %s (the first, line %d: %r)",
+            path,
+            reader.skipped.count,
+            "" if reader.skipped.count == 1 else "s",
+            FORMATS[_log_suffix(path)[0]],
+            number,
+            text,
+        )
     cut = cut or (lines.cut if lines is not None else blf_cut(path, reader))
     if cut is not None:
         logger.warning("%s is cut short (%s): read up to frame %d", path, cut, count)

@@ -9,6 +9,7 @@ from collections.abc import Generator, Iterable, Iterator
 from typing import IO, Any, TextIO, cast
 
 import can
+from can.io.asc import ASC_MESSAGE_REGEX
 
 #: EDL in the flags of an ASC ``CANFD`` line (and of a BLF CAN FD message): an FD frame.
 _EDL = 1 << 12
@@ -30,6 +31,24 @@ _ASC_TIME = re.compile(r"(?P<indent>\s*)(?P<time>\d+\.\d+)(?=\s)")
 _ASC_TX_REQUEST = re.compile(r"\s*\d+\.\d+\s+(?:\d+\s+\S+|CANFD\s+\d+)\s+TxRq\s", re.IGNORECASE)
 
 
+#: The lines of an ASC log after its header that are no frame but known to be something:
+#: a comment, a header's line again (logs joined), the trigger block's bounds, an event of
+#: another kind (a time, then a word where the channel is: ``Start of measurement``,
+#: ``SV:``, ``CAN 1 Status:``, LIN, FlexRay, ...; or a channel, then a word where the ID
+#: is: ``Statistic:``, ``J1939TP``, ...).
+_ASC_NO_FRAME = re.compile(
+    r"\s*(?:$|//|date\s|base\s|(?:no\s+)?internal\s+events|(?:begin|end)\s+triggerblock"
+    r"|\d+\.\d+\s+(?:(?!\d+\s)\S|\d+\s+(?![0-9A-Fa-f]+x?\s)\S))",
+    re.IGNORECASE,
+)
+
+
+def _asc_line_unknown(line: str) -> bool:
+    """``line`` (after an ASC log's header) is neither a frame python-can reads nor a
+    line of another kind :data:`_ASC_NO_FRAME` knows."""
+    return ASC_MESSAGE_REGEX.match(line.strip()) is None and _ASC_NO_FRAME.match(line) is None
+
+
 class LogLines:
     """The lines of a text CAN log, as python-can's readers take a file, up to a cut.
 
@@ -44,6 +63,8 @@ class LogLines:
         self.cut: str | None = None
         #: The line read last (None before the first).
         self.last: str | None = None
+        #: The number of the line read last, from 1 (0 before the first).
+        self.number = 0
         self._again: list[str] = []
         self._started = False
 
@@ -70,6 +91,7 @@ class LogLines:
             self.cut = str(exc)
             raise StopIteration from exc
         self._started = True
+        self.number += 1
         if not line.endswith("\n"):
             self.cut = f"its last line has no line end: {line.strip()[:60]!r}, left out"
             raise StopIteration
@@ -78,6 +100,34 @@ class LogLines:
 
     def close(self) -> None:
         self._file.close()
+
+
+def check_data_bytes(data: bytes | bytearray, length: int) -> None:
+    """Raises ValueError when a frame line's ``data`` has fewer bytes than its ``length``
+    (or DLC) says: a line damaged in the middle of a log, whose frame is not known."""
+    if len(data) < length:
+        raise ValueError(f"a frame line with {len(data)} of its {length} data bytes")
+
+
+class SkippedLines:
+    """The lines of a text log a reader leaves out that are neither a frame nor an event
+    of the format it knows (a frame line damaged in the middle of the log, text of
+    another program): counted, the first kept with its number, for one warning line.
+    python-can's ASC and TRC readers passed over them without a word, a frame lost
+    uncounted."""
+
+    def __init__(self, lines: object) -> None:
+        self._lines = lines
+        #: How many were left out.
+        self.count = 0
+        #: The first one left out: its number in the file (0 if not known) and its text.
+        self.first: tuple[int, str] | None = None
+
+    def add(self, line: str) -> None:
+        self.count += 1
+        if self.first is None:
+            number = self._lines.number if isinstance(self._lines, LogLines) else 0
+            self.first = (number, line.strip()[:60])
 
 
 class AscReader(can.ASCReader):
@@ -101,7 +151,15 @@ class AscReader(can.ASCReader):
       the steps of the lines it skips (a comment, a statistic, a status);
     - a transmit request (``TxRq``: the logging node asked for a frame to be sent; the
       frame itself is its ``Tx`` line) is no frame: python-can read it as one, so every
-      frame the logger's node sent came twice (``counter_repeat``, a second estimate).
+      frame the logger's node sent came twice (``counter_repeat``, a second estimate);
+    - a line after the header that is neither a CAN frame nor an event of another kind
+      (a comment, a statistic, a J1939 transport message, a system variable, ...: a time
+      and a word where the channel or the ID would be) is counted in :attr:`skipped`: a
+      frame line cut in the middle of the log (``0.190000 1  1``), text of another
+      program; python-can passed over them without a word;
+    - a frame line with fewer data bytes than its length says (a line damaged in the
+      middle of the log) is a ValueError: python-can read the bytes it found, a frame
+      of another length (``wrong_dlc``).
     """
 
     def __init__(self, file: Any, **kwargs: Any) -> None:
@@ -112,6 +170,8 @@ class AscReader(can.ASCReader):
         self._in_header = True  # a line read past the header is read again (and counted once)
         self._relative = False  # "timestamps relative": summed here (of every line, not
         self._elapsed_s = 0.0  # of the frames alone: a comment's step counts too)
+        #: The lines left out as neither a frame nor an event of an ASC log.
+        self.skipped = SkippedLines(file)
 
     def __iter__(self) -> Generator[can.Message, None, None]:
         self._lines = lines = self.file
@@ -137,6 +197,9 @@ class AscReader(can.ASCReader):
                     continue
                 self.controller_events[str(int(status["channel"]) - 1), state] += 1
                 line = f"{status['time']} {status['channel']} ErrorFrame\n"
+            elif not self._in_header and _asc_line_unknown(line):
+                self.skipped.add(line)
+                continue
             yield line
 
     def _extract_header(self) -> None:
@@ -146,6 +209,12 @@ class AscReader(can.ASCReader):
         lines = self._lines
         if isinstance(lines, LogLines) and not _EVENTS_LINE.match((lines.last or "").strip()):
             lines.read_again()
+
+    def _process_data_string(
+        self, data_str: str, data_length: int, msg_kwargs: dict[str, Any]
+    ) -> None:
+        super()._process_data_string(data_str, data_length, msg_kwargs)
+        check_data_bytes(msg_kwargs["data"], data_length)
 
     def _process_fd_can_frame(self, line: str, msg_kwargs: dict[str, Any]) -> can.Message:
         message = super()._process_fd_can_frame(line, msg_kwargs)

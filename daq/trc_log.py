@@ -21,7 +21,11 @@ python-can's :class:`can.TRCReader` reads the data and remote frames of versions
   showed nowhere. A status of 0 (all well again) is no error.
 
 Lines that are no frame are left out, as python-can does: the controller's error
-counters (``EC``) and user events (``EV``).
+counters (``EC``) and user events (``EV``). A line of a type PEAK does not define (a
+line damaged in the middle of the log, text of another program) is left out too, and
+counted in :attr:`TrcReader.skipped`: python-can passed over it without a word. A 2.x
+frame line with fewer data bytes than its length says (damaged) is a ValueError:
+python-can read the bytes it found, a frame of another length (``wrong_dlc``).
 
 >>> import io
 >>> log = io.StringIO(
@@ -38,9 +42,16 @@ from collections.abc import Iterator
 from typing import Any, TextIO, cast
 
 import can
+from can.util import dlc2len
+
+from daq.text_log import SkippedLines, check_data_bytes
 
 #: The file versions PEAK defines: python-can reads all but 1.2, which we read.
 _VERSIONS = ("1.0", "1.1", "1.2", "1.3", "2.0", "2.1")
+
+#: The line types that are no frame: the controller's status (of 0: all well; 1.x ``Warng``,
+#: 2.x ``ST``), error counters (``EC``) and user events (``EV``).
+_NO_FRAME = frozenset(("Warng", "ST", "EC", "EV"))
 
 #: The bits of a PCAN status value (PCAN-Basic's ``PCAN_ERROR_*``) a status line carries.
 _STATUS_BITS = {
@@ -63,6 +74,9 @@ class TrcReader(can.TRCReader):
         super().__init__(file, **kwargs)
         #: The controller status changes read, by (channel as python-can names it, state).
         self.controller_events: Counter[tuple[str, str]] = Counter()
+        #: The lines left out as of a type PEAK does not define.
+        self.skipped = SkippedLines(file)
+        self._type_at: int | None = None  # the column of a line's type (1.0 has none)
 
     def _extract_header(self) -> str:
         declared: list[str] = []
@@ -80,6 +94,7 @@ class TrcReader(can.TRCReader):
         finally:
             self.file = lines
         version = declared[-1] if declared else None
+        self._type_at = {"1.1": 2, "1.2": 3, "1.3": 3}.get(version or "1.0", self.columns.get("T"))
         if version == "1.2":
             if self._start_time is None:  # as python-can's check for 1.1 and later
                 raise ValueError("File has no start time information")
@@ -91,10 +106,14 @@ class TrcReader(can.TRCReader):
     def _parse_line(self, line: str) -> can.Message | None:
         if not line.strip():  # python-can's header reading hands on an empty file's ''
             return None
+        cols = tuple(line.split(maxsplit=self._num_columns))
         try:
-            return self._parse_cols(tuple(line.split(maxsplit=self._num_columns)))
+            message = self._parse_cols(cols)
         except IndexError as exc:
             raise ValueError(f"a frame line with too few columns: {line.strip()!r}") from exc
+        if message is None and self._type_at is not None and cols[self._type_at] not in _NO_FRAME:
+            self.skipped.add(line)
+        return message
 
     def _error_frame(self, offset_ms: str, channel: int, dated: bool = True) -> can.Message:
         """An error frame at ``offset_ms`` from the start time (1.0 has none: ``dated``
@@ -147,6 +166,12 @@ class TrcReader(can.TRCReader):
         if cols[3] == "Warng":
             return self._status(cols, 7, cols[1], int(cols[2]))
         return super()._parse_cols_v1_3(cols)
+
+    def _parse_msg_v2_x(self, cols: tuple[str, ...]) -> can.Message | None:
+        message = super()._parse_msg_v2_x(cols)
+        if message is not None and not message.is_remote_frame:
+            check_data_bytes(message.data, dlc2len(message.dlc))
+        return message
 
     def _parse_cols_v2_x(self, cols: tuple[str, ...]) -> can.Message | None:
         kind = cols[self.columns["T"]]

@@ -8,7 +8,13 @@ listen where the service listens (the port is taken), so by default it
   service's ``listen`` endpoints (a wildcard address ``0.0.0.0`` / ``[::]``
   reached through loopback; port 0 skipped: nobody can know it),
 - listens on ``tcp/127.0.0.1:0`` only (a peer needs a listener; loopback works
-  without IPv6), nothing in client mode.
+  without IPv6), nothing in client mode,
+- and leaves the service's access control out. Its rules guard the *service's*
+  ingress (no foreign put under ``portal/**``); in the viewer's session the same rule
+  refused every sample the service published, and the viewer got only what its
+  advanced subscribers queried from the service's cache: about one ``/ground`` a
+  second (the heartbeat's recovery, the other nine counted as missed) instead of ten,
+  so the monitor of ``deploy/demo.sh`` said "STALE ground" now and then.
 
 ``--connect``, ``--listen`` and ``--mode`` replace these. A peer keeps retrying
 an endpoint that is not up yet (every second at most), so a viewer may start
@@ -70,6 +76,7 @@ def viewer_zenoh_config(
     service_connect = endpoints(config_value(config, "connect/endpoints"), service_mode)
     mode = mode or service_mode
     overrides: dict[str, Any] = {
+        "access_control/enabled": False,
         "mode": mode,
         "connect/endpoints": list(connect) or viewer_connect(service_connect, service_listen),
         "listen/endpoints": list(listen) or ([] if mode == "client" else [VIEWER_LISTEN]),

@@ -84,10 +84,44 @@ def test_the_ascii_column_a_data_byte_0x23_prints_as_hash_is_no_dash_l_line() ->
         ("(1.5)  can0  7FF   [0]  remote request", "(1.5) can0 7FF#R0\n"),
         ("(1.5)  can0  123  [12]  " + "00 " * 12, "(1.5) can0 123##0" + "00" * 12 + "\n"),
         ("(1.5) can0 100#0102", "(1.5) can0 100#0102"),  # -L passes
+        # a CAN FD frame of 8 bytes (two digits: [08]) is one, with -x's BRS / ESI flags;
+        # it was read as a classic frame, estimates from frames the service refuses
+        ("(1.5)  can0  100  [08]  " + "01 " * 8, "(1.5) can0 100##0" + "01" * 8 + "\n"),
+        ("(1.5)  can0  RX B -  100  [08]  " + "01 " * 8, "(1.5) can0 100##1" + "01" * 8 + "\n"),
+        ("(1.5)  can0  TX B E  100  [02]  01 02", "(1.5) can0 100##30102\n"),
+        # -8: a classic frame's raw DLC in braces (9 to F: 8 bytes); stopped the replay
+        ("(1.5)  can0  100   {F}  " + "01 " * 8, "(1.5) can0 100#" + "01" * 8 + "\n"),
+        ("(1.5)  can0  100   {2}  01 02", "(1.5) can0 100#0102\n"),
+        # -c's colours around the interface: its name was 'ESC[1;31mcan0ESC[0m'
+        ("(1.5)  \x1b[1;31mcan0\x1b[0m  100   [2]  01 02", "(1.5) can0 100#0102\n"),
     ],
 )
 def test_remote_fd_and_dash_l_lines(line: str, expected: str) -> None:
     assert dash_l_line(line) == expected
+
+
+def test_a_dated_time_to_the_nanosecond_is_read_to_the_nanosecond() -> None:
+    # candump -tA -N: 9 digits after the second ('unconverted data remains: 000', exit 1)
+    line = " (2026-12-02 17:27:42.001854321)  can0  100   [2]  01 02"
+    second = datetime(2026, 12, 2, 17, 27, 42).timestamp()
+    assert dash_l_line(line) == f"({second:.0f}.001854321) can0 100#0102\n"
+
+
+def test_a_dash_l_line_with_an_odd_number_of_hex_digits_stops_the_replay(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A line damaged in the middle of a log (``1C`` cut to ``1``): python-can read the
+    lone digit as a byte (0x01), a frame of other data, counted a CRC fault."""
+    log = sim_log(tmp_path, seconds=0.1)
+    lines = log.read_text().splitlines()
+    lines[7] = lines[7].split()[0] + " " + lines[7].split()[1] + " " + lines[7].split()[2][:-1]
+    log.write_text("\n".join(lines) + "\n")
+    assert replay_main([str(log), "--config", str(EXAMPLE_CONFIG), "--out", "/dev/null"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1, err
+    assert err[0].startswith(
+        f"portal-daq: {log}: unreadable after frame 7 (line 8): an odd number of hex"
+    )
 
 
 @pytest.mark.parametrize(
@@ -95,19 +129,20 @@ def test_remote_fd_and_dash_l_lines(line: str, expected: str) -> None:
     [
         (
             "  can0  100   [8]  00 00 00 00 00 00 00 00\n",
-            "unreadable after frame 0: a candump line without a time: candump -L (or -ta) "
+            "unreadable after frame 0 (line 1): a candump line without a time: candump -L (or -ta) "
             "writes the frame times a replay needs",
         ),
         (
             # frames of no DBC message (a LEG_SB1_F1 of one byte is logged as wrong_dlc)
             " (000.000000)  can0  7F0   [1]  00\n (000.010000)  can0  7F0   [1]  00\n"
             " (000.000250)  can0  7F1   [1]  00\n",
-            "unreadable after frame 2: frame times go backwards (0.010000 then 0.000250): "
+            "unreadable after frame 2 (line 3): frame times go backwards (0.010000 then 0.000250): "
             "candump -td's steps between frames? candump -L (or -ta) writes the frame times",
         ),
         (
             " (1.000000)  can0  100   [8]  00 00 00\n",
-            "unreadable after frame 0: [8] and its data bytes differ: '(1.000000)  can0  100",
+            "unreadable after frame 0 (line 1): [8] and its data bytes differ: "
+            "'(1.000000)  can0  100",
         ),
     ],
 )

@@ -13,6 +13,7 @@ from pathlib import Path
 import can
 import pytest
 
+from daq.errors import RecordingError
 from daq.replay import can_log_frames, is_can_log, replay
 from dbc.machine import load_machine_config
 from tests.helpers import EXAMPLE_CONFIG
@@ -57,6 +58,49 @@ def test_an_asc_log_with_relative_timestamps_counts_them_from_the_start(tmp_path
     absolute = tmp_path / "absolute.asc"
     absolute.write_text(ASC_RELATIVE.replace("relative", "absolute"))
     assert [f.t_s for f in can_log_frames(absolute)] == [0.010, 0.010, 0.005]
+
+
+def test_an_asc_line_that_is_neither_a_frame_nor_an_event_is_counted_and_said(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """python-can's ASC reader passed over every line it does not take without a word: a
+    frame line cut in the middle of the log, a stranger's text; a frame lost uncounted.
+    The events of other kinds (comment, statistic, J1939 transport, system variable, LIN,
+    the start of measurement) are not counted."""
+    lines = ASC_RELATIVE.replace("relative", "absolute").splitlines(keepends=True)
+    lines[6:6] = [
+        "   0.010000 2  100\n",  # a frame line cut after its ID
+        "// a comment\n",
+        "   0.011000 2  Statistic: D 100 R 0 XD 0 XR 0 E 0 O 0 B 12.50%\n",
+        "   0.012000 2  J1939TP FEE3p        6    0  0   -   Rx   d 23 A0 0F\n",
+        "   0.013000 SV: 5 0 1 ::Engine::Speed = 3\n",
+        "   0.014000 L1 Rx 12 1 01\n",
+        "garbage from another program\n",
+    ]
+    log = tmp_path / "damaged.asc"
+    log.write_text("".join(lines))
+    frames = list(can_log_frames(log))
+    assert [f.arbitration_id for f in frames] == [0x100, 0x18FEF100, 0x100]
+    assert (
+        f"{log}: 2 lines left out, neither a frame nor an event of a Vector ASC log "
+        "(the first, line 7: '0.010000 2  100')" in caplog.text
+    )
+
+
+def test_an_asc_frame_line_with_fewer_data_bytes_than_its_length_stops_the_replay(
+    tmp_path: Path,
+) -> None:
+    """python-can read the bytes it found: a frame of another length (``wrong_dlc``), not
+    the damaged line it is."""
+    log = tmp_path / "short.asc"
+    log.write_text(
+        ASC_RELATIVE.replace("d 8 00 00 00 00 00 00 00 00\n   0.005", "d 8 00 00\n   0.005")
+    )
+    with pytest.raises(RecordingError) as refused:
+        list(can_log_frames(log))
+    assert str(refused.value) == (
+        f"{log}: unreadable after frame 1 (line 7): a frame line with 2 of its 8 data bytes"
+    )
 
 
 def test_a_relative_asc_logs_times_count_the_steps_of_lines_that_are_no_frame(
@@ -131,13 +175,13 @@ def test_candump_error_frames_keep_to_the_channel_asked_and_are_counted(
             "estimates.csv",
             b"leg,t,force_N,force_raw_N,pressure_Pa,p_piston_Pa,p_rod_Pa,contact,valid\n"
             b"SB1_F1,0.0,1.0,1.0,1.0,1.0,1.0,1,1,\n",
-            "unreadable after frame 0: too many values to unpack (expected 7) (python-can's "
-            "CSV: timestamp,arbitration_id,extended,remote,error,dlc,data)",
+            "unreadable after frame 0 (line 1): too many values to unpack (expected 7) "
+            "(python-can's CSV: timestamp,arbitration_id,extended,remote,error,dlc,data)",
         ),
         (  # candump -L always names the interface; some tools leave it out
             "no_interface.log",
             b"(1750000000.000000) 100#0000000000000000\n",
-            "unreadable after frame 0: not enough values to unpack (expected 3, got 2) "
+            "unreadable after frame 0 (line 1): not enough values to unpack (expected 3, got 2) "
             "(a candump -L line is '(TIME) INTERFACE ID#DATA', candump -ta's "
             "'(TIME)  INTERFACE  ID   [LENGTH]  DATA')",
         ),
@@ -434,12 +478,10 @@ def test_a_log_in_a_windows_code_page_or_with_a_bom_reads(tmp_path: Path) -> Non
 
 def test_a_stray_byte_in_a_candump_line_names_the_frame_before_it(tmp_path: Path) -> None:
     # Decoding failed for the whole 8 KiB block around the byte: "after frame 0".
-    from daq.errors import RecordingError
-
     log = tmp_path / "stray.log"
     good = "".join(f"({1_750_000_000 + k / 100:.6f}) can0 100#00\n" for k in range(400))
     log.write_bytes(good.encode() + b"(1750000004.000000) can0 100#00\xff\xfe\n" + good.encode())
-    with pytest.raises(RecordingError, match="unreadable after frame 400: "):
+    with pytest.raises(RecordingError, match=r"unreadable after frame 400 \(line 401\): "):
         list(can_log_frames(log))
 
 
@@ -649,7 +691,9 @@ def test_a_frame_time_that_is_no_time_is_one_line(
     for command in ("replay", "report", "calibrate"):
         assert main([command, str(log), "--config", str(EXAMPLE_CONFIG)]) == 1
         err = capsys.readouterr().err.strip().splitlines()
-        assert err[-1].startswith(f"portal-daq: {log}: unreadable after frame 2: frame time ")
+        assert err[-1].startswith(
+            f"portal-daq: {log}: unreadable after frame 2 (line 3): frame time "
+        )
         assert "is no time" in err[-1] and "Traceback" not in "\n".join(err)
 
 

@@ -134,7 +134,7 @@ def test_a_malformed_line_in_a_can_log_is_one_line_naming_file_and_frame(
     log.write_text("".join(lines))
     assert replay_main([str(log), "--config", str(EXAMPLE_CONFIG)]) == 1
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and f"{log}: unreadable after frame 3:" in err[0], err
+    assert len(err) == 1 and f"{log}: unreadable after frame 3 (line " in err[0], err
 
 
 def test_a_log_of_two_buses_is_replayed_one_channel_at_a_time(

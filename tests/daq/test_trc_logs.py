@@ -69,7 +69,7 @@ def test_a_trc_frame_line_cut_in_the_middle_of_the_log_stops_the_replay(
     path.write_text(_log(version, [lines[0], cut, lines[2]]), newline="")
     with pytest.raises(RecordingError) as refused:
         list(can_log_frames(path))
-    assert str(refused.value).startswith(f"{path}: unreadable after frame 1: ")
+    assert str(refused.value).startswith(f"{path}: unreadable after frame 1 (line ")
     assert repr(cut.strip()) in str(refused.value)
 
 
@@ -199,3 +199,43 @@ def test_a_trc_file_version_peak_has_not_defined_is_refused_by_name(tmp_path: Pa
     path.write_text(PEAK_EXAMPLES["2.1"].replace("=2.1", "=3.0"))
     with pytest.raises(RecordingError, match="TRC file version 3.0: not one PEAK defines"):
         list(can_log_frames(path))
+
+
+@pytest.mark.parametrize("version", ["1.1", "2.0"])
+def test_a_line_of_no_type_peak_defines_is_counted_and_said(
+    tmp_path: Path, version: str, caplog: pytest.LogCaptureFixture
+) -> None:
+    """python-can passed over a line of a type it does not read without a word (a frame
+    line damaged in its type column, text of another program): a frame lost uncounted.
+    The error counters (EC) and user events (EV) of 2.x are no frame and not counted."""
+    lines = [_line(version, i + 1, *frame) for i, frame in enumerate(FRAMES)]
+    damaged = (
+        lines[1].replace(" Rx ", " Qx ") if version == "1.1" else lines[1].replace(" DT ", " QT ")
+    )
+    events = ["     9      20.600 EC          Rx 00 60", "    10      20.700 EV User event"]
+    path = tmp_path / "damaged.trc"
+    path.write_text(
+        _log(version, [lines[0], damaged, lines[2], *(events if version == "2.0" else [])]),
+        newline="",
+    )
+    assert [f.arbitration_id for f in can_log_frames(path)] == [0x100, 0x101]
+    header_lines = HEADERS[version].count("\n")
+    assert (
+        f"{path}: 1 line left out, neither a frame nor an event of a PEAK TRC log "
+        f"(the first, line {header_lines + 2}: {damaged.strip()[:60]!r})" in caplog.text
+    )
+
+
+def test_a_2x_frame_line_with_fewer_data_bytes_than_its_length_stops_the_replay(
+    tmp_path: Path,
+) -> None:
+    """A line damaged in the middle of the log: python-can read the bytes it found, a
+    frame of another length (counted wrong_dlc, not as the damage it is)."""
+    lines = [_line("2.0", i + 1, *frame) for i, frame in enumerate(FRAMES)]
+    path = tmp_path / "short.trc"
+    path.write_text(_log("2.0", [lines[0], lines[1][:-6], lines[2]]), newline="")
+    with pytest.raises(RecordingError) as refused:
+        list(can_log_frames(path))
+    assert str(refused.value) == (
+        f"{path}: unreadable after frame 1 (line 8): a frame line with 6 of its 8 data bytes"
+    )

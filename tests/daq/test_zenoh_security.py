@@ -13,6 +13,9 @@ import pytest
 import zenoh
 from mcap.reader import make_reader
 
+from daq.live.feed import LiveFeed
+from daq.live.session import open_viewer_session, viewer_zenoh_config
+from daq.publisher import ZenohPublisher
 from daq.service_config import ServiceConfig, ZenohSettings, load_service_config
 from daq.zenoh_session import config_value, open_session, zenoh_config
 from dbc.errors import ConfigError
@@ -207,3 +210,38 @@ def test_an_access_control_that_leaves_the_key_prefix_open_stops_the_service(
             assert arrived.wait_for(lambda: "marker/1" in received, WAIT_S)
         assert service.truth is not None and service.truth.received == 0
         assert "site7/pam/sim/truth" not in received
+
+
+def test_a_viewer_with_the_service_config_gets_every_sample_behind_the_access_control(
+    tmp_path: Path,
+) -> None:
+    """A viewer (``portal-daq monitor --config``, the dashboard) takes the service's Zenoh
+    file, access control and all. Applied to the viewer's own session, the rule that
+    guards the service refused every sample the service published: the viewer got only
+    what its advanced subscribers queried from the service's cache, about one /ground a
+    second of ten, the rest counted as missed (the demo's monitor said 'STALE ground').
+    The viewer leaves the access control out; it gets every sample, none missed."""
+    config, tcp = locked_down_service(tmp_path)
+    prefix = config.zenoh.key_prefix
+    viewer_config = viewer_zenoh_config(config.zenoh, connect=[tcp], source=config.source)
+    assert config_value(viewer_config, "access_control/enabled") is False
+    with (
+        open_session(config.zenoh, config.source) as service,
+        ZenohPublisher(service, prefix) as publisher,
+        open_viewer_session(viewer_config) as viewer,
+        LiveFeed(viewer, prefix) as feed,
+    ):
+        connected(viewer)
+        deadline = time.monotonic() + WAIT_S
+        while (item := feed.wait(0.05)) is None:  # until the subscription is routed
+            assert time.monotonic() < deadline, "the viewer got nothing"
+            publisher.submit("ground", {"n": -1})
+        for n in range(30):
+            publisher.submit("ground", {"n": n})
+        received: list[int] = []
+        while len(received) < 30 and time.monotonic() < deadline:
+            item = feed.wait(0.05)
+            if item is not None and (n := json.loads(item.payload)["n"]) >= 0:
+                received.append(n)
+        assert received == list(range(30))
+        assert (feed.missed, feed.dropped) == (0, 0)
