@@ -157,6 +157,9 @@ def test_a_cycle_time_under_another_attribute_name_is_shown() -> None:
         ('cycle_time_ms = "20"', "messages.XDCR.cycle_time_ms", "must be a number"),
         ("cycle_time_ms = true", "messages.XDCR.cycle_time_ms", "must be a number"),
         ("cycle_time_ms = inf", "messages.XDCR.cycle_time_ms", "must be finite"),
+        # A leg whose transducer died would never be stale (a slip: 10e6 for 10).
+        ("cycle_time_ms = 10e6", "messages.XDCR.cycle_time_ms", "at most 3600000 ms (an hour"),
+        ("cycle_time_ms = 1e300", "messages.XDCR.cycle_time_ms", "got 1e+300"),
         ("cycle_ms = 20", "messages.XDCR.cycle_ms", "unknown key"),
     ],
 )
