@@ -240,13 +240,19 @@ CAN_FD_MAX_BYTES = 64
 
 def unsound(message: Message) -> str | None:
     """Why cantools' checks refuse ``message`` (signals that overlap, or do not fit in
-    its length), or why no frame can be it (longer than a CAN FD frame: cantools takes
-    it, and every frame on the bus was ``wrong_dlc``); None where they pass."""
+    its length; two of one name, which cantools tells as overlapping), or why no frame
+    can be it (longer than a CAN FD frame: cantools takes it, and every frame on the bus
+    was ``wrong_dlc``); None where they pass."""
     if message.length > CAN_FD_MAX_BYTES:
         return (
             f"{message.name} is {message.length} bytes long: a CAN frame carries "
             f"{CAN_FD_MAX_BYTES} at most (CAN FD)"
         )
+    names = [signal.name for signal in message.signals]
+    twice = next((name for name in names if names.count(name) > 1), None)
+    if twice is not None:  # cantools says they overlap, wherever they are
+        starts = ", ".join(str(signal.start) for signal in message.signals if signal.name == twice)
+        return f"{message.name} has two signals named {twice} (start bits {starts}): rename one"
     try:
         message.refresh(strict=True)
     except CantoolsError as exc:

@@ -93,6 +93,10 @@ MESSAGE_KEYS = ("cycle_time_ms",)
 #: The shortest cycle time a config may give: an 8-byte frame takes ~0.11 ms at 1 Mbit/s
 #: (a shorter period also rounds to nothing in the simulator's nanosecond schedule).
 MIN_CYCLE_TIME_MS = 0.1
+#: The longest: an hour. Staleness (``stale_after_cycles`` of it) and the service's "no
+#: frame" problem are judged on it; 1e300 (or a slip, 10e6 for 10) was taken: a leg
+#: whose transducer died would never be stale.
+MAX_CYCLE_TIME_MS = 3_600_000.0
 ESTIMATOR_KEYS = (
     "filter",
     "median_window",
@@ -889,13 +893,20 @@ def _other_cycle_time(message: Message) -> str:
 
 
 def _positive_ms(table: TomlTable) -> float:
-    """``cycle_time_ms`` of ``table``: a period, at least :data:`MIN_CYCLE_TIME_MS`."""
+    """``cycle_time_ms`` of ``table``: a period, :data:`MIN_CYCLE_TIME_MS` ..
+    :data:`MAX_CYCLE_TIME_MS`."""
     cycle_time_ms = table.number("cycle_time_ms")
     if not cycle_time_ms >= MIN_CYCLE_TIME_MS:
         raise table.error(
             "cycle_time_ms",
             f"must be at least {MIN_CYCLE_TIME_MS:g} ms (the message's period; one frame "
             f"takes about that long on the bus), got {cycle_time_ms:g}",
+        )
+    if cycle_time_ms > MAX_CYCLE_TIME_MS:
+        raise table.error(
+            "cycle_time_ms",
+            f"must be at most {MAX_CYCLE_TIME_MS:.0f} ms (an hour: staleness is judged on "
+            f"it), got {cycle_time_ms:g}",
         )
     return cycle_time_ms
 

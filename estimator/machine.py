@@ -19,6 +19,7 @@ from estimator.leg import LegEstimate, LegEstimator, LegSample
 from estimator.metrics import SoilMetrics
 from estimator.settings import EstimatorSettings
 from estimator.stability import Stability, stability
+from estimator.validity import OTHER_CHAMBER_STALE
 from estimator.weight import WeightCheck, weight_check
 
 
@@ -59,6 +60,8 @@ class MachineEstimator:
         self.latest_t_s = math.nan
         #: Bus time at each leg's latest sample.
         self._heard_at_s = dict.fromkeys(self.legs, math.nan)
+        #: ... and at its latest sample with both chambers heard (:meth:`heard_at_s`).
+        self._both_heard_at_s = dict.fromkeys(self.legs, math.nan)
 
     def observe(self, t_s: float) -> None:
         """Note the time stamp of a frame on the bus (any message, in the order received)."""
@@ -73,6 +76,8 @@ class MachineEstimator:
         if sample.t_s != self.latest_t_s:  # the same frame time (usual) would add nothing
             self.observe(sample.t_s)
         self._heard_at_s[leg] = self.bus_time_s
+        if not (sample.faults and OTHER_CHAMBER_STALE.intersection(sample.faults)):
+            self._both_heard_at_s[leg] = self.bus_time_s
         return self.legs[leg].update(sample)
 
     def snapshot(
@@ -102,9 +107,13 @@ class MachineEstimator:
         )
 
     def heard_at_s(self) -> dict[str, float]:
-        """The bus time (:attr:`bus_time_s`) at each leg's latest sample; 0.0 (the first
-        frame's) for a leg never heard."""
-        return {name: 0.0 if math.isnan(t_s) else t_s for name, t_s in self._heard_at_s.items()}
+        """The bus time (:attr:`bus_time_s`) at each leg's latest sample made with both
+        chambers heard; 0.0 (the first frame's) for a leg never so heard. A leg with two
+        transducers whose rod one fell silent still makes samples with each piston value
+        (all ``rod_stale``): its sensors are silent all the same."""
+        return {
+            name: 0.0 if math.isnan(t_s) else t_s for name, t_s in self._both_heard_at_s.items()
+        }
 
     def restarting_legs(self) -> dict[str, tuple[int, int]]:
         """Legs whose filter restarted at most of their valid samples: (restarts, valid

@@ -26,6 +26,8 @@ from estimator.settings import EstimatorSettings
 Value = TypeVar("Value", float, npt.NDArray[np.float64])
 
 STALE = "stale"
+#: A sample made without a fresh value of its other chamber (a transducer silent).
+OTHER_CHAMBER_STALE = frozenset({"piston_stale", "rod_stale"})
 
 
 def pressure_in_range(p_Pa: Value, settings: EstimatorSettings) -> bool | npt.NDArray[np.bool_]:

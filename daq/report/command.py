@@ -92,9 +92,10 @@ def parse_report_args(args: Sequence[str]) -> ReportOptions:
         "--workers", type=int, metavar="N", help="local processes (default: one per CPU)"
     )
     options = parser.parse_args(args)
-    if not options.campaign and (options.cluster or options.workers):
+    # ``is not None``: ``--workers 0`` is given too (it was ignored without --campaign).
+    if not options.campaign and (options.cluster or options.workers is not None):
         parser.error("--cluster and --workers go with --campaign")
-    if options.cluster and options.workers:
+    if options.cluster and options.workers is not None:
         parser.error("--workers counts local processes: not with --cluster")
     if options.campaign and options.channel:
         parser.error("--channel picks a CAN log's bus: not with --campaign (service recordings)")

@@ -182,6 +182,7 @@ def test_the_campaign_command_line(recordings: Path, tmp_path: Path) -> None:
     ("args", "status", "message"),
     [
         (["--cluster", "tcp://127.0.0.1:1"], 2, "--cluster and --workers go with --campaign"),
+        (["--workers", "0"], 2, "--cluster and --workers go with --campaign"),
         (["--campaign", "--workers", "0"], 2, "--workers: must be >= 1, got 0"),
         (["--campaign", "--cluster", "tcp://x:1", "--workers", "2"], 2, "not with --cluster"),
     ],

@@ -100,6 +100,18 @@ def test_a_message_without_a_cycle_time_names_the_key_to_add() -> None:
     )
 
 
+def refused_without_config_cycle_time(database: Database) -> ConfigError:
+    """What the units machine is refused with when its config gives XDCR no cycle time."""
+    with pytest.raises(ConfigError) as refused:
+        parse_machine_config(
+            tomllib.loads(UNITS_TOML.replace("[messages.XDCR]\ncycle_time_ms = 20\n", "")),
+            "m.toml",
+            database,
+            UNITS_DB,
+        )
+    return refused.value
+
+
 def test_a_dbc_cycle_time_that_is_no_period_is_none() -> None:
     """BA_ "GenMsgCycleTime" BO_ ... -5; (a typo; cantools does not check the attribute's
     range): it was taken, and the config stopped at the leg's max_skew_s, a key the user
@@ -110,14 +122,8 @@ def test_a_dbc_cycle_time_that_is_no_period_is_none() -> None:
     assert database.get_message_by_name("XDCR").cycle_time == -5
     config = parse_machine_config(tomllib.loads(UNITS_TOML), "m.toml", database, UNITS_DB)
     assert config.cycle_times_ms["XDCR"] == 20.0 and config.legs["front"].max_skew_s == 0.020
-    with pytest.raises(ConfigError) as refused:
-        parse_machine_config(
-            tomllib.loads(UNITS_TOML.replace("[messages.XDCR]\ncycle_time_ms = 20\n", "")),
-            "m.toml",
-            database,
-            UNITS_DB,
-        )
-    assert str(refused.value) == (
+    refused = refused_without_config_cycle_time(database)
+    assert str(refused) == (
         "m.toml: legs.front.piston.signal: message XDCR has GenMsgCycleTime -5, no period, "
         "in the DBC: set [messages.XDCR] cycle_time_ms (staleness and skew are judged on it)"
     )
@@ -131,14 +137,8 @@ def test_a_cycle_time_under_another_attribute_name_is_shown() -> None:
         'BA_ "CycleTime" BO_ 2566869246 20;\n'
     )
     database = load_database_string(text, "vendor.dbc")
-    with pytest.raises(ConfigError) as refused:
-        parse_machine_config(
-            tomllib.loads(UNITS_TOML.replace("[messages.XDCR]\ncycle_time_ms = 20\n", "")),
-            "m.toml",
-            database,
-            UNITS_DB,
-        )
-    assert str(refused.value) == (
+    refused = refused_without_config_cycle_time(database)
+    assert str(refused) == (
         "m.toml: legs.front.piston.signal: message XDCR has no GenMsgCycleTime in the DBC "
         "(it has CycleTime 20: its period?): set [messages.XDCR] cycle_time_ms (staleness "
         "and skew are judged on it)"
@@ -157,6 +157,9 @@ def test_a_cycle_time_under_another_attribute_name_is_shown() -> None:
         ('cycle_time_ms = "20"', "messages.XDCR.cycle_time_ms", "must be a number"),
         ("cycle_time_ms = true", "messages.XDCR.cycle_time_ms", "must be a number"),
         ("cycle_time_ms = inf", "messages.XDCR.cycle_time_ms", "must be finite"),
+        # A leg whose transducer died would never be stale (a slip: 10e6 for 10).
+        ("cycle_time_ms = 10e6", "messages.XDCR.cycle_time_ms", "at most 3600000 ms (an hour"),
+        ("cycle_time_ms = 1e300", "messages.XDCR.cycle_time_ms", "got 1e+300"),
         ("cycle_ms = 20", "messages.XDCR.cycle_ms", "unknown key"),
     ],
 )

@@ -177,3 +177,20 @@ def test_a_message_longer_than_a_can_fd_frame_stops_the_config(tmp_path: Path) -
         '[legs.A]\npiston = "HUB.pA"\nrod = "HUB.pB"\n',
     )
     assert config.legs["A"].piston.message == "HUB"
+
+
+def test_two_signals_of_one_name_are_told_as_such(tmp_path: Path) -> None:
+    """Two signals named pB at bits 16 and 32 (a copy-paste left unrenamed): cantools
+    said 'The signals pB and pB are overlapping', which they are not."""
+    text = dbc_text(
+        'BO_ 256 HUB: 8 Hub\n SG_ pA : 0|16@1+ (0.01,0) [0|600] "bar" DAQ\n'
+        ' SG_ pB : 16|16@1+ (0.01,0) [0|600] "bar" DAQ\n'
+        ' SG_ pB : 32|16@1+ (0.01,0) [0|600] "bar" DAQ\n',
+        'BA_ "GenMsgCycleTime" BO_ 256 10;\n',
+    )
+    with pytest.raises(ConfigError) as refused:
+        machine_on(tmp_path, text, '[legs.A]\npiston = "HUB.pA"\nrod = "HUB.pB"\n')
+    assert str(refused.value) == (
+        f"{tmp_path / 'm.toml'}: legs.A.piston: message HUB of the DBC: HUB has two signals "
+        "named pB (start bits 16, 32): rename one"
+    )

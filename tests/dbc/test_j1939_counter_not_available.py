@@ -11,6 +11,7 @@ import pytest
 from daq.frames import RawFrame
 from daq.pipeline import Pipeline
 from dbc.machine import load_machine_config
+from tests.helpers import LEG_DEFAULTS_TOML
 
 DBC = """VERSION ""
 
@@ -36,22 +37,15 @@ BA_ "VFrameFormat" BO_ 2566856737 3;
 VAL_ 2566856737 MsgCounter 15 "NotAvailable" ;
 """
 
-CONFIG = """[machine]
+CONFIG = (
+    """[machine]
 id = "counter-na"
 mass_kg = 3000.0
 dbc = "xdcr.dbc"
 
-[leg_defaults]
-A_piston_m2 = 7.854e-3
-A_rod_m2 = 4.737e-3
-l_r_m = 0.90
-l_z_m = 0.25
-l_b_m = 1.20
-l_gb_m = 0.55
-alpha_cyl_deg = 75.0
-F_gLeg_N = 4905.0
-A_foot_m2 = 0.33
-
+"""
+    + LEG_DEFAULTS_TOML
+    + """
 [legs.A]
 piston = { signal = "XDCR.Pressure", source_address = 0x21 }
 rod = { signal = "XDCR.Pressure", source_address = 0x22 }
@@ -61,6 +55,7 @@ max_skew_s = 0.015
 counter = "MsgCounter"
 max_delta_counter = 1
 """
+)
 
 
 @pytest.fixture

@@ -15,6 +15,7 @@ from daq.frames import RawFrame
 from daq.pipeline import Pipeline
 from dbc.machine import load_machine_config
 from tests.dbc.test_held_out_machines import eq4_N
+from tests.helpers import LEG_DEFAULTS_TOML
 
 DBC = """VERSION ""
 
@@ -41,7 +42,8 @@ BA_DEF_DEF_ "VFrameFormat" "StandardCAN";
 BA_ "VFrameFormat" BO_ 2566856737 3;
 """
 
-CONFIG = """[machine]
+CONFIG = (
+    """[machine]
 id = "signed"
 mass_kg = 3000.0
 dbc = "signed.dbc"
@@ -50,17 +52,9 @@ dbc = "signed.dbc"
 # Room below 0 for the test: the two's complement values beyond J1939's codes.
 pressure_min_Pa = -2.0e6
 
-[leg_defaults]
-A_piston_m2 = 7.854e-3
-A_rod_m2 = 4.737e-3
-l_r_m = 0.90
-l_z_m = 0.25
-l_b_m = 1.20
-l_gb_m = 0.55
-alpha_cyl_deg = 75.0
-F_gLeg_N = 4905.0
-A_foot_m2 = 0.33
-
+"""
+    + LEG_DEFAULTS_TOML
+    + """
 [legs.J1939]
 piston = { signal = "XDCR_J1939.Pressure", source_address = 0x21 }
 rod = { signal = "XDCR_J1939.Pressure", source_address = 0x22 }
@@ -70,6 +64,7 @@ max_skew_s = 0.015
 piston = "XDCR_11BIT.Piston"
 rod = "XDCR_11BIT.Rod"
 """
+)
 
 ROD_RAW = 3000  # 30 bar
 

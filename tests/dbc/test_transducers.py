@@ -383,6 +383,29 @@ def test_a_clock_step_back_neither_freshens_a_silent_chamber_nor_ages_live_ones(
     assert reasons["J1"] == [()] * 4 + [("rod_stale",)] * 6
 
 
+def test_a_silent_rod_transducer_makes_its_leg_unheard_for_the_health_check() -> None:
+    """J1's rod transducer stops; its piston goes on, each sample ``rod_stale``. The
+    service's "legs silent" goes by the bus time at each leg's latest sample made with
+    both chambers heard: J1's stops at the rod's last frame, J2's goes on. (It went by
+    any sample, so the status stayed healthy with every J1 estimate invalid.)"""
+    bench = Bench()
+    for k in range(100):  # 1 s of 10 ms cycles; J1's rod silent after 0.2 s
+        t_s = 1_795_400_000.0 + k * 0.01
+        if k < 20:
+            bench.raw(j1939_id(6, 0x22), pressure_bytes(5.0), t_s, True)
+        bench.raw(j1939_id(6, 0x24), pressure_bytes(6.0), t_s, True)
+        bench.raw(j1939_id(6, 0x21), pressure_bytes(90.0), t_s + 0.001, True)
+        (j2,) = bench.raw(j1939_id(6, 0x23), pressure_bytes(80.0), t_s + 0.001, True)
+        assert j2.valid
+    estimator = bench.pipeline.estimator
+    heard = estimator.heard_at_s()
+    assert estimator.bus_time_s == pytest.approx(0.991)
+    assert heard["J2"] == pytest.approx(0.991)
+    # J1's rod last at 0.19 s: fresh (max_skew_s 0.010) for the piston frame of 0.191;
+    # from 0.201 on (0.011 s after it) J1's samples are rod_stale.
+    assert heard["J1"] == pytest.approx(0.191)
+
+
 def test_rod_trigger_and_each_chambers_status_follows_its_own_frame() -> None:
     text = BASE.replace("max_skew_s = 0.004", 'max_skew_s = 0.004\ntrigger = "rod"')
     bench = Bench(text)

@@ -176,7 +176,11 @@ def test_a_bad_mapping_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture
         ["--input", "x.csv"],
         ["--mode", "client"],
         ["--truth-every", "0"],
+        ["--truth-every", "-1"],
         ["--rtol", "1"],
+        # The solver would run for minutes (not ended after 5 at 1e-300): a hang.
+        ["--rtol", "1e-300"],
+        ["--rtol", "1e-11"],
         ["--steps", "3"],
         ["--steps", "0"],
         ["--steps", "2", "--input", "x.csv", "--mapping", "m.toml"],
@@ -188,6 +192,15 @@ def test_bad_usage_exits_2(argv: list[str], capsys: pytest.CaptureFixture[str]) 
         cli(argv)
     assert info.value.code == 2
     assert "error:" in capsys.readouterr().err
+
+
+def test_an_rtol_the_solver_would_take_minutes_for_is_refused_naming_it(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    with pytest.raises(SystemExit) as info:
+        cli(["--rtol", "1e-300"])
+    assert info.value.code == 2
+    assert "argument --rtol: must be within [1e-10, 1), got '1e-300'" in capsys.readouterr().err
 
 
 def test_options_parse_as_documented() -> None:
