@@ -525,6 +525,19 @@ def test_the_report_counts_j1939_frames_from_an_unmapped_source_address(
     assert "12 frames, 4 of them not used (unmapped_source 4)" in caplog.text
 
 
+def two_container_blf(tmp_path: Path) -> tuple[Path, bytes, int]:
+    """A BLF of 4,000 frames in two containers (of 128 KiB before zlib): its path, its
+    bytes and where the second container begins."""
+    whole = tmp_path / "whole.blf"
+    with can.BLFWriter(whole) as writer:
+        for k in range(4000):
+            writer.on_message_received(
+                can.Message(timestamp=1_750_000_000 + k / 100, arbitration_id=0x7F0, data=bytes(8))
+            )
+    data = whole.read_bytes()
+    return whole, data, data.index(b"LOBJ", data.index(b"LOBJ") + 4)
+
+
 def test_a_blf_log_not_closed_or_cut_is_read_to_its_last_object_with_a_warning(
     tmp_path: Path, caplog: pytest.LogCaptureFixture, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -533,14 +546,7 @@ def test_a_blf_log_not_closed_or_cut_is_read_to_its_last_object_with_a_warning(
     # damaged object was a BLFParseError traceback.
     from daq.replay_command import replay_main
 
-    whole = tmp_path / "whole.blf"
-    with can.BLFWriter(whole) as writer:  # two containers (of 128 KiB before zlib)
-        for k in range(4000):
-            writer.on_message_received(
-                can.Message(timestamp=1_750_000_000 + k / 100, arbitration_id=0x7F0, data=bytes(8))
-            )
-    data = whole.read_bytes()
-    second = data.index(b"LOBJ", data.index(b"LOBJ") + 4)  # the second container
+    whole, data, second = two_container_blf(tmp_path)
     assert len(list(can_log_frames(whole))) == 4000 and "cut short" not in caplog.text
     counts = []
     for name, content in (("cut_in_header.blf", data[: second + 8]), ("cut.blf", data[:-100])):
@@ -573,14 +579,7 @@ def test_a_damaged_or_cut_compressed_blf_is_one_line_or_read_to_its_cut(
 
     from daq.replay_command import replay_main
 
-    whole = tmp_path / "whole.blf"
-    with can.BLFWriter(whole) as writer:  # two containers (of 128 KiB before zlib)
-        for k in range(4000):
-            writer.on_message_received(
-                can.Message(timestamp=1_750_000_000 + k / 100, arbitration_id=0x7F0, data=bytes(8))
-            )
-    data = whole.read_bytes()
-    second = data.index(b"LOBJ", data.index(b"LOBJ") + 4)  # the second container
+    whole, data, second = two_container_blf(tmp_path)
     packed = gzip.compress(data)
     cut = tmp_path / "cut.blf.gz"
     cut.write_bytes(packed[: len(packed) * 3 // 4])
