@@ -13,8 +13,8 @@ invalid with ``rod_stale`` (or ``piston_stale``). The sample's time is the trigg
 frame's. Both chambers in one frame: skew 0, one sample per frame.
 
 "Older" is measured on *bus time*, as the estimator judges staleness
-(:mod:`estimator.machine`): the sum of the forward steps between successive frame
-times of these messages. Frame times follow the wall clock, which NTP may step back:
+(:class:`estimator.machine.BusClock`): the sum of the forward steps between successive
+frame times of these messages. Frame times follow the wall clock, which NTP may step back:
 a rod value from before a step back of an hour would otherwise look an hour *younger*
 than every piston value after it, and pair with them for that hour although its
 transducer fell silent. A step back adds nothing, so chambers that keep sending stay
@@ -28,6 +28,7 @@ from dataclasses import dataclass
 from dbc.decoding import DecodedFrame, SignalValue
 from dbc.machine import TRIGGERS, ChamberSignal, LegConfig, StatusCheck
 from estimator.leg import LegSample
+from estimator.machine import BusClock
 
 #: What a difference of two frame times (microseconds, at Unix times ~1.8e9 s: doubles
 #: 0.24 us apart) may be off by: a value exactly ``max_skew_s`` older is not stale.
@@ -119,9 +120,8 @@ class LegSampler:
                     )
                 )
         self._latest: dict[tuple[str, str], _Reading] = {}
-        #: Bus time of the chambers' frames (module docstring), and the latest frame time.
-        self._bus_s = 0.0
-        self._last_t_s = math.nan
+        #: Bus time of the chambers' frames (module docstring).
+        self._clock = BusClock()
 
     def samples(self, frame: DecodedFrame) -> list[tuple[str, LegSample]] | None:
         """The (leg name, sample) pairs that ``frame`` makes; empty for other messages.
@@ -163,10 +163,7 @@ class LegSampler:
         ]
         if not senders and not by_sender:
             return None
-        step_s = t_s - self._last_t_s
-        if step_s > 0.0:  # NaN (the first frame) and a step back add nothing
-            self._bus_s += step_s
-        self._last_t_s = t_s
+        bus_s = self._clock.observe(t_s)
         matched = [
             route
             for route in by_sender
@@ -178,7 +175,7 @@ class LegSampler:
             chamber_faults = _with_status(faults, (status,) if status else (), signals)
             self._latest[(route.leg.name, route.chamber)] = _Reading(
                 t_s,
-                self._bus_s,
+                bus_s,
                 _pressure_Pa(signals[route.signal.signal], route.signal),
                 chamber_faults,
             )

@@ -2,8 +2,8 @@
 
 Staleness is judged on *bus time*, not on frame time stamps directly: frame times
 follow the wall clock, which may be stepped (NTP). Bus time is the sum of the
-forward steps between successive frame times of the bus (every message, fed
-through :meth:`MachineEstimator.observe` and :meth:`~MachineEstimator.update`): a
+forward steps between successive frame times of the bus (:class:`BusClock`; every
+message, fed through :meth:`MachineEstimator.observe` and :meth:`~MachineEstimator.update`): a
 step back adds nothing, so the legs that keep sending stay fresh across it and a
 silent leg still ages. It derives from frame times alone, so a replay computes the
 same.
@@ -36,8 +36,28 @@ class MachineSnapshot:
     stability: Stability | None = None
 
 
-class MachineEstimator:
-    """One :class:`LegEstimator` per leg, addressed by leg name (e.g. ``SB1_F1``)."""
+class BusClock:
+    """Bus time (module docstring) of the frames observed, in the order received."""
+
+    def __init__(self) -> None:
+        #: How long the bus has run: the forward steps between frame times, summed.
+        self.bus_time_s = 0.0
+        #: Frame time of the latest frame observed (NaN before the first).
+        self.latest_t_s = math.nan
+
+    def observe(self, t_s: float) -> float:
+        """Note the time stamp of a frame on the bus; the bus time after it."""
+        step_s = t_s - self.latest_t_s
+        if 0.0 < step_s < math.inf:  # NaN (the first frame) and a step back add nothing
+            self.bus_time_s += step_s
+        if math.isfinite(t_s):
+            self.latest_t_s = t_s
+        return self.bus_time_s
+
+
+class MachineEstimator(BusClock):
+    """One :class:`LegEstimator` per leg, addressed by leg name (e.g. ``SB1_F1``), on the
+    bus time of every frame (:meth:`~BusClock.observe`, any message)."""
 
     def __init__(
         self,
@@ -49,27 +69,16 @@ class MachineEstimator:
         missing = sorted(set(legs) - set(cycle_times_s))
         if missing:
             raise ValueError(f"no cycle time for legs {missing}")
+        super().__init__()
         self.weight_N = weight_N
         self.legs = {
             name: LegEstimator(name, leg, settings, cycle_times_s[name])
             for name, leg in legs.items()
         }
-        #: How long the bus has run: the forward steps between frame times, summed.
-        self.bus_time_s = 0.0
-        #: Frame time of the latest frame observed (NaN before the first).
-        self.latest_t_s = math.nan
         #: Bus time at each leg's latest sample.
         self._heard_at_s = dict.fromkeys(self.legs, math.nan)
         #: ... and at its latest sample with both chambers heard (:meth:`heard_at_s`).
         self._both_heard_at_s = dict.fromkeys(self.legs, math.nan)
-
-    def observe(self, t_s: float) -> None:
-        """Note the time stamp of a frame on the bus (any message, in the order received)."""
-        step_s = t_s - self.latest_t_s
-        if 0.0 < step_s < math.inf:  # NaN (the first frame) and a step back add nothing
-            self.bus_time_s += step_s
-        if math.isfinite(t_s):
-            self.latest_t_s = t_s
 
     def update(self, leg: str, sample: LegSample) -> LegEstimate:
         """Feed one sample of ``leg`` (observing its frame time); returns its new estimate."""
