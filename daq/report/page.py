@@ -265,7 +265,8 @@ def render_page(content: ReportContent, pictures: Mapping[str, Picture]) -> str:
     if content.deviations:
         parts += [
             "<p class=note>Each valid estimate matched to the simulation truth sample "
-            "nearest in time (within half a truth sample period); deviation = calculated - "
+            "nearest in time (within half a sample period, the truth's or the leg's, whichever "
+            "is shorter); deviation = calculated - "
             "true force. Calculated: eq. (4) with the median centred on the frame, like the "
             "paper's offline filter (the running median "
             f"{(settings.median_window - 1) // 2} samples later). The paper (section 3.4) "
