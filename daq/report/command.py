@@ -79,8 +79,8 @@ def parse_report_args(args: Sequence[str]) -> ReportOptions:
     campaign.add_argument(
         "--campaign",
         action="store_true",
-        help="every run among the files and directories given: campaign.csv + campaign.html "
-        "(default --out: <first stem>_campaign)",
+        help="every run among the files and directories given (and their subdirectories): "
+        "campaign.csv + campaign.html (default --out: <first stem>_campaign)",
     )
     campaign.add_argument(
         "--cluster",
@@ -140,7 +140,7 @@ def campaign_report(options: ReportOptions) -> list[Path]:
     from daq.report.campaign_run import campaign
 
     given = [options.recording] if isinstance(options.recording, Path) else options.recording
-    found = runs(given)
+    found = runs(given, recursive=True)
     rows = campaign(found, options.config_path, cluster=options.cluster, workers=options.workers)
     reported = len({row.recording for row in rows})
     if not rows:
