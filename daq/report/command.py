@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from daq.errors import EmptyRecordingError, RecordingError
+from daq.output_file import named
 from daq.subcommand import Subcommand, add_channel_option
 from dbc.errors import ConfigError, DbcError, PortalDaqError
 
@@ -47,7 +48,7 @@ class ReportOptions:
     def directory(self) -> Path:
         if self.out_dir is not None:
             return self.out_dir
-        first = self.recording if isinstance(self.recording, Path) else self.recording[0]
+        first = named(self.recording if isinstance(self.recording, Path) else self.recording[0])
         suffix = "campaign" if self.campaign else "report"
         return first.with_name(f"{first.stem}_{suffix}")
 
