@@ -250,17 +250,21 @@ def _identifiable(data: FloatArray, residual_N: FloatArray) -> tuple[BoolArray, 
         return identified, 0, float("inf")
     scaled = data[:, used] / norms[used]
     _, singular, vt = np.linalg.svd(scaled, full_matrices=False)
-    kept = singular >= singular[0] / MAX_CONDITION
-    rank = int(kept.sum())
-    null = vt[~kept]
-    share = (null**2).sum(axis=0) if null.size else np.zeros(scaled.shape[1])
-    # Covariance of the scaled parameters within the determined directions.
-    sigma_N = float(np.sqrt((residual_N**2).sum() / max(rows - rank, 1)))
-    covariance = (vt[kept].T / singular[kept] ** 2) @ vt[kept]
-    standard_error = sigma_N * np.sqrt(np.diag(covariance)) / norms[used]
+    rank = int((singular >= singular[0] / MAX_CONDITION).sum())
+    # A parameter's share of the undetermined directions: those of a small singular
+    # value and those no equation reaches (fewer equations than parameters), i.e. all
+    # but the determined ones (the directions together are orthonormal).
+    share = 1.0 - (vt[:rank] ** 2).sum(axis=0)
+    if rows > rank:
+        # Covariance of the scaled parameters within the determined directions.
+        sigma_N = float(np.sqrt((residual_N**2).sum() / (rows - rank)))
+        covariance = (vt[:rank].T / singular[:rank] ** 2) @ vt[:rank]
+        standard_error = sigma_N * np.sqrt(np.diag(covariance)) / norms[used]
+    else:  # no equation to spare: the fit is exact whatever the noise, its scatter unknown
+        standard_error = np.full(scaled.shape[1], np.inf)
     limit = np.r_[np.full(columns // 2, GAIN_SE_MAX), np.full(columns // 2, OFFSET_SE_MAX_N)]
     identified[used] = (share <= NULL_SHARE) & (standard_error <= limit[used])
-    return identified, rank, float(singular[0] / singular[kept][-1])
+    return identified, rank, float(singular[0] / singular[rank - 1])
 
 
 def _refusals(
