@@ -410,3 +410,27 @@ def test_a_cut_recording_is_said_once(
     calibrate_main([str(cut), "--out", str(tmp_path / "c.toml")])
     said = [r for r in caplog.records if "ends without its summary" in r.getMessage()]
     assert len(said) == 1, [r.getMessage() for r in said]
+
+
+def test_recordings_of_two_machines_are_refused_naming_both(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The first recording's embedded config was used for all: a recording of another
+    machine given with it (a campaign's folder of several prototypes) was replayed as the
+    first machine and its instants pooled into the first machine's calibration, unsaid
+    (measured: two simulated walking cycles, one embedding a config of another id)."""
+    database = load_machine_config(EXAMPLE_CONFIG)[1]
+    paths = []
+    for name in ("pam-proto-1", "pam-proto-2"):
+        path = tmp_path / f"{name}.mcap"
+        config = EXAMPLE_CONFIG.read_text().replace('id = "pam-proto-1"', f'id = "{name}"')
+        with open(path, "wb") as stream, McapFile(stream, database) as mcap:
+            mcap.start(
+                {CONFIG_ATTACHMENT: config.encode(), DBC_ATTACHMENT: DEFAULT_DBC_PATH.read_bytes()}
+            )
+        paths.append(str(path))
+    assert calibrate_main([*paths, "--out", str(tmp_path / "c.toml")]) == 1
+    assert capsys.readouterr().err == (
+        f"portal-daq: {paths[1]}: a recording of machine 'pam-proto-2', {paths[0]} of "
+        "'pam-proto-1': calibrate one machine at a time (--config reads them all as one)\n"
+    )
