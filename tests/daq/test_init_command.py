@@ -3,6 +3,8 @@ as they are, and never over a file the user already has."""
 
 from __future__ import annotations
 
+import re
+import shlex
 from pathlib import Path
 
 import pytest
@@ -137,3 +139,15 @@ def test_the_examples_name_nothing_a_wheel_lacks(name: str, tmp_path: Path) -> N
         text = written.read_text()
         for clone_only in ("deploy/examples", "deploy/demo.sh", "deploy/portal-daq.example"):
             assert clone_only not in text, (written.name, clone_only)
+
+
+def test_the_commands_it_suggests_take_a_directory_with_a_space(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``portal-daq init "my machine"`` printed `portal-daq run --config my
+    machine/portal-daq.toml`: pasted into a shell, ``--config my`` and a stray argument."""
+    target = tmp_path / "my machine"
+    assert main(["init", str(target), "--deploy"]) == 0
+    commands = re.findall(r"`([^`]*)`", capsys.readouterr().err)
+    assert ["run", "--config", str(target / "portal-daq.toml")] == shlex.split(commands[0])[1:]
+    assert str(target / "deploy" / "install.sh") in shlex.split(commands[-1])
