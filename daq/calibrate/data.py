@@ -64,6 +64,8 @@ class Instants:
     #: machine state), and those of them that are still.
     phases: tuple[str, ...] = ()
     still_phases: tuple[str, ...] = ()
+    #: The legs valid in no snapshot of any recording.
+    never_valid: tuple[str, ...] = ()
 
     def why_none(self) -> str:
         """Why there is no instant (:attr:`t_s` empty), for the user."""
@@ -71,6 +73,12 @@ class Instants:
             return (
                 f"no quasi-static instant: none of {self.total} snapshots had every leg "
                 f"valid and steady"
+                + (
+                    f" ({', '.join(self.never_valid)} never valid: the balance needs every "
+                    "leg's force)"
+                    if self.never_valid
+                    else ""
+                )
             )
         return (
             f"no quasi-static instant: {self.steady} of {self.total} snapshots had every leg "
@@ -136,6 +144,7 @@ def read_instants(paths: Sequence[Path], machine: Machine, channel: str | None =
     parts: list[Snapshots] = []
     total = steady = 0
     phases: dict[str, None] = {}
+    ever_valid = np.zeros(len(legs), dtype=bool)
     config = machine[0]
     meanings = _phase_meanings(machine)
     # A leg is stale as in the service: after stale_after_cycles of its cycle times (the
@@ -150,6 +159,7 @@ def read_instants(paths: Sequence[Path], machine: Machine, channel: str | None =
         keep = steady_here & still
         total += len(snaps.t_s)
         steady += int(steady_here.sum())
+        ever_valid |= snaps.valid.any(axis=0)
         phases.update(dict.fromkeys(phase for _, _, _, phase in states))
         parts.append(
             Snapshots(
@@ -165,6 +175,7 @@ def read_instants(paths: Sequence[Path], machine: Machine, channel: str | None =
         steady=steady,
         phases=tuple(phases),
         still_phases=tuple(phase for phase in phases if meanings.get(phase) in STILL_PHASES),
+        never_valid=tuple(leg for leg, ever in zip(legs, ever_valid, strict=True) if not ever),
     )
 
 

@@ -329,6 +329,33 @@ def test_no_instant_says_whether_the_legs_or_the_phases_kept_them_out() -> None:
     assert never.why_none() == (
         "no quasi-static instant: none of 901 snapshots had every leg valid and steady"
     )
+    # A leg never valid (a transducer out, a status never fine) is named: the message
+    # said only "every leg", and which one of six to look at was left to guess.
+    broken = dataclasses.replace(never, never_valid=("SB2_F3",))
+    assert broken.why_none() == (
+        "no quasi-static instant: none of 901 snapshots had every leg valid and steady "
+        "(SB2_F3 never valid: the balance needs every leg's force)"
+    )
+
+
+def test_a_leg_never_valid_is_named_by_the_command(
+    walk: Recorded, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The walking cycle read with SB2_F3's status 'fine' only at a code never sent."""
+    config_path = tmp_path / "broken.toml"
+    config_path.write_text(
+        walk.config_path.read_text().replace(
+            'status = "LEG_SB2_F3.SB2_F3_Status"\n',
+            'status = "LEG_SB2_F3.SB2_F3_Status"\nstatus_ok = "sensor_fault"\n',
+        )
+    )
+    out = tmp_path / "c.toml"
+    assert calibrate_main([str(walk.path), "--config", str(config_path), "--out", str(out)]) == 1
+    assert capsys.readouterr().err == (
+        "portal-daq: no quasi-static instant: none of 901 snapshots had every leg valid and "
+        "steady (SB2_F3 never valid: the balance needs every leg's force): nothing to "
+        "calibrate\n"
+    )
 
 
 def test_calibrate_refuses_an_output_that_names_a_recording(
