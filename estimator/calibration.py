@@ -287,11 +287,10 @@ def _bound_refusals(
     """One line per kind of parameter held by its bound (none: the fit is free)."""
     n = len(legs)
     lines = []
-    for key, low, high, unit in (
-        ("force_gain", *GAIN_BOUNDS, ""),
-        ("force_offset_N", -OFFSET_BOUND_N, OFFSET_BOUND_N, " N"),
+    for key, kind, (low, high), unit in (
+        ("force_gain", slice(0, n), GAIN_BOUNDS, ""),
+        ("force_offset_N", slice(n, 2 * n), (-OFFSET_BOUND_N, OFFSET_BOUND_N), " N"),
     ):
-        kind = slice(0, n) if key == "force_gain" else slice(n, 2 * n)
         held = [
             f"{leg} at {value:g}"
             for leg, value, bound in zip(legs, fitted[kind], at_bound[kind], strict=True)
