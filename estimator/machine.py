@@ -87,7 +87,7 @@ class MachineEstimator(BusClock):
         self._heard_at_s[leg] = self.bus_time_s
         if not (sample.faults and OTHER_CHAMBER_STALE.intersection(sample.faults)):
             self._both_heard_at_s[leg] = self.bus_time_s
-        return self.legs[leg].update(sample)
+        return self.legs[leg].update(sample, self.bus_time_s)
 
     def snapshot(
         self,
