@@ -1,8 +1,11 @@
-"""The machine the benchmark runs on: its description, CPU pinning, a free TCP port."""
+"""The machine the benchmark runs on: its description, CPU pinning, a free TCP port,
+and what one sleep and wake-up costs it."""
 
 import os
 import platform
 import socket
+import statistics
+import time
 from datetime import UTC, datetime
 from importlib import metadata
 from pathlib import Path
@@ -60,6 +63,24 @@ def machine_info() -> dict[str, Any]:
         "load_average": os.getloadavg(),
         "packages": versions,
     }
+
+
+#: Sleeps measured by :func:`wakeup_cpu_us`, and how long each (a frame's gap at the
+#: DBC's nominal rate).
+WAKEUPS = 200
+WAKEUP_SLEEP_S = 0.001
+
+
+def wakeup_cpu_us(count: int = WAKEUPS) -> float:
+    """CPU time (us, median) of one ``time.sleep(1 ms)`` of this thread: arming the timer,
+    blocking, being woken and scheduled again, no work. At a frame per wake-up this is
+    the machine's floor per frame (on a virtual machine, tens of microseconds)."""
+    costs = []
+    for _ in range(count):
+        start = time.thread_time()
+        time.sleep(WAKEUP_SLEEP_S)
+        costs.append(time.thread_time() - start)
+    return round(statistics.median(costs) * 1e6, 1)
 
 
 def free_port() -> int:

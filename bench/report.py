@@ -140,4 +140,12 @@ def markdown_table(results: dict[str, Any]) -> str:
         f"{machine['load_average'][0]:.1f} at the start; {pinned}; "
         "frames sent through python-can's virtual bus.",
     ]
+    if "wakeup_cpu_us" in machine:
+        wakeup_us = machine["wakeup_cpu_us"]
+        floor_pct = wakeup_us * setup["nominal_rate_hz"] / 1e4
+        lines.append(
+            f"One sleep and wake-up of a thread costs {wakeup_us:.1f} us of CPU here: one "
+            f"wake-up per frame at the DBC's {setup['nominal_rate_hz']:,.0f}/s is "
+            f"{floor_pct:.1f} % of a CPU before any work."
+        )
     return "\n".join(lines)

@@ -45,7 +45,7 @@ from pathlib import Path
 from typing import Any
 
 from bench.frames import EXAMPLE_CONFIG, simulated_frames
-from bench.machine import free_port, machine_info, pin_to_one_cpu, unpin
+from bench.machine import free_port, machine_info, pin_to_one_cpu, unpin, wakeup_cpu_us
 from bench.measure import Plan, System, entered, run_systems
 from bench.probe import ProbeProcess
 from bench.report import markdown_table, targets_met
@@ -98,6 +98,7 @@ def run_benchmark(
     hog_cpu = probe_cpu if pin else next(iter(allowed))
     started = time.monotonic()
     try:
+        wakeup_us = wakeup_cpu_us()  # on the systems' CPU, before any of them runs
         plan = Plan(
             warmup,
             throughput_frames,
@@ -135,7 +136,7 @@ def run_benchmark(
         for name in ratios
     }
     return {
-        "machine": machine_info(),
+        "machine": {**machine_info(), "wakeup_cpu_us": wakeup_us},
         "setup": {
             "pinned_cpu": cpu,
             "probe_cpu": probe_cpu,

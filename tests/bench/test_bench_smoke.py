@@ -84,6 +84,7 @@ def test_the_service_checked_and_recorded_everything(results: dict) -> None:
 def test_machine_setup_ratio_and_targets(results: dict) -> None:
     machine = results["machine"]
     assert machine["cpu"] and machine["cores"] >= 1 and machine["python"].startswith("3.")
+    assert machine["wakeup_cpu_us"] > 0  # a sleep costs something, on any machine
     assert results["setup"]["pinned_cpu"] is None  # pin=False
     assert results["setup"]["frame_mix"]["LEG_SB1_F1"] > 0
     assert results["ratio_frames_per_s"] > 0 and results["ratio_frames_per_s_tuned"] > 0
@@ -111,6 +112,10 @@ def test_markdown_table_has_a_row_per_system_and_mode(results: dict) -> None:
     assert "| service, wake-ups coalesced (poll_period_ms = 20) |" in table
     assert "Service, wake-ups coalesced: " in table
     assert "Machine: " in table and "x the baseline's frames/s" in table and "load average" in table
+    wakeup_us = results["machine"]["wakeup_cpu_us"]
+    floor_pct = wakeup_us * 1010.0 / 1e4  # a wake-up per frame at the DBC's rate, % of a CPU
+    assert f"costs {wakeup_us:.1f} us of CPU here" in table
+    assert f"1,010/s is {floor_pct:.1f} % of a CPU" in table
 
 
 def test_command_line_writes_the_results_file(tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]
