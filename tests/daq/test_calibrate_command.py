@@ -410,3 +410,12 @@ def test_a_cut_recording_is_said_once(
     calibrate_main([str(cut), "--out", str(tmp_path / "c.toml")])
     said = [r for r in caplog.records if "ends without its summary" in r.getMessage()]
     assert len(said) == 1, [r.getMessage() for r in said]
+
+
+def test_the_help_names_the_default_output(capsys: pytest.CaptureFixture[str]) -> None:
+    """``--out`` said "the TOML snippet to write": not that it defaults to
+    calibration.toml in the current directory, nor that the page goes beside it."""
+    with pytest.raises(SystemExit):
+        calibrate_main(["--help"])
+    help_text = " ".join(capsys.readouterr().out.split())
+    assert "its page (.html, .png) beside it [calibration.toml]" in help_text
