@@ -461,3 +461,12 @@ def test_recordings_of_two_machines_are_refused_naming_both(
         f"portal-daq: {paths[1]}: a recording of machine 'pam-proto-2', {paths[0]} of "
         "'pam-proto-1': calibrate one machine at a time (--config reads them all as one)\n"
     )
+
+
+def test_the_help_names_the_default_output(capsys: pytest.CaptureFixture[str]) -> None:
+    """``--out`` said "the TOML snippet to write": not that it defaults to
+    calibration.toml in the current directory, nor that the page goes beside it."""
+    with pytest.raises(SystemExit):
+        calibrate_main(["--help"])
+    help_text = " ".join(capsys.readouterr().out.split())
+    assert "its page (.html, .png) beside it [calibration.toml]" in help_text
