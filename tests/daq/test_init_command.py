@@ -13,14 +13,15 @@ from daq.cli import main
 from daq.init_command import example_names
 from daq.service_config import load_service_config
 from dbc import DEFAULT_DBC_PATH
-from tests.helpers import ROOT
+from tests.helpers import ROOT, assert_links_to
 
 
 def test_every_example_of_the_repository_ships() -> None:
     assert example_names() == ["default", "e2e", "j1939"]
     # deploy/ links to the packaged files: one copy of each
-    assert (ROOT / "deploy" / "portal-daq.example.toml").resolve() == (
-        ROOT / "daq" / "examples" / "default" / "portal-daq.toml"
+    assert_links_to(
+        ROOT / "deploy" / "portal-daq.example.toml",
+        ROOT / "daq" / "examples" / "default" / "portal-daq.toml",
     )
 
 
