@@ -35,10 +35,17 @@ _HOST_PORT = re.compile(r"^\[?(?P<host>[^\]]*)\]?:(?P<port>\d+)$")
 
 
 def link_destinations(session: zenoh.Session) -> set[str]:
-    """``proto/address`` of every open unicast link of ``session``."""
+    """``proto/address`` of every open unicast link of ``session``, as its own admin space
+    says: the query goes to no other session (a peer that declared a queryable on
+    ``@/<this zid>/session/**`` answered it with a link to an unreached endpoint, which
+    the status then called reached; one that never answered held each status for
+    :data:`QUERY_TIMEOUT_S`)."""
     key = f"@/{session.info.zid()}/session/transport/unicast/*/link/*"
     destinations = set()
-    for reply in session.get(key, timeout=QUERY_TIMEOUT_S):
+    replies = session.get(
+        key, timeout=QUERY_TIMEOUT_S, allowed_destination=zenoh.Locality.SESSION_LOCAL
+    )
+    for reply in replies:
         sample = reply.ok
         if sample is None:
             continue

@@ -17,6 +17,7 @@ from daq.live.feed import LiveFeed
 from daq.live.session import open_viewer_session, viewer_zenoh_config
 from daq.publisher import ZenohPublisher
 from daq.service_config import ServiceConfig, ZenohSettings, load_service_config
+from daq.zenoh_links import link_destinations, unreached
 from daq.zenoh_session import config_value, open_session, zenoh_config
 from dbc.errors import ConfigError
 from tests.daq.service_support import (
@@ -245,3 +246,36 @@ def test_a_viewer_with_the_service_config_gets_every_sample_behind_the_access_co
                 received.append(n)
         assert received == list(range(30))
         assert (feed.missed, feed.dropped) == (0, 0)
+
+
+def test_a_foreign_peer_cannot_answer_for_the_service_s_links(tmp_path: Path) -> None:
+    """The links the status judges ``zenoh.unreached`` by are asked of the session's own
+    admin space. The query went to every peer too: one that declared a queryable on
+    ``@/<service zid>/session/**`` answered with a link to the unreached endpoint, and the
+    status said it was reached (healthy) while no link went there."""
+    dead = f"tcp/127.0.0.1:{free_port()}"
+    listen = f"tcp/127.0.0.1:{free_port()}"
+    config = peer_config(listen=listen)
+    config.insert_json5("connect/endpoints", json.dumps([dead]))
+    with zenoh.open(config) as service, zenoh.open(peer_config(connect=listen)) as foreign:
+        connected(foreign)
+        zid = service.info.zid()
+        asked: list[str] = []
+
+        def answer(query: zenoh.Query) -> None:
+            asked.append(str(query.key_expr))
+            link = f"@/{zid}/session/transport/unicast/{foreign.info.zid()}/link/0"
+            query.reply(link, json.dumps({"src": "tcp/127.0.0.1:1", "dst": dead}))
+
+        spoof = foreign.declare_queryable(f"@/{zid}/session/**", answer)
+        # Declarations on one link arrive in order: once the service's get finds the
+        # queryable declared after it, the service knows the spoofing one too.
+        probe = foreign.declare_queryable("probe", lambda q: q.reply("probe", b"here"))
+        deadline = time.monotonic() + WAIT_S
+        while not [r for r in service.get("probe", timeout=1.0) if r.ok is not None]:
+            assert time.monotonic() < deadline, "the foreign queryables never showed"
+        destinations = link_destinations(service)
+        assert unreached([dead], destinations) == [dead]
+        assert asked == []
+        spoof.undeclare()
+        probe.undeclare()
