@@ -58,14 +58,22 @@ def link_destinations(session: zenoh.Session) -> set[str]:
     return destinations
 
 
-def unreached(endpoints: Sequence[str], destinations: Iterable[str]) -> list[str]:
-    """The endpoints no link goes to (a name that does not resolve is not reached).
+def unreached(
+    endpoints: Sequence[str], destinations: Iterable[str], *, any_one: bool = False
+) -> list[str]:
+    """The endpoints no link goes to (a name that does not resolve is not reached); with
+    ``any_one`` (a client: it opens a link to one router of its list, the next one when
+    that goes), none when one is reached.
 
     >>> unreached(["tcp/127.0.0.1:7447", "tcp/10.0.0.9:7447"], {"tcp/127.0.0.1:7447"})
     ['tcp/10.0.0.9:7447']
+    >>> unreached(["tcp/127.0.0.1:7447", "tcp/10.0.0.9:7447"], {"tcp/127.0.0.1:7447"},
+    ...           any_one=True)
+    []
     """
     targets = set(destinations)
-    return [e for e in endpoints if not targets.intersection(_candidates(_address(e)))]
+    missing = [e for e in endpoints if not targets.intersection(_candidates(_address(e)))]
+    return [] if any_one and len(missing) < len(endpoints) else missing
 
 
 class Outages:
@@ -106,13 +114,19 @@ class Outages:
 
 
 def zenoh_status(
-    session: zenoh.Session, connect: Sequence[str], outages: Outages, now_s: float
+    session: zenoh.Session,
+    connect: Sequence[str],
+    outages: Outages,
+    now_s: float,
+    *,
+    any_one: bool = False,
 ) -> JsonObject:
-    """``status.zenoh``: the connect endpoints not reached, routers and peers connected,
-    and the outages so far (``outages`` updated with this status, at ``now_s``)."""
+    """``status.zenoh``: the connect endpoints not reached (:func:`unreached`, ``any_one``
+    for a client), routers and peers connected, and the outages so far (``outages``
+    updated with this status, at ``now_s``)."""
     info = session.info
     try:
-        missing = unreached(connect, link_destinations(session)) if connect else []
+        missing = unreached(connect, link_destinations(session), any_one=any_one) if connect else []
     except zenoh.ZError as exc:
         logger.debug("admin space query failed: %s", exc)
         missing = list(connect)

@@ -165,8 +165,9 @@ def endpoints(value: Any, mode: str) -> list[str]:
     return [str(e) for e in value] if isinstance(value, list) else []
 
 
-def connect_endpoints(settings: ZenohSettings, source: str = "") -> list[str]:
-    """The endpoints the session connects to: ``[zenoh] connect`` or the JSON5 file's."""
+def connect_endpoints(settings: ZenohSettings, source: str = "") -> tuple[str, list[str]]:
+    """The session's mode (Zenoh's default: peer) and the endpoints it connects to:
+    ``[zenoh] mode`` and ``connect`` or the JSON5 file's."""
     config = zenoh_config(settings, source)
     mode = config_value(config, "mode") or "peer"
-    return endpoints(config_value(config, "connect/endpoints"), mode)
+    return mode, endpoints(config_value(config, "connect/endpoints"), mode)
