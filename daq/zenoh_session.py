@@ -110,7 +110,18 @@ def access_control_gap(config: zenoh.Config, key_prefix: str) -> str | None:
     True
     >>> access_control_gap(config, "site7/pam")[:65]
     'its deny rules name no key under site7/pam (their keys: portal/**'
+
+    The rules see the keys as they go on the wire, under the config's ``namespace``:
+    with ``namespace: "site7"`` a foreign peer's put to ``site7/portal/pam-1/sim/truth``
+    passed ``portal/**`` and reached the service as ``portal/pam-1/sim/truth``.
+
+    >>> config.insert_json5("namespace", '"site7"')
+    >>> access_control_gap(config, "portal/pam-1")[:75]
+    'its deny rules name no key under site7/portal/pam-1 (their keys: portal/**)'
     """
+    namespace = config_value(config, "namespace")
+    if namespace:
+        key_prefix = f"{namespace}/{key_prefix}"
     acl = config_value(config, "access_control")
     if not isinstance(acl, dict) or acl.get("enabled") is not True:
         return None
@@ -127,7 +138,8 @@ def access_control_gap(config: zenoh.Config, key_prefix: str) -> str | None:
         return None
     return (
         f"its deny rules name no key under {key_prefix} (their keys: "
-        f"{', '.join(keys) or 'none'}), the service's key prefix: puts and deletes from "
+        f"{', '.join(keys) or 'none'}), the service's key prefix"
+        f"{f' in the namespace {namespace}' if namespace else ''}: puts and deletes from "
         f"other sessions under it (a fake /sim/truth, a fake /status) pass; add "
         f'"{key_prefix}/**" to the key_exprs of the rule that denies them'
     )

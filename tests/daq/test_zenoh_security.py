@@ -279,3 +279,54 @@ def test_a_foreign_peer_cannot_answer_for_the_service_s_links(tmp_path: Path) ->
         assert asked == []
         spoof.undeclare()
         probe.undeclare()
+
+
+def test_an_access_control_blind_to_the_zenoh_namespace_stops_the_service(tmp_path: Path) -> None:
+    """Zenoh's ``namespace`` puts every key under it on the wire, and the access control
+    sees the wire's keys: with ``namespace: "site7"`` in the shipped file, a foreign
+    peer's put to ``site7/<prefix>/sim/truth`` passed ``portal/**`` and reached the
+    service as ``<prefix>/sim/truth`` (the key prefix check said the rule covered it).
+    Now the service refuses to start naming the key to deny; so denied, the put is refused."""
+    config, tcp = locked_down_service(tmp_path)
+    prefix = config.zenoh.key_prefix
+    shipped = (ROOT / "deploy" / "zenoh.json5").read_text()
+    zenoh_file = tmp_path / "zenoh.json5"
+    zenoh_file.write_text(shipped.replace('mode: "peer",', 'mode: "peer",\n  namespace: "site7",'))
+    path = Path(config.source)
+    path.write_text(path.read_text().replace(str(ROOT / "deploy" / "zenoh.json5"), "zenoh.json5"))
+    config = load_service_config(path)
+    with pytest.raises(ConfigError) as error:
+        open_session(config.zenoh, config.source)
+    assert str(error.value).startswith(
+        f"{zenoh_file}: access_control: its deny rules name no key under site7/{prefix} "
+        "(their keys: portal/**), the service's key prefix in the namespace site7: "
+    )
+    assert str(error.value).endswith(
+        f'add "site7/{prefix}/**" to the key_exprs of the rule that denies them'
+    )
+    zenoh_file.write_text(zenoh_file.read_text().replace('"portal/**"', f'"site7/{prefix}/**"'))
+    with (
+        open_session(config.zenoh, config.source) as service,
+        zenoh.open(peer_config(connect=tcp)) as foreign,
+    ):
+        received: list[str] = []
+        arrived = threading.Condition()
+
+        def on_sample(sample: zenoh.Sample) -> None:
+            with arrived:
+                received.append(str(sample.key_expr))
+                arrived.notify_all()
+
+        subscriber = service.declare_subscriber("**", on_sample)
+        connected(foreign)
+        with arrived:  # until the foreign peer's puts are routed to the service
+            while "marker/0" not in received:
+                foreign.put("site7/marker/0", b"{}")
+                arrived.wait(0.1)
+        for _ in range(5):
+            foreign.put(f"site7/{prefix}/sim/truth", FAKE)
+        foreign.put("site7/marker/1", b"{}")  # after them, on the same link
+        with arrived:
+            assert arrived.wait_for(lambda: "marker/1" in received, WAIT_S)
+        assert f"{prefix}/sim/truth" not in received
+        subscriber.undeclare()
