@@ -25,6 +25,8 @@ from dbc.zenoh_config import one_line, put, read_config_file
 
 #: How Zenoh begins the error of an access control it refuses when a session opens.
 ACL_REFUSED = "Access control not enabled due to: "
+#: How Zenoh begins the error of a client that reached none of its connect endpoints.
+CONNECT_FAILED = "Unable to connect to any of "
 #: Where the service listens without a ``config_file`` and without ``listen``.
 DEFAULT_LISTEN = "tcp/127.0.0.1:7447"
 #: A put to a link that stays congested this long (µs) closes the link instead of
@@ -82,13 +84,17 @@ def open_session(settings: ZenohSettings, source: str = "") -> zenoh.Session:
     """Open the session (:func:`session_config`); a failure (e.g. the listen port is
     taken) is a ZenohError."""
     config = session_config(settings, source)
-    where = "[zenoh] listen/connect"
+    where = "[zenoh] {keys}"
     if settings.config_file is not None:  # where the endpoints come from when not set here
-        where += f" (or listen/connect in {settings.config_file})"
+        where += f" (or {{keys}} in {settings.config_file})"
     return open_config_session(
         config,
-        f"check {where}: is the port taken by another process, is the address on this host?",
+        f"check {where.format(keys='listen/connect')}: is the port taken by another "
+        "process, is the address on this host?",
         settings.config_file,
+        connect_hint=f"check {where.format(keys='connect')}: is the router up at that "
+        "address and reachable from here? A client needs it at start; a peer starts "
+        "without it and keeps trying",
     )
 
 
@@ -146,12 +152,14 @@ def access_control_gap(config: zenoh.Config, key_prefix: str) -> str | None:
 
 
 def open_config_session(
-    config: zenoh.Config, hint: str, config_file: Path | None = None
+    config: zenoh.Config, hint: str, config_file: Path | None = None, *, connect_hint: str = ""
 ) -> zenoh.Session:
-    """Open a session on ``config``; a Zenoh error becomes a ZenohError with ``hint``,
-    an access control Zenoh refuses (checked only now: a policy naming a rule or subject
-    that is not there) a ConfigError naming ``config_file``, the file it came from (it
-    exited 1 with the hint of a taken port)."""
+    """Open a session on ``config``; a Zenoh error becomes a ZenohError with ``hint``
+    (``connect_hint``, when given, for a client that reached none of its ``connect``
+    endpoints: a router down was told to look for a taken port), an access control Zenoh
+    refuses (checked only now: a policy naming a rule or subject that is not there) a
+    ConfigError naming ``config_file``, the file it came from (it exited 1 with the hint
+    of a taken port)."""
     try:
         return zenoh.open(config)
     except zenoh.ZError as exc:
@@ -159,6 +167,8 @@ def open_config_session(
         if first.startswith(ACL_REFUSED):
             source = config_file or "the Zenoh config"
             raise ConfigError(source, "access_control", first.removeprefix(ACL_REFUSED)) from exc
+        if connect_hint and first.startswith(CONNECT_FAILED):
+            hint = connect_hint
         raise ZenohError(first or "cannot open the session", hint) from exc
 
 
