@@ -100,8 +100,8 @@ def open_session(settings: ZenohSettings, source: str = "") -> zenoh.Session:
 
 def access_control_gap(config: zenoh.Config, key_prefix: str) -> str | None:
     """Why the access control of ``config`` leaves ``key_prefix`` open; None when it does
-    not (no access control; everything denied unless allowed; a deny rule names a key
-    under the prefix).
+    not (no access control; everything denied unless allowed; a deny rule that refuses
+    puts from other sessions, :func:`_deny_rule_keys`, names a key under the prefix).
 
     The shipped ``zenoh.json5`` denies puts under ``portal/**``, which covers the
     default prefix ``portal/<machine id>`` but no other: with ``[zenoh] key_prefix =
@@ -133,22 +133,48 @@ def access_control_gap(config: zenoh.Config, key_prefix: str) -> str | None:
         return None
     if acl.get("default_permission") != "allow":
         return None  # Zenoh denies what no rule allows (its default when the key is absent)
-    keys = [
-        str(key)
-        for rule in acl.get("rules") or []
-        if isinstance(rule, dict) and rule.get("permission") == "deny"
-        for key in rule.get("key_exprs") or []
-    ]
+    keys, idle = _deny_rule_keys(acl)
     covered = zenoh.KeyExpr(f"{key_prefix}/**")
     if any(zenoh.KeyExpr(key).intersects(covered) for key in keys):
         return None
+    idle_note = (
+        f"; a deny rule no policy names, or that denies no put arriving (flows: ingress, "
+        f"messages: put), keeps nothing out: {', '.join(idle)}"
+        if idle
+        else ""
+    )
     return (
         f"its deny rules name no key under {key_prefix} (their keys: "
-        f"{', '.join(keys) or 'none'}), the service's key prefix"
+        f"{', '.join(keys) or 'none'}{idle_note}), the service's key prefix"
         f"{f' in the namespace {namespace}' if namespace else ''}: puts and deletes from "
         f"other sessions under it (a fake /sim/truth, a fake /status) pass; add "
         f'"{key_prefix}/**" to the key_exprs of the rule that denies them'
     )
+
+
+def _deny_rule_keys(acl: dict[str, Any]) -> tuple[list[str], list[str]]:
+    """The keys of the deny rules that refuse puts from other sessions (a policy names
+    the rule, its flows include ingress, Zenoh's default both, its messages put), and of
+    the other deny rules, which do not (a foreign put passed each such rule under
+    ``portal/**`` while the check took the prefix for covered)."""
+    used = {
+        str(name)
+        for policy in acl.get("policies") or []
+        if isinstance(policy, dict)
+        for name in policy.get("rules") or []
+    }
+    keys: list[str] = []
+    idle: list[str] = []
+    for rule in acl.get("rules") or []:
+        if not isinstance(rule, dict) or rule.get("permission") != "deny":
+            continue
+        refuses_puts = (
+            rule.get("id") in used
+            and "ingress" in (rule.get("flows") or ["ingress"])
+            and "put" in (rule.get("messages") or [])
+        )
+        (keys if refuses_puts else idle).extend(str(key) for key in rule.get("key_exprs") or [])
+    return keys, idle
 
 
 def open_config_session(

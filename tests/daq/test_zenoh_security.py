@@ -330,3 +330,39 @@ def test_an_access_control_blind_to_the_zenoh_namespace_stops_the_service(tmp_pa
             assert arrived.wait_for(lambda: "marker/1" in received, WAIT_S)
         assert f"{prefix}/sim/truth" not in received
         subscriber.undeclare()
+
+
+@pytest.mark.parametrize(
+    ("old", "new"),
+    [
+        (
+            'flows: ["ingress"],\n        messages: ["put", "delete"],',
+            'flows: ["egress"],\n        messages: ["put", "delete"],',
+        ),
+        ('messages: ["put", "delete"],', 'messages: ["query"],'),
+        ('{ rules: ["no-put-under-portal"], subjects: ["anyone"] },', ""),
+    ],
+    ids=["egress-only", "no-put", "in-no-policy"],
+)
+def test_a_deny_rule_that_keeps_no_put_out_is_no_cover_for_the_key_prefix(
+    tmp_path: Path, old: str, new: str
+) -> None:
+    """The check took any deny rule naming ``portal/**`` for cover: one on the egress
+    flow only, one denying queries only, or one no policy names let a foreign peer's
+    put to ``<prefix>/sim/truth`` reach the service (tried with real sessions on each),
+    and the service started. Now it exits 2 saying which rule keeps nothing out."""
+    config, _ = locked_down_service(tmp_path)
+    shipped = (ROOT / "deploy" / "zenoh.json5").read_text()
+    assert old in shipped
+    zenoh_file = tmp_path / "zenoh.json5"
+    zenoh_file.write_text(shipped.replace(old, new, 1))
+    path = Path(config.source)
+    path.write_text(path.read_text().replace(str(ROOT / "deploy" / "zenoh.json5"), "zenoh.json5"))
+    config = load_service_config(path)
+    with pytest.raises(ConfigError) as error:
+        open_session(config.zenoh, config.source)
+    assert str(error.value).startswith(
+        f"{zenoh_file}: access_control: its deny rules name no key under "
+        f"{config.zenoh.key_prefix} (their keys: none; a deny rule no policy names, or that "
+        "denies no put arriving (flows: ingress, messages: put), keeps nothing out: portal/**)"
+    )
