@@ -16,9 +16,9 @@ import importlib
 import os
 import sys
 from collections.abc import Sequence
-from importlib import metadata
 
 from daq.subcommand import PROG, Subcommand
+from dbc import installed_version
 
 #: One line per subcommand module; each defines ``SUBCOMMAND``. Keep them sorted.
 SUBCOMMAND_MODULES = (
@@ -68,14 +68,6 @@ def build_parser(commands: dict[str, Subcommand]) -> argparse.ArgumentParser:
         names.add_parser(command.name, add_help=False)
     parser.add_argument("--version", action="version", version=f"{PROG} {installed_version()}")
     return parser
-
-
-def installed_version() -> str:
-    """The installed distribution's version (``unknown`` when run from a bare source tree)."""
-    try:
-        return metadata.version("portal-daq")
-    except metadata.PackageNotFoundError:
-        return "unknown"
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -12,6 +12,7 @@ line on stderr names them.
 """
 
 import argparse
+import shlex
 import sys
 from collections.abc import Sequence
 from importlib import resources
@@ -120,14 +121,15 @@ def init_main(args: Sequence[str]) -> int:
         return fail(exc, 2)
     except OSError as exc:
         return fail(f"{options.directory}: cannot write the example: {exc.strerror or exc}", 1)
-    config = options.directory / CONFIG_NAME
+    # quoted as a shell needs them: the lines are commands to copy (`my machine/...`)
+    config = shlex.quote(str(options.directory / CONFIG_NAME))
     sys.stderr.write(
         f"{PROG}: wrote {', '.join(str(path) for path in written)}\n"
         f"{PROG}: edit [bus] channel, [recording] directory and the machine tables, then "
         f"`{PROG} run --config {config}` (`{PROG} replay LOG --config {config}` for a CAN log)\n"
     )
     if options.deploy:
-        install = options.directory / "deploy" / "install.sh"
+        install = shlex.quote(str(options.directory / "deploy" / "install.sh"))
         sys.stderr.write(
             f"{PROG}: on the machine, `sudo {install} --package WHEEL` installs the service "
             f"(/opt/portal-daq/venv, this configuration in /etc/portal-daq, the systemd unit); "

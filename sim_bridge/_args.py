@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
 
+from dbc import installed_version
 from sim_bridge.cycle import MAX_STEPS
 from sim_bridge.faults import FaultConfig, FaultWindow
 
@@ -249,6 +250,7 @@ def run_parser() -> argparse.ArgumentParser:
     zenoh.add_argument("--no-multicast-scouting", action="store_true")
     zenoh.add_argument("--zenoh-prefix", metavar="KEY", help="key prefix [portal/<machine id>]")
     _add_logging_arguments(parser)
+    parser.add_argument("--version", action="version", version=f"portal-sim {installed_version()}")
     return parser
 
 

@@ -34,6 +34,22 @@ A_foot_m2 = 0.33
 """
 
 
+def assert_links_to(link: Path, packaged: Path) -> None:
+    """``link`` (under ``deploy/``) is ``packaged``: a symbolic link to it in a checkout
+    (one copy of each file), the same files in an sdist, where setuptools copies what a
+    link names."""
+    if link.is_symlink() or (ROOT / ".git").exists():
+        assert link.resolve() == packaged.resolve(), link
+    else:
+        assert _contents(link) == _contents(packaged), link
+
+
+def _contents(path: Path) -> dict[Path, bytes]:
+    """Every file at or under ``path`` by its path relative to ``path``, with its bytes."""
+    files = sorted(path.rglob("*")) if path.is_dir() else [path]
+    return {f.relative_to(path): f.read_bytes() for f in files if f.is_file()}
+
+
 def example_machine():  # type: ignore[no-untyped-def]
     """(MachineConfig, cantools Database) of deploy/machine.example.toml."""
     return load_machine_config(EXAMPLE_CONFIG)

@@ -3,6 +3,8 @@ as they are, and never over a file the user already has."""
 
 from __future__ import annotations
 
+import re
+import shlex
 from pathlib import Path
 
 import pytest
@@ -11,14 +13,15 @@ from daq.cli import main
 from daq.init_command import example_names
 from daq.service_config import load_service_config
 from dbc import DEFAULT_DBC_PATH
-from tests.helpers import ROOT
+from tests.helpers import ROOT, assert_links_to
 
 
 def test_every_example_of_the_repository_ships() -> None:
     assert example_names() == ["default", "e2e", "j1939"]
     # deploy/ links to the packaged files: one copy of each
-    assert (ROOT / "deploy" / "portal-daq.example.toml").resolve() == (
-        ROOT / "daq" / "examples" / "default" / "portal-daq.toml"
+    assert_links_to(
+        ROOT / "deploy" / "portal-daq.example.toml",
+        ROOT / "daq" / "examples" / "default" / "portal-daq.toml",
     )
 
 
@@ -137,3 +140,15 @@ def test_the_examples_name_nothing_a_wheel_lacks(name: str, tmp_path: Path) -> N
         text = written.read_text()
         for clone_only in ("deploy/examples", "deploy/demo.sh", "deploy/portal-daq.example"):
             assert clone_only not in text, (written.name, clone_only)
+
+
+def test_the_commands_it_suggests_take_a_directory_with_a_space(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``portal-daq init "my machine"`` printed `portal-daq run --config my
+    machine/portal-daq.toml`: pasted into a shell, ``--config my`` and a stray argument."""
+    target = tmp_path / "my machine"
+    assert main(["init", str(target), "--deploy"]) == 0
+    commands = re.findall(r"`([^`]*)`", capsys.readouterr().err)
+    assert ["run", "--config", str(target / "portal-daq.toml")] == shlex.split(commands[0])[1:]
+    assert str(target / "deploy" / "install.sh") in shlex.split(commands[-1])

@@ -11,7 +11,7 @@ import pytest
 
 from daq.cli import main
 from daq.service_config import BusSettings
-from tests.helpers import ROOT
+from tests.helpers import ROOT, assert_links_to
 
 DEPLOY = ROOT / "deploy"
 UNIT = DEPLOY / "systemd" / "portal-daq.service"
@@ -163,7 +163,7 @@ def test_init_writes_the_deployment_kit_of_the_repository(tmp_path: Path) -> Non
     kit = tmp_path / "deploy"
     packaged = ROOT / "daq" / "deploy"  # deploy/ links to it: one copy of each file
     for name in ("install.sh", "systemd", "network", "sysctl"):
-        assert (DEPLOY / name).resolve() == packaged / name
+        assert_links_to(DEPLOY / name, packaged / name)
     expected = {path.relative_to(packaged) for path in packaged.rglob("*") if path.is_file()}
     assert {path.relative_to(kit) for path in kit.rglob("*") if path.is_file()} == expected
     assert Path("systemd/portal-daq.service") in expected

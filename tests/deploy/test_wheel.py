@@ -10,13 +10,19 @@ repository, with nothing of the repository on ``sys.path``.
 from __future__ import annotations
 
 import os
+import re
 import shutil
+import signal
+import socket
 import subprocess
 import sys
+import tarfile
+import tomllib
 from pathlib import Path
 
 import pytest
 
+from tests.daq.service_support import WAIT_S, free_port, write_service_config
 from tests.helpers import ROOT
 
 IGNORE = shutil.ignore_patterns(
@@ -32,19 +38,36 @@ def run(*args: str | Path, cwd: Path) -> subprocess.CompletedProcess[str]:
 
 
 @pytest.fixture(scope="module")
-def venv(tmp_path_factory: pytest.TempPathFactory) -> Path:
+def wheel(tmp_path_factory: pytest.TempPathFactory) -> Path:
     work = tmp_path_factory.mktemp("wheel")
     source = work / "source"
     shutil.copytree(ROOT, source, symlinks=True, ignore=IGNORE)
     built = run(sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", work / "dist",
                 source, cwd=work)  # fmt: skip
     assert built.returncode == 0, built.stderr
-    (wheel,) = (work / "dist").glob("portal_daq-*.whl")
-    fresh = work / "venv"
-    assert run(sys.executable, "-m", "venv", fresh, cwd=work).returncode == 0
-    installed = run(fresh / "bin" / "python", "-m", "pip", "install", "-q", wheel, cwd=work)
+    (built_wheel,) = (work / "dist").glob("portal_daq-*.whl")
+    return built_wheel
+
+
+def fresh_venv(where: Path, *requirements: str | Path) -> Path:
+    """A venv at ``where`` with ``requirements`` pip-installed into it."""
+    assert run(sys.executable, "-m", "venv", where, cwd=where.parent).returncode == 0
+    installed = run(where / "bin" / "python", "-m", "pip", "install", "-q", *requirements,
+                    cwd=where.parent)  # fmt: skip
     assert installed.returncode == 0, installed.stderr
-    return fresh
+    return where
+
+
+@pytest.fixture(scope="module")
+def venv(wheel: Path) -> Path:
+    return fresh_venv(wheel.parent.parent / "venv", wheel)
+
+
+def oldest_requirements() -> list[str]:
+    """Each dependency of pyproject.toml at the version its lower bound names:
+    ``numpy>=1.26,<3`` gives ``numpy==1.26``."""
+    dependencies = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["dependencies"]
+    return [re.sub(r">=([\d.]+),<[\d.]+$", r"==\1", d) for d in dependencies]
 
 
 def installed_default_config(venv: Path, cwd: Path, module: str = "sim_bridge._args") -> Path:
@@ -131,3 +154,76 @@ def test_the_wheel_carries_the_deployment_kit(venv: Path) -> None:
     helped = run(kit / "install.sh", "--help", cwd=elsewhere)
     assert helped.returncode == 0 and "--package SPEC" in helped.stdout
     assert "deploy/install.sh --package WHEEL" in init.stderr
+
+
+def test_the_oldest_dependencies_it_admits_run_it(wheel: Path) -> None:
+    """pip keeps an installed dependency that meets the bound: the wheel must run on the
+    oldest of each. ``cantools>=40``, ``eclipse-zenoh>=1.0``, ``python-can>=4.4`` and
+    ``mcap>=1.2`` were admitted, and every command was an ImportError or AttributeError
+    traceback (cantools' UnsupportedDatabaseFormatError, zenoh.ext's HistoryConfig, can.io.blf's
+    TIME_ONE_NANS_FACTOR), or the service exited 1 at start (mcap's Writer.flush)."""
+    oldest = fresh_venv(wheel.parent.parent / "oldest", *oldest_requirements())
+    installed = run(oldest / "bin" / "python", "-m", "pip", "install", "-q", "--no-deps",
+                    wheel, cwd=oldest.parent)  # fmt: skip
+    assert installed.returncode == 0, installed.stderr
+    elsewhere = oldest.parent / "elsewhere-oldest"
+    elsewhere.mkdir()
+    listed = run(oldest / "bin" / "portal-daq", "--help", cwd=elsewhere)  # imports every command
+    assert listed.returncode == 0, listed.stderr
+    sim = run(oldest / "bin" / "portal-sim", "--interface", "virtual", "--as-fast-as-possible",
+              "--rtol", "1e-3", "--duration", "0.3", "--frames-log", "cycle.log",
+              "--truth-mcap", "truth.mcap", cwd=elsewhere)  # fmt: skip
+    assert sim.returncode == 0, sim.stderr
+    config = write_service_config(elsewhere, port=free_port(), recording=elsewhere / "rec")
+    replayed = run(oldest / "bin" / "portal-daq", "replay", "cycle.log", "--config", config,
+                   cwd=elsewhere)  # fmt: skip
+    assert replayed.returncode == 0, replayed.stderr
+    assert len(replayed.stdout.splitlines()) == 1 + 6 * 30
+    reported = run(oldest / "bin" / "portal-daq", "report", "cycle.log", "--config", config,
+                   "--out", "report", cwd=elsewhere)  # fmt: skip
+    assert reported.returncode == 0, reported.stderr
+    assert (elsewhere / "report" / "pressure.png").read_bytes().startswith(b"\x89PNG")
+    with socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM) as notify:
+        notify.bind(str(elsewhere / "notify.sock"))
+        notify.settimeout(WAIT_S)
+        service = subprocess.Popen(
+            [oldest / "bin" / "portal-daq", "run", "--config", config], cwd=elsewhere,
+            env=dict(os.environ, NOTIFY_SOCKET=str(elsewhere / "notify.sock")),
+            stderr=subprocess.PIPE, text=True,
+        )  # fmt: skip
+        try:
+            ready = notify.recv(4096)
+        except TimeoutError:
+            ready = b""
+        service.send_signal(signal.SIGTERM)
+        stderr = service.communicate(timeout=WAIT_S)[1]
+    assert (ready, service.returncode) == (b"READY=1", 0), stderr
+    (recording,) = (elsewhere / "rec").glob("*.mcap")
+    recovered = run(oldest / "bin" / "portal-daq", "export", recording, "--to", "candump",
+                    cwd=elsewhere)  # fmt: skip
+    assert recovered.returncode == 0, recovered.stderr
+
+
+def test_the_sdist_holds_the_repository_and_its_tests_run(wheel: Path) -> None:
+    """The sdist held the packages and two test modules: no tests/files, deploy/, bench/
+    or ./dev, which the tests read, so its tests could not run (MANIFEST.in)."""
+    if not (ROOT / ".git").exists():
+        pytest.skip("compares the sdist with the files git tracks")
+    tracked = subprocess.run(["git", "ls-files", "-z"], cwd=ROOT, capture_output=True,
+                             text=True, check=True).stdout.strip("\0").split("\0")  # fmt: skip
+    work = wheel.parent.parent
+    builder = fresh_venv(work / "sdist-builder", "setuptools>=77")
+    code = "import sys, setuptools.build_meta as b; print(b.build_sdist(sys.argv[1]))"
+    built = run(builder / "bin" / "python", "-c", code, work / "sdist", cwd=work / "source")
+    assert built.returncode == 0, built.stderr
+    with tarfile.open(work / "sdist" / built.stdout.split()[-1]) as sdist:
+        sdist.extractall(work / "sdist", filter="data")
+        top, *_ = sdist.getnames()
+    unpacked = work / "sdist" / top
+    assert [name for name in tracked if not (unpacked / name).exists()] == []
+    # deploy/'s links are copies in an sdist; the tests of the packaged kit take them
+    tests = run(sys.executable, "-m", "pytest", "-q", "-p", "no:randomly", "-p", "no:cacheprovider",
+                "tests/deploy/test_deploy.py::test_init_writes_the_deployment_kit_of_the_repository",
+                "tests/daq/test_router_command.py::test_the_default_config_is_the_packaged_site_router",
+                "tests/daq/test_init_command.py", cwd=unpacked)  # fmt: skip
+    assert tests.returncode == 0, tests.stdout

@@ -9,6 +9,7 @@ import socket
 import subprocess
 import sys
 import uuid
+from importlib import metadata
 from pathlib import Path
 
 import can
@@ -201,6 +202,15 @@ def test_an_rtol_the_solver_would_take_minutes_for_is_refused_naming_it(
         cli(["--rtol", "1e-300"])
     assert info.value.code == 2
     assert "argument --rtol: must be within [1e-10, 1), got '1e-300'" in capsys.readouterr().err
+
+
+def test_version_is_the_installed_one(capsys: pytest.CaptureFixture[str]) -> None:
+    """``portal-sim --version`` was "unrecognized arguments" (exit 2) where ``portal-daq
+    --version`` printed the version of the wheel both came in."""
+    with pytest.raises(SystemExit) as info:
+        cli(["--version"])
+    assert info.value.code == 0
+    assert capsys.readouterr().out == f"portal-sim {metadata.version('portal-daq')}\n"
 
 
 def test_options_parse_as_documented() -> None:
