@@ -237,14 +237,17 @@ class Consumer(Worker):
     def _signals_due(self, decoded: DecodedFrame) -> bool:
         """At most one frame's signals per ``signals_max_rate_hz`` (by frame time) for each
         message, sender and page: J1939 transducers sharing a PGN, and a hub's multiplexer
-        values, each get their share (one would hide the others on a dashboard)."""
+        values, each get their share (one would hide the others on a dashboard). A frame
+        time before the last one published (the clock stepped back) is due at once: the
+        message's signals went out again only once frame times passed that one, an hour
+        after a step back of an hour."""
         multiplexers = self._multiplexers.get(decoded.message)
         page = None
         if multiplexers is not None:
             page = tuple(decoded.signals.get(name) for name in multiplexers)
         key = (decoded.message, decoded.source_address, page)
-        last_t_s = self._signals_published_t_s.get(key, float("-inf"))
-        if not decoded.t_s - last_t_s >= self._signals_period_s:
+        since_s = decoded.t_s - self._signals_published_t_s.get(key, float("-inf"))
+        if 0.0 <= since_s < self._signals_period_s:
             return False
         self._signals_published_t_s[key] = decoded.t_s
         return True

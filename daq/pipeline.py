@@ -130,7 +130,7 @@ class Pipeline:
         frame, good or bad, advances the estimator's bus time (staleness).
         """
         self.frames += 1
-        self.estimator.observe(frame.t_s)
+        bus_s = self.estimator.observe(frame.t_s)
         try:
             if frame.is_error_frame:
                 self.error_frame_kinds.update(error_frame_kinds(frame))
@@ -150,7 +150,7 @@ class Pipeline:
         if decoded.frames_lost:
             self.frames_lost += decoded.frames_lost
         if self.pose is not None:
-            self.pose.observe(decoded)
+            self.pose.observe(decoded, bus_s)
         samples = self.sampler.samples(decoded)
         if not samples:  # a frame of no leg's message (None: of none of its senders)
             if samples is None:
@@ -205,7 +205,8 @@ class Pipeline:
 
     def snapshot(self, now_s: float) -> MachineSnapshot:
         """Every leg judged at ``now_s``, the weight check and the stability margin."""
-        place_feet = partial(self.pose.feet_m, now_s) if self.pose is not None else None
+        pose = self.pose
+        place_feet = None if pose is None else partial(pose.feet_m, self.estimator.judged_s(now_s))
         return self.estimator.snapshot(now_s, place_feet)
 
     def metrics(self) -> Mapping[str, SoilMetrics]:

@@ -3,7 +3,9 @@
 Pure: fed the decoded frames by :class:`daq.pipeline.Pipeline`. Keeps the latest
 rotation and fold angle of frames whose CRC and counter were fine; the pose is unknown
 before both arrived and once either is older than ``stale_after_cycles`` cycle times of
-its message (judged on frame time), so the margin is never computed from an old pose.
+its message (judged on bus time, :class:`estimator.machine.BusClock`, as the legs' are:
+on frame times, a pose sender silent across a clock step back stayed fresh for as long
+as the step), so the margin is never computed from an old pose.
 A frame whose angle is no angle (a value-table name, NaN, or a value outside the
 signal's range: :func:`dbc.signal_range.value_range`, e.g. J1939's "not available")
 makes it unknown until the next frame that brings one.
@@ -44,34 +46,35 @@ class PoseTracker:
             "fold": config.fold_rad_per_unit,
         }
         self._max_age_s = dict(max_age_s)
-        #: name -> (frame time, angle in the DBC signal's unit)
+        #: name -> (bus time of its frame, angle in the DBC signal's unit)
         self._latest: dict[str, tuple[float, float]] = {}
         #: Which base stands, and the pose held while both bases are down.
         self.stance = StanceTracker(config.layout)
 
-    def observe(self, frame: DecodedFrame) -> None:
-        """Take the angles a decoded frame carries, if it is trusted."""
+    def observe(self, frame: DecodedFrame, bus_s: float) -> None:
+        """Take the angles a decoded frame carries, if it is trusted; ``bus_s`` is the bus
+        time at it."""
         refs = self._by_message.get(frame.message)
         if refs is None or not (frame.crc_ok and frame.counter_ok):
             return
         for name, signal, (low, high) in refs:
             value = frame.signals.get(signal)
             if isinstance(value, int | float) and low <= value <= high:  # NaN is not
-                self._latest[name] = (frame.t_s, float(value))
+                self._latest[name] = (bus_s, float(value))
             elif signal in frame.signals:  # a code: the angle is unknown, not the last one
                 self._latest.pop(name, None)
 
-    def _angle_rad(self, name: str, ref: SignalRef, now_s: float) -> float | None:
+    def _angle_rad(self, name: str, ref: SignalRef, bus_s: float) -> float | None:
         latest = self._latest.get(name)
-        if latest is None or now_s - latest[0] > self._max_age_s[ref.message]:
+        if latest is None or bus_s - latest[0] > self._max_age_s[ref.message]:
             return None
         return latest[1] * self._rad_per_unit[name]
 
-    def feet_m(self, now_s: float, legs: Mapping[str, LegEstimate]) -> dict[str, Point] | None:
-        """Every foot's position at ``now_s``, in the frame of the base that stands as
-        the legs' estimates ``legs`` tell; None while the pose is unknown or old."""
-        rotation = self._angle_rad("rotation", self.config.rotation, now_s)
-        fold = self._angle_rad("fold", self.config.fold, now_s)
+    def feet_m(self, bus_s: float, legs: Mapping[str, LegEstimate]) -> dict[str, Point] | None:
+        """Every foot's position at bus time ``bus_s``, in the frame of the base that
+        stands as the legs' estimates ``legs`` tell; None while the pose is unknown or old."""
+        rotation = self._angle_rad("rotation", self.config.rotation, bus_s)
+        fold = self._angle_rad("fold", self.config.fold, bus_s)
         pose = None if rotation is None or fold is None else BridgePose(rotation, fold)
         self.stance.observe(legs, pose)
         return None if pose is None else self.stance.feet_m(pose)

@@ -53,6 +53,7 @@ from daq.mcap_file import BUS_TOPIC, CONFIG_ATTACHMENT, DBC_ATTACHMENT, RAW_TOPI
 from daq.mcap_reading import RecordedAttachment, RecordedMessage, RecordingStream
 from daq.pipeline import FrameResult, Pipeline
 from daq.recording_run import MCAP_SUFFIX, expand, run_files
+from daq.report.timeline import Timeline
 from daq.silences import leg_silences
 from daq.text_log import AscReader, CsvReader, LogLines
 from daq.trc_log import TrcReader
@@ -212,29 +213,35 @@ def replay(
 
 
 class _Heard:
-    """The frame times of a replay's first and last frame, and each leg's estimates'
-    times, taken as they go by (for :func:`~daq.silences.leg_silences`)."""
+    """The times of a replay's first and last frame, and each leg's estimates' times,
+    taken as they go by (for :func:`~daq.silences.leg_silences`), on the time line that
+    joins the clock's steps back, as the report's header takes them
+    (:class:`~daq.report.timeline.Timeline`): on frame times, a leg silent for 5 s across
+    a step back of an hour was named nowhere, and frames stamped 0 (a logger's glitch)
+    made every leg silent for 56 years."""
 
     def __init__(self) -> None:
         self.span_s = (math.nan, math.nan)
+        self._line = Timeline()
         self._times: dict[str, array[float]] = {}
 
     def frames(self, items: Iterable[RawFrame | BusEvent]) -> Iterator[RawFrame | BusEvent]:
-        first_s = math.nan
+        first_s, line = math.nan, self._line
         for item in items:
             if isinstance(item, RawFrame):
+                t_s = line.advance(item.t_s)
                 if first_s != first_s:  # NaN: the first
-                    first_s = item.t_s
-                self.span_s = (first_s, item.t_s)
+                    first_s = t_s
+                self.span_s = (first_s, t_s)
             yield item
 
     def estimates(self, rows: Iterable[LegEstimate]) -> Iterator[LegEstimate]:
-        times = self._times
+        times, line = self._times, self._line
         for row in rows:
             leg_times = times.get(row.leg)
             if leg_times is None:
                 leg_times = times[row.leg] = array("d")
-            leg_times.append(row.t_s)
+            leg_times.append(line.at(row.t_s))
             yield row
 
     def times(self) -> dict[str, npt.NDArray[np.float64]]:

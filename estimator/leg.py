@@ -61,7 +61,10 @@ class LegEstimator:
     filter, the contact detector or the soil metrics. When a sample's frame time is
     more than :attr:`stale_after_s` past the leg's last valid sample (an outage),
     the filter and the contact state restart: what they hold describes the foot as
-    it was. A frame time that steps back (the wall clock stepped) restarts nothing.
+    it was. A frame time that steps back (the wall clock stepped) restarts nothing,
+    unless the bus time (:class:`~estimator.machine.BusClock`, given by the machine)
+    since that sample is longer: the leg was silent across the step while the other
+    messages went on.
     """
 
     def __init__(
@@ -77,6 +80,8 @@ class LegEstimator:
         self._filter = make_filter(settings)
         #: Frame time of the last valid sample (NaN: none since the start or a restart).
         self._last_valid_t_s = NAN
+        #: ... and the bus time at it.
+        self._last_valid_bus_s = NAN
         #: Samples that came more than :attr:`stale_after_s` past the last valid one, so
         #: the filter and the contact restarted (outages; at most samples of a leg sent
         #: less often than its cycle time says: :meth:`MachineEstimator.restarting_legs`).
@@ -111,8 +116,9 @@ class LegEstimator:
         """Restart the soil metrics (e.g. per movement cycle); the filter keeps its state."""
         self._metrics.reset()
 
-    def update(self, sample: LegSample) -> LegEstimate:
-        """Take one received sample and return the leg's new estimate."""
+    def update(self, sample: LegSample, bus_s: float = NAN) -> LegEstimate:
+        """Take one received sample and return the leg's new estimate; ``bus_s`` is the
+        bus time at it (NaN: none, a step back of the frame time restarts nothing)."""
         t_s, p_piston_Pa, p_rod_Pa = sample.t_s, sample.p_piston_Pa, sample.p_rod_Pa
         reasons = sample_faults(
             p_piston_Pa=p_piston_Pa,
@@ -121,7 +127,10 @@ class LegEstimator:
             settings=self.settings,
         )
         force_raw_N = foot_force_N(p_piston_Pa, p_rod_Pa, self.leg)
-        if t_s - self._last_valid_t_s > self.stale_after_s:  # after an outage
+        gap_s = t_s - self._last_valid_t_s
+        if gap_s > self.stale_after_s or (  # after an outage, or one across a step back
+            gap_s < 0.0 and bus_s - self._last_valid_bus_s > self.stale_after_s
+        ):
             self.restarts += 1
             self._filter.clear()
             self._contact.reset()
@@ -133,6 +142,7 @@ class LegEstimator:
             force_N = self._filter.push(force_raw_N)
             contact = self._contact.update(force_N)
             self._last_valid_t_s = t_s
+            self._last_valid_bus_s = bus_s
         pressure_Pa = contact_pressure_Pa(force_N, self.leg.A_foot_m2)
         if not reasons:
             self._metrics.add(t_s, pressure_Pa)

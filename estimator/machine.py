@@ -54,6 +54,12 @@ class BusClock:
             self.latest_t_s = t_s
         return self.bus_time_s
 
+    def judged_s(self, now_s: float) -> float:
+        """The bus time at ``now_s``, a time on the frames' clock: the latest frame's,
+        plus how far ``now_s`` lies past that frame (nothing when it lies before it)."""
+        ahead_s = now_s - self.latest_t_s
+        return self.bus_time_s + (ahead_s if ahead_s > 0.0 else 0.0)
+
 
 class MachineEstimator(BusClock):
     """One :class:`LegEstimator` per leg, addressed by leg name (e.g. ``SB1_F1``), on the
@@ -87,7 +93,7 @@ class MachineEstimator(BusClock):
         self._heard_at_s[leg] = self.bus_time_s
         if not (sample.faults and OTHER_CHAMBER_STALE.intersection(sample.faults)):
             self._both_heard_at_s[leg] = self.bus_time_s
-        return self.legs[leg].update(sample)
+        return self.legs[leg].update(sample, self.bus_time_s)
 
     def snapshot(
         self,
@@ -98,12 +104,10 @@ class MachineEstimator(BusClock):
         with ``place_feet`` (the legs' estimates -> the feet's plan positions, None when
         unknown) the stability margin.
 
-        ``now_s`` is a time on the frames' clock; the legs are judged at the bus time
-        of the latest frame plus how far ``now_s`` lies past that frame (nothing when
-        it lies before it).
+        ``now_s`` is a time on the frames' clock; the legs are judged at its bus time
+        (:meth:`~BusClock.judged_s`).
         """
-        ahead_s = now_s - self.latest_t_s
-        judged_s = self.bus_time_s + (ahead_s if ahead_s > 0.0 else 0.0)
+        judged_s = self.judged_s(now_s)
         estimates = {
             name: leg.snapshot(judged_s - self._heard_at_s[name]) for name, leg in self.legs.items()
         }

@@ -14,6 +14,7 @@ from daq.pipeline import Pipeline
 from daq.service_config import PublishSettings
 from dbc.encoding import FrameEncoder
 from dbc.machine import MachineConfig, load_machine_config
+from tests.daq.service_support import leg_signals
 from tests.helpers import ROOT
 
 STRANGER = ROOT / "tests/files/stranger"
@@ -94,3 +95,28 @@ def test_signals_are_rate_limited_per_multiplexer_value() -> None:
     (_, first0), (_, first1), (_, second0), (_, second1) = shown
     assert (first0, first1) == (100.0, 100.01)
     assert 0.1 <= second0 - first0 < 0.13 and 0.1 <= second1 - first1 < 0.13
+
+
+def test_signals_go_on_after_the_clock_steps_back() -> None:
+    """NTP steps the clock back an hour: the frames after the step are stamped before the
+    last one published, and each message's signals must still go out at the rate (they
+    went out again only once frame times passed that one, an hour later)."""
+    consumer, publisher, config, database = consumer_of(ROOT / "dbc/machine.example.toml")
+    encoder = FrameEncoder.from_config(config, database)
+    encoded = encoder.encode("LEG_SB1_F1", leg_signals("SB1_F1", 9.0e6, 1.0e6))
+    step_back_s = 3600.0
+    frames = [  # 10 ms apart for 2 s, the clock stepped back after the first second
+        RawFrame(
+            1000.0 + 0.01 * step - (step_back_s if step >= 100 else 0.0),
+            encoded.arbitration_id,
+            False,
+            encoded.data,
+        )
+        for step in range(200)
+    ]
+    consumer.handle_batch(frames)
+    shown = [p["t"] for suffix, p in publisher.published if suffix == "signals/LEG_SB1_F1"]
+    before = [t for t in shown if t >= 1000.0]
+    after = [t for t in shown if t < 1000.0]
+    assert len(before) == 10 and len(after) == 10
+    assert after[0] == 1001.0 - step_back_s

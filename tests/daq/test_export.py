@@ -9,6 +9,7 @@ from pathlib import Path
 import can
 import pytest
 
+from daq.cli import main
 from daq.errors import RecordingError
 from daq.export import FORMATS, export, write_frames
 from daq.frames import RawFrame
@@ -72,6 +73,21 @@ def test_the_command_line(tmp_path: Path) -> None:
     )
     assert missing.returncode == 1 and missing.stderr.count("\n") == 1
     assert missing.stderr.startswith("portal-daq: ")
+
+
+def test_the_help_says_where_the_log_goes_for_a_directory(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--help`` said "default: beside the recording"; of a run's directory the log is
+    written inside it (``rec/rec.asc``), where a user following the help did not look."""
+    run = tmp_path / "rec"
+    run.mkdir()
+    recording(run / "a.mcap")
+    assert main(["export", str(run), "--to", "asc"]) == 0
+    assert capsys.readouterr().out == f"{run / 'rec.asc'}: {len(FRAMES)} frames\n"
+    with pytest.raises(SystemExit):
+        main(["export", "--help"])
+    assert "a directory's name, inside the directory" in " ".join(capsys.readouterr().out.split())
 
 
 def test_an_output_that_names_the_recording_is_refused(tmp_path: Path) -> None:

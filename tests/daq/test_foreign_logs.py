@@ -827,3 +827,39 @@ def test_a_sensor_silent_for_a_while_or_never_heard_is_in_the_report_and_the_rep
     caplog.clear()
     replay(tmp_path / "whole.log", io.StringIO(), EXAMPLE_CONFIG)
     assert "legs silent" not in caplog.text
+
+
+@pytest.mark.parametrize("glitch", ["step back", "stamped 0"])
+def test_replay_names_the_legs_silent_as_the_report_does_across_clock_steps(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture, glitch: str
+) -> None:
+    """The clock steps back an hour while SB1_F3 is silent for 0.4 s; or one frame of
+    SB1_F1 is stamped 0 (a logger's glitch). Replay judged the silences on frame times:
+    it named nothing in the first case (SB1_F3's frames came back "before" they went) and
+    SB1_F1 silent for 56 years in the second. It now says what the report's header says,
+    on the time line that joins such steps."""
+    from daq.report.content import analyse
+    from daq.report.loading import load_recording
+    from daq.report.page import header_rows
+
+    log = sim_log(tmp_path)
+    lines = log.read_text().splitlines()
+    t0 = float(lines[0][1 : lines[0].index(")")])
+    kept = []
+    for line in lines:
+        t_s = float(line[1 : line.index(")")]) - t0
+        frame_id = line.split()[2].split("#")[0]
+        if frame_id == "102" and 0.295 < t_s < 0.705:
+            continue
+        if glitch == "step back" and t_s > 0.5:
+            t_s -= 3600.0
+        if glitch == "stamped 0" and frame_id == "100" and 0.795 < t_s < 0.805:
+            t_s = -t0
+        kept.append(f"({t0 + t_s:.6f}){line[line.index(')') + 1 :]}\n")
+    log.write_text("".join(kept))
+    rows = dict(header_rows(analyse(load_recording(log, EXAMPLE_CONFIG))))
+    silent = rows["legs silent (no estimate for longer than the stale time)"]
+    assert silent.startswith("SB1_F3 1x, 0.4"), silent
+    caplog.clear()
+    replay(log, io.StringIO(), EXAMPLE_CONFIG)
+    assert f"legs silent (no estimate for longer than their stale time): {silent}" in caplog.text

@@ -9,7 +9,7 @@ from daq.pipeline import Pipeline
 from dbc.encoding import FrameEncoder
 from estimator.equations import foot_force_N
 from tests.daq.service_support import leg_signals
-from tests.helpers import example_machine
+from tests.helpers import LEGS, example_machine
 
 
 def make() -> tuple[Pipeline, FrameEncoder]:
@@ -97,3 +97,32 @@ def test_json_payload_writes_nan_as_null() -> None:
     assert payload["force_N"] is None and payload["t"] is None
     assert payload["reasons"] == ["stale"] and payload["valid"] is False
     assert json.loads(json_bytes({"x": [math.inf, -math.inf, 1.5]})) == {"x": [None, None, 1.5]}
+
+
+def test_a_pose_silent_across_a_clock_step_back_is_old() -> None:
+    """The bridge's controller falls silent while the legs go on, and NTP steps the clock
+    back an hour meanwhile: on frame times its last pose looked an hour younger than
+    the legs' frames, fresh, and the stability margin was computed from it for that
+    hour. On bus time it is as old as the silence: the margin is undefined."""
+    pipeline, encoder = make()
+    pose = {
+        "BRIDGE_POSE": {
+            "SB1_InclinationAngle": 0.0,
+            "SB2_InclinationAngle": 0.0,
+            "Bridge_FoldAngle": 0.0,
+        },
+        "BRIDGE_MOTION": {"Bridge_RotationAngle": 0.0, "Carriage_Position": 0.0},
+    }
+    margins = []
+    for i in range(100):  # 10 ms apart; the pose every 20 ms for 0.5 s, then nothing
+        t_s = 1000.0 + 0.01 * i - (3600.0 if i >= 60 else 0.0)
+        if i < 50 and i % 2 == 0:
+            for message, signals in pose.items():
+                pipeline.process(raw(encoder.encode(message, signals), t_s))
+        for leg in LEGS:
+            pipeline.process(raw(encoder.encode(f"LEG_{leg}", leg_signals(leg, 9e6, 1e6)), t_s))
+        snapshot = pipeline.snapshot(t_s)
+        assert all(estimate.valid for estimate in snapshot.legs.values())
+        margins.append(None if snapshot.stability is None else snapshot.stability.margin_m)
+    assert all(margin is not None for margin in margins[:50])
+    assert margins[99] is None and margins[60] is None

@@ -164,8 +164,9 @@ def test_angles_in_another_unit_give_the_same_pose(tmp_path: Path) -> None:
         stability = load(tmp_path, EXAMPLE.replace(old, given)).stability
         ages_s = {"BRIDGE_MOTION": 1.0, "BRIDGE_POSE": 1.0}
         tracker = PoseTracker(stability, ages_s, {"rotation": UNBOUNDED, "fold": UNBOUNDED})
-        tracker.observe(DecodedFrame("BRIDGE_MOTION", 10.0, {"Bridge_RotationAngle": rotation}))
-        tracker.observe(DecodedFrame("BRIDGE_POSE", 10.0, {"Bridge_FoldAngle": 30.0}))
+        motion = DecodedFrame("BRIDGE_MOTION", 10.0, {"Bridge_RotationAngle": rotation})
+        tracker.observe(motion, 10.0)
+        tracker.observe(DecodedFrame("BRIDGE_POSE", 10.0, {"Bridge_FoldAngle": 30.0}), 10.0)
         feet[unit] = tracker.feet_m(10.0, {})
     turned = feet["deg"]
     assert turned is not None and turned["SB2_F1"] == pytest.approx((-3.529038, 6.233717))

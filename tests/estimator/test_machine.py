@@ -94,6 +94,31 @@ def test_staleness_is_judged_on_bus_time_across_a_clock_step_back() -> None:
     assert snapshot.t_s == 95.05
 
 
+def test_a_leg_silent_across_a_clock_step_back_restarts_its_filter() -> None:
+    """SB1_F1 is silent for 1 s while the others go on, and NTP steps the clock back an
+    hour meanwhile: its frame times say it came back an hour before it went, bus time
+    says 1 s later, an outage. Its median restarts: the first force after it is its own
+    (it was the median of four forces from before the silence and one after)."""
+    leg = LegGeometry(**DEFAULT)
+    m = MachineEstimator(
+        {name: leg for name in LEGS},
+        EstimatorSettings(median_window=5),
+        1.0,
+        {name: 0.01 for name in LEGS},
+    )
+    for i in range(200):
+        t_s = 100.0 + 0.01 * i - (3600.0 if i >= 50 else 0.0)
+        force = 30e3 if i < 100 else 60e3
+        for name in LEGS:
+            if name != "SB1_F1" or not 10 <= i < 110:
+                estimate = m.update(name, LegSample(t_s, pressures_for(force), 1e6))
+            if name == "SB1_F1" and i == 110:
+                back = estimate
+    assert back.force_N == pytest.approx(60e3) and back.valid
+    assert m.legs["SB1_F1"].restarts == 1
+    assert all(m.legs[name].restarts == 0 for name in LEGS[1:])
+
+
 def test_a_leg_sent_less_often_than_its_stale_time_is_found_restarting() -> None:
     # Cycle time 10 ms, stale after 30 ms. SB1_F1 comes every 40 ms (a hub's page each
     # fourth frame, say): each sample is one after an "outage", the median restarts.
