@@ -12,16 +12,20 @@ leaves an earlier file of that name as it was, and one that names a file it read
 refused.
 """
 
-from collections.abc import Iterable
+import logging
+from collections import Counter
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 import can
 
 from daq.errors import RecordingError
-from daq.frames import RawFrame
+from daq.frames import BusEvent, RawFrame
 from daq.output_file import named, refuse_an_input, replacing_path
 from daq.recording_run import expand, run_files
-from daq.replay import run_items
+from daq.replay import lost_frames, run_items
+
+logger = logging.getLogger(__name__)
 
 #: Format name -> (python-can writer, file suffix).
 FORMATS: dict[str, tuple[type[can.io.generic.FileIOMessageWriter], str]] = {  # type: ignore[type-arg]
@@ -64,11 +68,28 @@ def write_frames(frames: Iterable[RawFrame], out: Path, fmt: str, channel: str =
 
 def export(paths: Iterable[Path], out: Path, fmt: str) -> int:
     """The raw frames of the recording at ``paths`` (MCAP files or a directory of one
-    run) into ``out``; returns the number of frames written."""
+    run) into ``out``; returns the number of frames written. The frames the recording
+    says were lost before it (``/daq/bus`` loss events: a CAN log has no place for
+    them, and a replay of the log no longer counted them) are said in a warning line."""
     files = run_files(expand(list(paths)))
     refuse_an_input(out, files)
-    frames = (item for item in run_items(files) if isinstance(item, RawFrame))
-    return write_frames(frames, out, fmt)
+    lost: Counter[str] = Counter()
+    count = write_frames(_frames(run_items(files), lost), out, fmt)
+    if lost.total():
+        logger.warning(
+            "%s",
+            lost_frames(lost, f"not in {out.name}, a CAN log: only {files[0].name} counts them"),
+        )
+    return count
+
+
+def _frames(items: Iterable[RawFrame | BusEvent], lost: Counter[str]) -> Iterator[RawFrame]:
+    """The frames of ``items``; their loss events' counts added up in ``lost``."""
+    for item in items:
+        if isinstance(item, RawFrame):
+            yield item
+        else:
+            lost.update(kernel_dropped=item.kernel_dropped, rx_dropped=item.rx_dropped)
 
 
 def default_out(path: Path, fmt: str) -> Path:

@@ -182,13 +182,7 @@ def replay(
     heard = _Heard()
     rows = write_csv(heard.estimates(estimates(pipeline, heard.frames(items), lost)), out)
     if lost.total():
-        logger.warning(
-            "%d frames lost before they were recorded or logged, not in the file "
-            "(%d by the kernel: receive buffer full; %d by the service's queue)",
-            lost.total(),
-            lost["kernel_dropped"],
-            lost["rx_dropped"],
-        )
+        logger.warning("%s", lost_frames(lost, "not in the file"))
     if pipeline.bad:
         logger.warning(
             "%d frames, %d of them not used (%s)",
@@ -572,6 +566,20 @@ def run_source(
         return None
     pipeline = Pipeline.from_config(*(machine or embedded_machine(attachments, files[0])))
     return pipeline, itertools.chain((first,), items)
+
+
+def lost_frames(lost: Counter[str], where: str) -> str:
+    """The line that counts the frames a recording's ``/daq/bus`` loss events (or a
+    candump log's ``DROPCOUNT`` lines) say were lost before they reached the file.
+
+    >>> lost_frames(Counter(kernel_dropped=37, rx_dropped=1), "not in the file")[:68]
+    '38 frames lost before they were recorded or logged, not in the file '
+    """
+    return (
+        f"{lost.total()} frames lost before they were recorded or logged, {where} "
+        f"({lost['kernel_dropped']} by the kernel: receive buffer full; "
+        f"{lost['rx_dropped']} by the service's queue)"
+    )
 
 
 def run_items(

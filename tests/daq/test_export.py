@@ -143,3 +143,31 @@ def test_outputs_of_a_directory_given_as_dot_are_named_after_it(
     assert ReportOptions(Path(".")).directory == tmp_path / "run1_report"
     assert ReportOptions((Path("."),), campaign=True).directory == tmp_path / "run1_campaign"
     assert ReportOptions(Path("..")).directory == tmp_path.parent / f"{tmp_path.name}_report"
+
+
+def test_frames_the_recording_says_were_lost_are_said_by_the_export(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """A CAN log has no place for the recording's loss events (``/daq/bus``): the export
+    said only ``N frames``, and a replay of the log no longer told the 37 frames the
+    kernel dropped, which the recording's own replay counts."""
+    from daq.frames import BusEvent
+
+    _, database = example_machine()
+    source = tmp_path / "rec.mcap"
+    with open(source, "wb") as stream, McapFile(stream, database) as mcap:
+        mcap.start()
+        mcap.write_batch(RecordBatch(FRAMES[:2], []))
+        mcap.write_event(BusEvent(T0_S + 0.0025, "up", "", kernel_dropped=37, rx_dropped=2))
+        mcap.write_batch(RecordBatch(FRAMES[2:], []))
+    with caplog.at_level("WARNING", logger="daq.export"):
+        assert export([source], tmp_path / "rec.log", "candump") == len(FRAMES)
+    assert caplog.messages == [
+        "39 frames lost before they were recorded or logged, not in rec.log, a CAN log: "
+        "only rec.mcap counts them (37 by the kernel: receive buffer full; 2 by the "
+        "service's queue)"
+    ]
+    caplog.clear()
+    with caplog.at_level("WARNING", logger="daq.export"):
+        export([recording(tmp_path / "whole.mcap")], tmp_path / "whole.log", "candump")
+    assert caplog.messages == []
