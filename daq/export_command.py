@@ -23,7 +23,12 @@ def export_main(args: Sequence[str]) -> int:
     )
     parser.add_argument("recording", type=Path, nargs="+", help="MCAP files or a directory")
     parser.add_argument("--to", choices=sorted(FORMATS), required=True, help="log format")
-    parser.add_argument("--out", type=Path, help="output file (default: beside the recording)")
+    parser.add_argument(
+        "--out",
+        type=Path,
+        help="output file (default: the first file's name with the format's suffix, beside "
+        "it; a directory's name, inside the directory)",
+    )
     options = parser.parse_args(args)
     setup_logging("WARNING")
     out = options.out or default_out(options.recording[0], options.to)

@@ -149,8 +149,10 @@ class Service:
         self.session = session
         #: Other services publishing under the same key prefix (one machine id twice).
         self.owners = PrefixOwners(session, config.zenoh.key_prefix)
-        #: The endpoints the session connects to (``[zenoh] connect`` or the JSON5 file).
-        self.connect = connect_endpoints(config.zenoh, config.source)
+        #: The endpoints the session connects to (``[zenoh] connect`` or the JSON5 file);
+        #: a client is connected when it has a link to any one of them.
+        mode, self.connect = connect_endpoints(config.zenoh, config.source)
+        self._connect_any_one = mode == "client"
         #: Times they went unreached, and for how long.
         self._outages = Outages()
         #: No frame for this long is a problem: the legs' stale time (at least a period),
@@ -369,7 +371,9 @@ class Service:
             "leg_faults": {
                 leg: dict(faults) for leg, faults in sorted(self.pipeline.leg_faults.items())
             },
-            "zenoh": zenoh_status(self.session, self.connect, self._outages, now)
+            "zenoh": zenoh_status(
+                self.session, self.connect, self._outages, now, any_one=self._connect_any_one
+            )
             | {"same_prefix": self.owners.others()},
         }
         self._tell_other_owners(status["zenoh"]["same_prefix"])

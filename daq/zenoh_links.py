@@ -35,10 +35,17 @@ _HOST_PORT = re.compile(r"^\[?(?P<host>[^\]]*)\]?:(?P<port>\d+)$")
 
 
 def link_destinations(session: zenoh.Session) -> set[str]:
-    """``proto/address`` of every open unicast link of ``session``."""
+    """``proto/address`` of every open unicast link of ``session``, as its own admin space
+    says: the query goes to no other session (a peer that declared a queryable on
+    ``@/<this zid>/session/**`` answered it with a link to an unreached endpoint, which
+    the status then called reached; one that never answered held each status for
+    :data:`QUERY_TIMEOUT_S`)."""
     key = f"@/{session.info.zid()}/session/transport/unicast/*/link/*"
     destinations = set()
-    for reply in session.get(key, timeout=QUERY_TIMEOUT_S):
+    replies = session.get(
+        key, timeout=QUERY_TIMEOUT_S, allowed_destination=zenoh.Locality.SESSION_LOCAL
+    )
+    for reply in replies:
         sample = reply.ok
         if sample is None:
             continue
@@ -51,14 +58,22 @@ def link_destinations(session: zenoh.Session) -> set[str]:
     return destinations
 
 
-def unreached(endpoints: Sequence[str], destinations: Iterable[str]) -> list[str]:
-    """The endpoints no link goes to (a name that does not resolve is not reached).
+def unreached(
+    endpoints: Sequence[str], destinations: Iterable[str], *, any_one: bool = False
+) -> list[str]:
+    """The endpoints no link goes to (a name that does not resolve is not reached); with
+    ``any_one`` (a client: it opens a link to one router of its list, the next one when
+    that goes), none when one is reached.
 
     >>> unreached(["tcp/127.0.0.1:7447", "tcp/10.0.0.9:7447"], {"tcp/127.0.0.1:7447"})
     ['tcp/10.0.0.9:7447']
+    >>> unreached(["tcp/127.0.0.1:7447", "tcp/10.0.0.9:7447"], {"tcp/127.0.0.1:7447"},
+    ...           any_one=True)
+    []
     """
     targets = set(destinations)
-    return [e for e in endpoints if not targets.intersection(_candidates(_address(e)))]
+    missing = [e for e in endpoints if not targets.intersection(_candidates(_address(e)))]
+    return [] if any_one and len(missing) < len(endpoints) else missing
 
 
 class Outages:
@@ -99,13 +114,19 @@ class Outages:
 
 
 def zenoh_status(
-    session: zenoh.Session, connect: Sequence[str], outages: Outages, now_s: float
+    session: zenoh.Session,
+    connect: Sequence[str],
+    outages: Outages,
+    now_s: float,
+    *,
+    any_one: bool = False,
 ) -> JsonObject:
-    """``status.zenoh``: the connect endpoints not reached, routers and peers connected,
-    and the outages so far (``outages`` updated with this status, at ``now_s``)."""
+    """``status.zenoh``: the connect endpoints not reached (:func:`unreached`, ``any_one``
+    for a client), routers and peers connected, and the outages so far (``outages``
+    updated with this status, at ``now_s``)."""
     info = session.info
     try:
-        missing = unreached(connect, link_destinations(session)) if connect else []
+        missing = unreached(connect, link_destinations(session), any_one=any_one) if connect else []
     except zenoh.ZError as exc:
         logger.debug("admin space query failed: %s", exc)
         missing = list(connect)

@@ -200,15 +200,23 @@ def fit_calibration(
     target = np.r_[weight_N - down @ weight_term_N, -weight_term_N[air_cols]]
 
     pull = np.diag(np.r_[np.full(n, GAIN_PULL_N), np.full(n, OFFSET_PULL)])
-    fitted = lsq_linear(
+    solution = lsq_linear(
         np.vstack([data, pull]),
         np.r_[target, np.full(n, GAIN_PULL_N), np.zeros(n)],
         bounds=(
             np.r_[np.full(n, GAIN_BOUNDS[0]), np.full(n, -OFFSET_BOUND_N)],
             np.r_[np.full(n, GAIN_BOUNDS[1]), np.full(n, OFFSET_BOUND_N)],
         ),
-    ).x
-    identified, rank, condition = _identifiable(data, target - data @ fitted)
+    )
+    fitted = solution.x
+    identified, determined, rank, condition = _identifiable(data, target - data @ fitted)
+    # A parameter the data determine, held by its bound: the balance asks for more than a
+    # calibration may correct, and the others are fitted around the wrong value. Nothing
+    # is identified; the refusal names it (the residual it leaves made every parameter
+    # look loose). (One in an undetermined direction may drift to a bound: no matter.)
+    at_bound = (solution.active_mask != 0) & determined
+    if at_bound.any():
+        identified[:] = False
     # What the data leave open (or determine too loosely) keeps its prior value.
     x = np.where(identified, fitted, np.r_[gain0, offset0])
     gain, offset = x[:n], x[n:]
@@ -225,7 +233,8 @@ def fit_calibration(
         offset_identified=identified[n:],
         rank=rank,
         condition=condition,
-        refusals=_refusals(legs, identified[:n], identified[n:], np.asarray(contact.any(axis=0))),
+        refusals=_bound_refusals(legs, fitted, at_bound)
+        or _refusals(legs, identified[:n], identified[n:], np.asarray(contact.any(axis=0))),
         residual_before_N=np.nansum(before, axis=1) - weight_N,
         residual_after_N=np.nansum(after, axis=1) - weight_N,
         force_before_N=before,
@@ -233,8 +242,11 @@ def fit_calibration(
     )
 
 
-def _identifiable(data: FloatArray, residual_N: FloatArray) -> tuple[BoolArray, int, float]:
-    """Which parameters the data determine, the rank and the condition.
+def _identifiable(
+    data: FloatArray, residual_N: FloatArray
+) -> tuple[BoolArray, BoolArray, int, float]:
+    """Which parameters the data identify, which they determine (the first test alone),
+    the rank and the condition.
 
     Two tests: the parameter takes no part in a near-null direction of the data matrix
     (columns scaled to unit length; singular values below the largest / ``MAX_CONDITION``),
@@ -246,21 +258,52 @@ def _identifiable(data: FloatArray, residual_N: FloatArray) -> tuple[BoolArray, 
     norms = np.linalg.norm(data, axis=0)
     used = norms > 0
     identified = np.zeros(columns, dtype=bool)
+    determined = np.zeros(columns, dtype=bool)
     if not used.any():
-        return identified, 0, float("inf")
+        return identified, determined, 0, float("inf")
     scaled = data[:, used] / norms[used]
     _, singular, vt = np.linalg.svd(scaled, full_matrices=False)
-    kept = singular >= singular[0] / MAX_CONDITION
-    rank = int(kept.sum())
-    null = vt[~kept]
-    share = (null**2).sum(axis=0) if null.size else np.zeros(scaled.shape[1])
-    # Covariance of the scaled parameters within the determined directions.
-    sigma_N = float(np.sqrt((residual_N**2).sum() / max(rows - rank, 1)))
-    covariance = (vt[kept].T / singular[kept] ** 2) @ vt[kept]
-    standard_error = sigma_N * np.sqrt(np.diag(covariance)) / norms[used]
+    rank = int((singular >= singular[0] / MAX_CONDITION).sum())
+    # A parameter's share of the undetermined directions: those of a small singular
+    # value and those no equation reaches (fewer equations than parameters), i.e. all
+    # but the determined ones (the directions together are orthonormal).
+    share = 1.0 - (vt[:rank] ** 2).sum(axis=0)
+    if rows > rank:
+        # Covariance of the scaled parameters within the determined directions.
+        sigma_N = float(np.sqrt((residual_N**2).sum() / (rows - rank)))
+        covariance = (vt[:rank].T / singular[:rank] ** 2) @ vt[:rank]
+        standard_error = sigma_N * np.sqrt(np.diag(covariance)) / norms[used]
+    else:  # no equation to spare: the fit is exact whatever the noise, its scatter unknown
+        standard_error = np.full(scaled.shape[1], np.inf)
     limit = np.r_[np.full(columns // 2, GAIN_SE_MAX), np.full(columns // 2, OFFSET_SE_MAX_N)]
-    identified[used] = (share <= NULL_SHARE) & (standard_error <= limit[used])
-    return identified, rank, float(singular[0] / singular[kept][-1])
+    determined[used] = share <= NULL_SHARE
+    identified[used] = determined[used] & (standard_error <= limit[used])
+    return identified, determined, rank, float(singular[0] / singular[rank - 1])
+
+
+def _bound_refusals(
+    legs: Sequence[str], fitted: FloatArray, at_bound: BoolArray
+) -> tuple[str, ...]:
+    """One line per kind of parameter held by its bound (none: the fit is free)."""
+    n = len(legs)
+    lines = []
+    for key, kind, (low, high), unit in (
+        ("force_gain", slice(0, n), GAIN_BOUNDS, ""),
+        ("force_offset_N", slice(n, 2 * n), (-OFFSET_BOUND_N, OFFSET_BOUND_N), " N"),
+    ):
+        held = [
+            f"{leg} at {value:g}"
+            for leg, value, bound in zip(legs, fitted[kind], at_bound[kind], strict=True)
+            if bound
+        ]
+        if held:
+            lines.append(
+                f"{key} of {', '.join(held)} stopped at the fit's bound ({low:g}..{high:g}{unit}): "
+                "the weight balance asks for more than a calibration corrects; check that "
+                "leg's geometry, transducers and units in the config (nothing is identified "
+                "while a parameter is held there)"
+            )
+    return tuple(lines)
 
 
 def _refusals(

@@ -41,7 +41,10 @@ def calibrate_main(args: Sequence[str]) -> int:
     )
     parser.add_argument("--config", type=Path, help="machine config (default: the embedded one)")
     parser.add_argument(
-        "--out", type=Path, default=Path("calibration.toml"), help="the TOML snippet to write"
+        "--out",
+        type=Path,
+        default=Path("calibration.toml"),
+        help="the TOML snippet to write, its page (.html, .png) beside it [%(default)s]",
     )
     add_channel_option(parser, "calibrate from")
     options = parser.parse_args(args)

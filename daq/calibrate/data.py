@@ -13,6 +13,7 @@ directories given (a rotated run's files chained in the order of the run, as rep
 report read them).
 """
 
+import tomllib
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -21,7 +22,8 @@ import numpy as np
 import numpy.typing as npt
 
 from daq.errors import RecordingError
-from daq.mcap_reading import RecordedAttachment, RecordingStream
+from daq.mcap_file import CONFIG_ATTACHMENT
+from daq.mcap_reading import RecordedAttachment, RecordedMessage, RecordingStream
 from daq.payloads import signals as signals_payload
 from daq.recording_run import expand, runs
 from daq.replay import Machine, embedded_machine, is_can_log, recording_results
@@ -62,6 +64,8 @@ class Instants:
     #: machine state), and those of them that are still.
     phases: tuple[str, ...] = ()
     still_phases: tuple[str, ...] = ()
+    #: The legs valid in no snapshot of any recording.
+    never_valid: tuple[str, ...] = ()
 
     def why_none(self) -> str:
         """Why there is no instant (:attr:`t_s` empty), for the user."""
@@ -69,6 +73,12 @@ class Instants:
             return (
                 f"no quasi-static instant: none of {self.total} snapshots had every leg "
                 f"valid and steady"
+                + (
+                    f" ({', '.join(self.never_valid)} never valid: the balance needs every "
+                    "leg's force)"
+                    if self.never_valid
+                    else ""
+                )
             )
         return (
             f"no quasi-static instant: {self.steady} of {self.total} snapshots had every leg "
@@ -79,22 +89,52 @@ class Instants:
 
 def machine_for(paths: Sequence[Path], config_path: Path | None) -> Machine:
     """``config_path``'s machine, else the one embedded in the first recording (of a
-    directory, its first file)."""
+    directory, its first file), which the recordings embedding a config must all name
+    (one machine's recordings: a campaign's folder holds several)."""
     if config_path is not None:
         return load_machine_config(config_path)
-    first = expand(paths[:1])[0]
+    files = expand(paths)
+    first = files[0]
     if is_can_log(first):
         raise ConfigError(first, "", "calibrating from a CAN log needs --config")
+    machine = embedded_machine(_attachments(first), first)
+    machine_id = machine[0].machine_id
+    for path in files[1:]:
+        other = None if is_can_log(path) else _embedded_id(_attachments(path))
+        if other is not None and other != machine_id:
+            raise RecordingError(
+                path,
+                f"a recording of machine {other!r}, {first} of {machine_id!r}: calibrate one "
+                "machine at a time (--config reads them all as one)",
+            )
+    return machine
+
+
+def _attachments(path: Path) -> dict[str, bytes]:
+    """A recording file's attachments: read up to its first message (the recorder writes
+    them before)."""
+    attachments = {}
     try:
-        with open(first, "rb") as stream:
-            attachments = {
-                record.name: record.data
-                for record in RecordingStream(stream, str(first), warn=False)  # read again
-                if isinstance(record, RecordedAttachment)
-            }
+        with open(path, "rb") as stream:
+            for record in RecordingStream(stream, str(path), warn=False):  # read again
+                if isinstance(record, RecordedMessage):
+                    break
+                if isinstance(record, RecordedAttachment):
+                    attachments[record.name] = record.data
     except OSError as exc:
-        raise RecordingError(first, f"cannot read it: {exc.strerror or exc}") from exc
-    return embedded_machine(attachments, first)
+        raise RecordingError(path, f"cannot read it: {exc.strerror or exc}") from exc
+    return attachments
+
+
+def _embedded_id(attachments: Mapping[str, bytes]) -> str | None:
+    """The machine id of an embedded config; None without one (or unreadable: the
+    replay reads every recording with the first one's config anyway)."""
+    try:
+        machine = tomllib.loads(attachments[CONFIG_ATTACHMENT].decode()).get("machine")
+    except (KeyError, UnicodeDecodeError, tomllib.TOMLDecodeError):
+        return None
+    machine_id = machine.get("id") if isinstance(machine, dict) else None
+    return machine_id if isinstance(machine_id, str) else None
 
 
 def read_instants(paths: Sequence[Path], machine: Machine, channel: str | None = None) -> Instants:
@@ -104,6 +144,7 @@ def read_instants(paths: Sequence[Path], machine: Machine, channel: str | None =
     parts: list[Snapshots] = []
     total = steady = 0
     phases: dict[str, None] = {}
+    ever_valid = np.zeros(len(legs), dtype=bool)
     config = machine[0]
     meanings = _phase_meanings(machine)
     # A leg is stale as in the service: after stale_after_cycles of its cycle times (the
@@ -118,6 +159,7 @@ def read_instants(paths: Sequence[Path], machine: Machine, channel: str | None =
         keep = steady_here & still
         total += len(snaps.t_s)
         steady += int(steady_here.sum())
+        ever_valid |= snaps.valid.any(axis=0)
         phases.update(dict.fromkeys(phase for _, _, _, phase in states))
         parts.append(
             Snapshots(
@@ -133,6 +175,7 @@ def read_instants(paths: Sequence[Path], machine: Machine, channel: str | None =
         steady=steady,
         phases=tuple(phases),
         still_phases=tuple(phase for phase in phases if meanings.get(phase) in STILL_PHASES),
+        never_valid=tuple(leg for leg, ever in zip(legs, ever_valid, strict=True) if not ever),
     )
 
 

@@ -2,7 +2,8 @@
 
 The snippet holds, per leg, the ``force_gain`` and ``force_offset_N`` the data
 identify (the others are left out, so the configured values stay), headed by comments
-with the figures and the refusals. The page (``calibration.html`` with
+with where they go (each leg's table of the config: pasted below it, TOML refuses a
+table declared twice), the figures and the refusals. The page (``calibration.html`` with
 ``calibration.png`` beside it and embedded) shows the weight residual over the
 quasi-static instants before and after, and per leg the parameters and the mean force
 before and after.
@@ -36,7 +37,10 @@ def summary_lines(calibration: Calibration, instants: int, total: int) -> list[s
 
 def toml_snippet(calibration: Calibration, lines: list[str]) -> str:
     """Per-leg ``[legs.<LEG>]`` tables with the identified keys, for the machine config."""
-    out = ["# portal-daq calibrate (paste into the machine config)"]
+    out = [
+        "# portal-daq calibrate: add each table's keys to that leg's [legs.<LEG>] table in",
+        "# the machine config (not below it: TOML takes a table once, the config has each)",
+    ]
     out += [f"# {line}" for line in lines]
     c = calibration
     for i, leg in enumerate(c.legs):

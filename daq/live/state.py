@@ -102,6 +102,8 @@ class StatusReading:
     #: Messages dropped anywhere (kernel, receive, publish and record queues).
     dropped: int
     healthy: bool | None
+    #: Why it is not healthy, a few words each (``no frame for 2.0 s``); empty when healthy.
+    problems: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True, slots=True)
@@ -245,6 +247,7 @@ def parse_status(data: Mapping[str, Any]) -> StatusReading:
     frames = _table(data, "frames")
     dropped = _table(data, "dropped")
     healthy = data.get("healthy")
+    problems = data.get("problems")
     reason = bus.get("reason")
     return StatusReading(
         t_s=_number(data, "t"),
@@ -259,6 +262,7 @@ def parse_status(data: Mapping[str, Any]) -> StatusReading:
         frames_bad=_count(frames, "bad"),
         dropped=sum(_count(dropped, name) for name in dropped),
         healthy=healthy if isinstance(healthy, bool) else None,
+        problems=tuple(str(p) for p in problems) if isinstance(problems, list) else (),
     )
 
 

@@ -99,11 +99,18 @@ def status_summary(status: StatusReading) -> str:
     bus = f"bus {status.bus_state}" + (f" ({where})" if where else "")
     if status.bus_reason and status.bus_state != "up":
         bus += f": {status.bus_reason}"
-    health = {True: "healthy", False: "UNHEALTHY", None: "health unknown"}[status.healthy]
     return (
         f"{bus}, {_number(status.frames_per_s, 0)} frames/s, {status.frames_bad} bad, "
-        f"{status.dropped} dropped, {health}"
+        f"{status.dropped} dropped, {health_text(status)}"
     )
+
+
+def health_text(status: StatusReading) -> str:
+    """``healthy``, or ``UNHEALTHY: `` and the status's problems (a recording stopped,
+    an unreached endpoint: nothing else on the screen says so), or ``health unknown``."""
+    if status.healthy is False and status.problems:
+        return "UNHEALTHY: " + "; ".join(status.problems)
+    return {True: "healthy", False: "UNHEALTHY", None: "health unknown"}[status.healthy]
 
 
 def ground_line(viewer: ViewerConfig, state: LiveState, now_s: float) -> Line:
@@ -192,7 +199,7 @@ def plain_line(viewer: ViewerConfig, state: LiveState, now_s: float, wall_s: flo
     """One line for ``--plain``: local time, status, the weight check, then every leg with
     its soil metrics (peak pressure, time above the limit), as the full screen has them.
 
-    E.g. ``12:00:01 bus up 600 frames/s 0 bad 0 dropped | weight 184.1 of 184.4 kN
+    E.g. ``12:00:01 bus up 600 frames/s 0 bad 0 dropped healthy | weight 184.1 of 184.4 kN
     residual -0.3 kN 6 in contact complete | SB1_F1 61.2 kN 185.5 kPa ground ok peak
     312.3 kPa above 4.2 s | ...`` (one line).
     """
@@ -206,7 +213,7 @@ def plain_line(viewer: ViewerConfig, state: LiveState, now_s: float, wall_s: flo
         stale = f"STALE status {age_s:.1f} s: " if age_s > viewer.status_stale_s else ""
         parts.append(
             f"{stale}bus {s.bus_state} {_number(s.frames_per_s, 0)} frames/s "
-            f"{s.frames_bad} bad {s.dropped} dropped"
+            f"{s.frames_bad} bad {s.dropped} dropped {health_text(s)}"
         )
     received = state.ground
     if received is None:

@@ -329,6 +329,33 @@ def test_no_instant_says_whether_the_legs_or_the_phases_kept_them_out() -> None:
     assert never.why_none() == (
         "no quasi-static instant: none of 901 snapshots had every leg valid and steady"
     )
+    # A leg never valid (a transducer out, a status never fine) is named: the message
+    # said only "every leg", and which one of six to look at was left to guess.
+    broken = dataclasses.replace(never, never_valid=("SB2_F3",))
+    assert broken.why_none() == (
+        "no quasi-static instant: none of 901 snapshots had every leg valid and steady "
+        "(SB2_F3 never valid: the balance needs every leg's force)"
+    )
+
+
+def test_a_leg_never_valid_is_named_by_the_command(
+    walk: Recorded, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The walking cycle read with SB2_F3's status 'fine' only at a code never sent."""
+    config_path = tmp_path / "broken.toml"
+    config_path.write_text(
+        walk.config_path.read_text().replace(
+            'status = "LEG_SB2_F3.SB2_F3_Status"\n',
+            'status = "LEG_SB2_F3.SB2_F3_Status"\nstatus_ok = "sensor_fault"\n',
+        )
+    )
+    out = tmp_path / "c.toml"
+    assert calibrate_main([str(walk.path), "--config", str(config_path), "--out", str(out)]) == 1
+    assert capsys.readouterr().err == (
+        "portal-daq: no quasi-static instant: none of 901 snapshots had every leg valid and "
+        "steady (SB2_F3 never valid: the balance needs every leg's force): nothing to "
+        "calibrate\n"
+    )
 
 
 def test_calibrate_refuses_an_output_that_names_a_recording(
@@ -410,3 +437,36 @@ def test_a_cut_recording_is_said_once(
     calibrate_main([str(cut), "--out", str(tmp_path / "c.toml")])
     said = [r for r in caplog.records if "ends without its summary" in r.getMessage()]
     assert len(said) == 1, [r.getMessage() for r in said]
+
+
+def test_recordings_of_two_machines_are_refused_naming_both(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The first recording's embedded config was used for all: a recording of another
+    machine given with it (a campaign's folder of several prototypes) was replayed as the
+    first machine and its instants pooled into the first machine's calibration, unsaid
+    (measured: two simulated walking cycles, one embedding a config of another id)."""
+    database = load_machine_config(EXAMPLE_CONFIG)[1]
+    paths = []
+    for name in ("pam-proto-1", "pam-proto-2"):
+        path = tmp_path / f"{name}.mcap"
+        config = EXAMPLE_CONFIG.read_text().replace('id = "pam-proto-1"', f'id = "{name}"')
+        with open(path, "wb") as stream, McapFile(stream, database) as mcap:
+            mcap.start(
+                {CONFIG_ATTACHMENT: config.encode(), DBC_ATTACHMENT: DEFAULT_DBC_PATH.read_bytes()}
+            )
+        paths.append(str(path))
+    assert calibrate_main([*paths, "--out", str(tmp_path / "c.toml")]) == 1
+    assert capsys.readouterr().err == (
+        f"portal-daq: {paths[1]}: a recording of machine 'pam-proto-2', {paths[0]} of "
+        "'pam-proto-1': calibrate one machine at a time (--config reads them all as one)\n"
+    )
+
+
+def test_the_help_names_the_default_output(capsys: pytest.CaptureFixture[str]) -> None:
+    """``--out`` said "the TOML snippet to write": not that it defaults to
+    calibration.toml in the current directory, nor that the page goes beside it."""
+    with pytest.raises(SystemExit):
+        calibrate_main(["--help"])
+    help_text = " ".join(capsys.readouterr().out.split())
+    assert "its page (.html, .png) beside it [calibration.toml]" in help_text

@@ -7,6 +7,7 @@ import tomllib
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from daq.calibrate.output import summary_lines, toml_snippet, write_page
 from dbc.machine import load_machine_config
@@ -23,6 +24,13 @@ def test_snippet_and_page(tmp_path: Path) -> None:
         f"condition {fit.condition:.0f}"
     )
     snippet = toml_snippet(fit, lines)
+    # Where the keys go: pasted below the config (as the head said), each [legs.<LEG>]
+    # header is a table the config already declares, and TOML refuses the file.
+    assert snippet.startswith(
+        "# portal-daq calibrate: add each table's keys to that leg's [legs.<LEG>] table in\n"
+    )
+    with pytest.raises(tomllib.TOMLDecodeError, match="Cannot declare"):
+        tomllib.loads(EXAMPLE_CONFIG.read_text() + snippet)
     tables = tomllib.loads(snippet)["legs"]
     assert set(tables) == set(LEGS)
     assert all(set(keys) == {"force_gain", "force_offset_N"} for keys in tables.values())

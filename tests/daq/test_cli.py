@@ -171,6 +171,26 @@ def test_a_taken_port_of_the_zenoh_file_is_looked_for_there(tmp_path: Path) -> N
     assert f"(or listen/connect in {zenoh_file})" in last
 
 
+def test_a_client_whose_router_is_down_is_told_to_look_at_the_router(tmp_path: Path) -> None:
+    # In client mode Zenoh gives up at start without its router; the hint was the one of
+    # a taken listen port ("is the port taken by another process, ...?").
+    endpoint = f"tcp/127.0.0.1:{free_port()}"  # nobody listens
+    path = write_service_config(tmp_path, port=free_port())
+    text = path.read_text()
+    zenoh_table = text[text.index("[zenoh]") : text.index("[publish]")]
+    path.write_text(
+        text.replace(zenoh_table, f'[zenoh]\nmode = "client"\nconnect = ["{endpoint}"]\n\n')
+    )
+    result = run_cli("run", "--config", str(path))
+    assert result.returncode == 1, result.stderr
+    last = result.stderr.strip().splitlines()[-1]
+    assert last == (
+        f"portal-daq: Zenoh: Unable to connect to any of [{endpoint}]! (check [zenoh] "
+        "connect: is the router up at that address and reachable from here? A client needs "
+        "it at start; a peer starts without it and keeps trying)"
+    )
+
+
 def test_notify_order_and_clean_sigterm(tmp_path: Path) -> None:
     """READY before STATUS/WATCHDOG, STOPPING last; the MCAP file gets its summary."""
     config = write_service_config(

@@ -9,6 +9,7 @@ from pathlib import Path
 import can
 import pytest
 
+from daq.cli import main
 from daq.errors import RecordingError
 from daq.export import FORMATS, export, write_frames
 from daq.frames import RawFrame
@@ -74,6 +75,21 @@ def test_the_command_line(tmp_path: Path) -> None:
     assert missing.stderr.startswith("portal-daq: ")
 
 
+def test_the_help_says_where_the_log_goes_for_a_directory(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--help`` said "default: beside the recording"; of a run's directory the log is
+    written inside it (``rec/rec.asc``), where a user following the help did not look."""
+    run = tmp_path / "rec"
+    run.mkdir()
+    recording(run / "a.mcap")
+    assert main(["export", str(run), "--to", "asc"]) == 0
+    assert capsys.readouterr().out == f"{run / 'rec.asc'}: {len(FRAMES)} frames\n"
+    with pytest.raises(SystemExit):
+        main(["export", "--help"])
+    assert "a directory's name, inside the directory" in " ".join(capsys.readouterr().out.split())
+
+
 def test_an_output_that_names_the_recording_is_refused(tmp_path: Path) -> None:
     """``export REC.mcap --out REC.mcap`` emptied the recording (the writer opened it
     before it was read) and said ``0 frames``, exit 0."""
@@ -100,3 +116,30 @@ def test_an_export_that_fails_leaves_the_earlier_file(tmp_path: Path) -> None:
     assert sorted(p.name for p in tmp_path.iterdir()) == ["rec.log"]
     assert write_frames(FRAMES, out, "candump") == len(FRAMES)
     assert out.read_text().count(" can0 ") == len(FRAMES)
+
+
+def test_outputs_of_a_directory_given_as_dot_are_named_after_it(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Run in a run's directory, ``export . --to asc`` wrote a hidden ``./.asc`` and
+    ``report .`` (also ``--campaign``) stopped with a ValueError traceback ('.' has an
+    empty name): the default outputs are named after the directory '.' stands for."""
+    from daq.report.command import ReportOptions
+
+    run = tmp_path / "run1"
+    run.mkdir()
+    recording(run / "rec.mcap")
+    done = subprocess.run(
+        [sys.executable, "-m", "daq", "export", ".", "--to", "asc"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        cwd=run,
+    )
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == f"{run / 'run1.asc'}: {len(FRAMES)} frames"
+    assert sorted(p.name for p in run.iterdir()) == ["rec.mcap", "run1.asc"]
+    monkeypatch.chdir(run)
+    assert ReportOptions(Path(".")).directory == tmp_path / "run1_report"
+    assert ReportOptions((Path("."),), campaign=True).directory == tmp_path / "run1_campaign"
+    assert ReportOptions(Path("..")).directory == tmp_path.parent / f"{tmp_path.name}_report"

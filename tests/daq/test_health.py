@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import errno
+import json
 import logging
 import os
 import threading
@@ -386,6 +387,48 @@ def test_an_outage_of_a_connect_endpoint_is_counted_after_it(
     again = [r.getMessage() for r in caplog.records if "reached again" in r.getMessage()]
     assert again[-1].startswith(f"zenoh connect {endpoint} reached again after ")
     assert again[-1].endswith(" s: what was published meanwhile went nowhere through it")
+
+
+def router_config(endpoint: str) -> zenoh.Config:
+    config = peer_config(listen=endpoint)
+    config.insert_json5("mode", '"router"')
+    return config
+
+
+def test_a_client_is_healthy_on_any_one_router_of_its_list(tmp_path: Path) -> None:
+    """A client opens a link to one router of its ``connect`` list (the next one when that
+    goes): with two routers listed for failover, the other was "not reached" on every
+    status, the service unhealthy for ever while it was connected."""
+    endpoints = [f"tcp/127.0.0.1:{free_port()}" for _ in range(2)]
+    path = write_service_config(
+        tmp_path, channel=f"test-{uuid.uuid4().hex}", port=free_port(), status_period_s=0.2
+    )
+    text = path.read_text()
+    zenoh_table = text[text.index("[zenoh]") : text.index("[publish]")]
+    client = f'[zenoh]\nmode = "client"\nconnect = {json.dumps(endpoints)}\n\n'
+    path.write_text(text.replace(zenoh_table, client, 1))
+    config = load_service_config(path)
+    key = f"{config.zenoh.key_prefix}/status"
+    routers = {}
+    for endpoint in endpoints:
+        router = zenoh.open(router_config(endpoint))
+        routers[str(router.info.zid())] = router
+    viewer = peer_config()
+    viewer.insert_json5("connect/endpoints", json.dumps(endpoints))
+    try:
+        with live_service(config), zenoh.open(viewer) as session:
+            collector = Collector(session, key)
+            before = collector.wait_for(key, lambda s: s["zenoh"]["routers"])
+            (zid,) = before["zenoh"]["routers"]
+            routers.pop(zid).close()  # the router the service is on goes
+            (other,) = routers
+            after = collector.wait_for(key, lambda s: s["zenoh"]["routers"] == [other])
+    finally:
+        for router in routers.values():
+            router.close()
+    for status in (before, after):
+        assert status["zenoh"]["connect"] == endpoints and status["zenoh"]["unreached"] == []
+        assert not [p for p in status["problems"] if p.startswith("zenoh")]
 
 
 def test_two_services_under_one_key_prefix_are_told(tmp_path: Path) -> None:

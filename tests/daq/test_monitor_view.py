@@ -205,7 +205,7 @@ def test_unknown_legs_are_shown_after_the_configured_ones() -> None:
 def test_plain_line() -> None:
     wall_s = time.mktime((2025, 5, 1, 12, 0, 1, 0, 0, -1))
     line = plain_line(VIEWER, state_at(received_s=100.0), now_s=100.5, wall_s=wall_s)
-    assert line.startswith("12:00:01 bus up 600 frames/s 3 bad 1 dropped | weight ")
+    assert line.startswith("12:00:01 bus up 600 frames/s 3 bad 1 dropped healthy | weight ")
     # the weight check, and per leg the soil metrics, as the full screen shows them
     ground = state_at().ground
     assert ground is not None
@@ -220,6 +220,18 @@ def test_plain_line() -> None:
     assert line.endswith("| SB2_F3 - kN - kPa air INVALID:stale")
     assert "\n" not in line
     assert re.fullmatch(r"[ -~]+", line)  # plain ASCII for any log
+
+
+def test_an_unhealthy_status_says_why_on_the_screen_and_the_plain_line() -> None:
+    # The status's problems (a recording stopped, an unreached endpoint) showed nowhere:
+    # the screen said only UNHEALTHY and the plain line not even that ("0 dropped").
+    problems = ["recording stopped (write error)", "zenoh connect tcp/10.0.0.9:7447 not reached"]
+    state = LiveState(PREFIX)
+    payload = status_payload(1.0) | {"healthy": False, "problems": problems}
+    assert state.apply(f"{PREFIX}/status", json.dumps(payload).encode(), 100.0)
+    why = "UNHEALTHY: recording stopped (write error); zenoh connect tcp/10.0.0.9:7447 not reached"
+    assert render_text(VIEWER, state, 100.4)[1].endswith(f"1 dropped, {why}, status 0.4 s ago")
+    assert f" 1 dropped {why} | waiting for " in plain_line(VIEWER, state, 100.4, 0.0)
 
 
 def test_plain_line_waiting_and_stale() -> None:

@@ -17,6 +17,7 @@ from daq.live.feed import LiveFeed
 from daq.live.session import open_viewer_session, viewer_zenoh_config
 from daq.publisher import ZenohPublisher
 from daq.service_config import ServiceConfig, ZenohSettings, load_service_config
+from daq.zenoh_links import link_destinations, unreached
 from daq.zenoh_session import config_value, open_session, zenoh_config
 from dbc.errors import ConfigError
 from tests.daq.service_support import (
@@ -245,3 +246,123 @@ def test_a_viewer_with_the_service_config_gets_every_sample_behind_the_access_co
                 received.append(n)
         assert received == list(range(30))
         assert (feed.missed, feed.dropped) == (0, 0)
+
+
+def test_a_foreign_peer_cannot_answer_for_the_service_s_links(tmp_path: Path) -> None:
+    """The links the status judges ``zenoh.unreached`` by are asked of the session's own
+    admin space. The query went to every peer too: one that declared a queryable on
+    ``@/<service zid>/session/**`` answered with a link to the unreached endpoint, and the
+    status said it was reached (healthy) while no link went there."""
+    dead = f"tcp/127.0.0.1:{free_port()}"
+    listen = f"tcp/127.0.0.1:{free_port()}"
+    config = peer_config(listen=listen)
+    config.insert_json5("connect/endpoints", json.dumps([dead]))
+    with zenoh.open(config) as service, zenoh.open(peer_config(connect=listen)) as foreign:
+        connected(foreign)
+        zid = service.info.zid()
+        asked: list[str] = []
+
+        def answer(query: zenoh.Query) -> None:
+            asked.append(str(query.key_expr))
+            link = f"@/{zid}/session/transport/unicast/{foreign.info.zid()}/link/0"
+            query.reply(link, json.dumps({"src": "tcp/127.0.0.1:1", "dst": dead}))
+
+        spoof = foreign.declare_queryable(f"@/{zid}/session/**", answer)
+        # Declarations on one link arrive in order: once the service's get finds the
+        # queryable declared after it, the service knows the spoofing one too.
+        probe = foreign.declare_queryable("probe", lambda q: q.reply("probe", b"here"))
+        deadline = time.monotonic() + WAIT_S
+        while not [r for r in service.get("probe", timeout=1.0) if r.ok is not None]:
+            assert time.monotonic() < deadline, "the foreign queryables never showed"
+        destinations = link_destinations(service)
+        assert unreached([dead], destinations) == [dead]
+        assert asked == []
+        spoof.undeclare()
+        probe.undeclare()
+
+
+def test_an_access_control_blind_to_the_zenoh_namespace_stops_the_service(tmp_path: Path) -> None:
+    """Zenoh's ``namespace`` puts every key under it on the wire, and the access control
+    sees the wire's keys: with ``namespace: "site7"`` in the shipped file, a foreign
+    peer's put to ``site7/<prefix>/sim/truth`` passed ``portal/**`` and reached the
+    service as ``<prefix>/sim/truth`` (the key prefix check said the rule covered it).
+    Now the service refuses to start naming the key to deny; so denied, the put is refused."""
+    config, tcp = locked_down_service(tmp_path)
+    prefix = config.zenoh.key_prefix
+    shipped = (ROOT / "deploy" / "zenoh.json5").read_text()
+    zenoh_file = tmp_path / "zenoh.json5"
+    zenoh_file.write_text(shipped.replace('mode: "peer",', 'mode: "peer",\n  namespace: "site7",'))
+    path = Path(config.source)
+    path.write_text(path.read_text().replace(str(ROOT / "deploy" / "zenoh.json5"), "zenoh.json5"))
+    config = load_service_config(path)
+    with pytest.raises(ConfigError) as error:
+        open_session(config.zenoh, config.source)
+    assert str(error.value).startswith(
+        f"{zenoh_file}: access_control: its deny rules name no key under site7/{prefix} "
+        "(their keys: portal/**), the service's key prefix in the namespace site7: "
+    )
+    assert str(error.value).endswith(
+        f'add "site7/{prefix}/**" to the key_exprs of the rule that denies them'
+    )
+    zenoh_file.write_text(zenoh_file.read_text().replace('"portal/**"', f'"site7/{prefix}/**"'))
+    with (
+        open_session(config.zenoh, config.source) as service,
+        zenoh.open(peer_config(connect=tcp)) as foreign,
+    ):
+        received: list[str] = []
+        arrived = threading.Condition()
+
+        def on_sample(sample: zenoh.Sample) -> None:
+            with arrived:
+                received.append(str(sample.key_expr))
+                arrived.notify_all()
+
+        subscriber = service.declare_subscriber("**", on_sample)
+        connected(foreign)
+        with arrived:  # until the foreign peer's puts are routed to the service
+            while "marker/0" not in received:
+                foreign.put("site7/marker/0", b"{}")
+                arrived.wait(0.1)
+        for _ in range(5):
+            foreign.put(f"site7/{prefix}/sim/truth", FAKE)
+        foreign.put("site7/marker/1", b"{}")  # after them, on the same link
+        with arrived:
+            assert arrived.wait_for(lambda: "marker/1" in received, WAIT_S)
+        assert f"{prefix}/sim/truth" not in received
+        subscriber.undeclare()
+
+
+@pytest.mark.parametrize(
+    ("old", "new"),
+    [
+        (
+            'flows: ["ingress"],\n        messages: ["put", "delete"],',
+            'flows: ["egress"],\n        messages: ["put", "delete"],',
+        ),
+        ('messages: ["put", "delete"],', 'messages: ["query"],'),
+        ('{ rules: ["no-put-under-portal"], subjects: ["anyone"] },', ""),
+    ],
+    ids=["egress-only", "no-put", "in-no-policy"],
+)
+def test_a_deny_rule_that_keeps_no_put_out_is_no_cover_for_the_key_prefix(
+    tmp_path: Path, old: str, new: str
+) -> None:
+    """The check took any deny rule naming ``portal/**`` for cover: one on the egress
+    flow only, one denying queries only, or one no policy names let a foreign peer's
+    put to ``<prefix>/sim/truth`` reach the service (tried with real sessions on each),
+    and the service started. Now it exits 2 saying which rule keeps nothing out."""
+    config, _ = locked_down_service(tmp_path)
+    shipped = (ROOT / "deploy" / "zenoh.json5").read_text()
+    assert old in shipped
+    zenoh_file = tmp_path / "zenoh.json5"
+    zenoh_file.write_text(shipped.replace(old, new, 1))
+    path = Path(config.source)
+    path.write_text(path.read_text().replace(str(ROOT / "deploy" / "zenoh.json5"), "zenoh.json5"))
+    config = load_service_config(path)
+    with pytest.raises(ConfigError) as error:
+        open_session(config.zenoh, config.source)
+    assert str(error.value).startswith(
+        f"{zenoh_file}: access_control: its deny rules name no key under "
+        f"{config.zenoh.key_prefix} (their keys: none; a deny rule no policy names, or that "
+        "denies no put arriving (flows: ingress, messages: put), keeps nothing out: portal/**)"
+    )

@@ -142,3 +142,47 @@ def test_a_clock_stepping_back_starts_the_sampling_again() -> None:
     assert len(snaps.t_s) == 20
     assert snaps.t_s[10] == 50.0 and not snaps.valid[10].any()  # stale until heard again
     assert snaps.valid[11:].all()
+
+
+@pytest.mark.parametrize("count", [1, 3])
+def test_fewer_equations_than_parameters_identify_nothing_they_leave_open(count: int) -> None:
+    """One instant (6 feet down) or three (one of each stance: 9 equations for 12
+    parameters) fit exactly whatever the gains: the directions no equation reaches were
+    not counted as undetermined, nor was a fit without a spare equation judged, and every
+    parameter was written (gains off by up to 6 %, offsets by 1.1 kN)."""
+    lever_N, contact, _ = instants()
+    fit = fit_calibration(lever_N[:count], contact[:count], W_TERM_N, WEIGHT_N, LEGS)
+    assert not fit.gain_identified.any() and not fit.offset_identified.any()
+    assert (fit.gain == 1.0).all() and (fit.offset_N == 0.0).all()
+
+
+@pytest.mark.parametrize(
+    ("gain", "offset_N", "line"),
+    [
+        (2.0, 0.0, "force_gain of SB1_F1 at 1.5 stopped at the fit's bound (0.5..1.5)"),
+        (0.3, 0.0, "force_gain of SB1_F1 at 0.5 stopped at the fit's bound (0.5..1.5)"),
+        (
+            1.0,
+            80e3,
+            "force_offset_N of SB1_F1 at -50000 stopped at the fit's bound (-50000..50000 N)",
+        ),
+    ],
+)
+def test_a_leg_beyond_the_bounds_is_named_not_blamed_on_the_load_distribution(
+    gain: float, offset_N: float, line: str
+) -> None:
+    """A leg whose config is off by more than the bounds (a lever ratio of half or three
+    times the truth: a length in the wrong unit; a transducer 80 kN off): the fit stops at
+    the bound, its residual is large, nothing is identified, and the refusal said 'the
+    load distribution never changed enough' of data of rank 12, condition 8."""
+    true_gain = TRUE_GAIN.copy()
+    true_gain[0] = gain
+    zero_offset_N = ZERO_OFFSET_N.copy()
+    zero_offset_N[0] = offset_N
+    lever_N, contact, true_N = instants()
+    lever_N = (true_N - W_TERM_N) / true_gain + zero_offset_N  # noise-free, feet in the air too
+    fit = fit_calibration(lever_N, contact, W_TERM_N, WEIGHT_N, LEGS)
+    assert fit.rank == 12
+    assert not fit.gain_identified.any() and not fit.offset_identified.any()
+    assert fit.refusals[0].startswith(line), fit.refusals
+    assert not any("load distribution" in refusal for refusal in fit.refusals)
