@@ -19,7 +19,7 @@ import can
 
 from daq.errors import RecordingError
 from daq.frames import RawFrame
-from daq.output_file import refuse_an_input, replacing_path
+from daq.output_file import named, refuse_an_input, replacing_path
 from daq.recording_run import expand, run_files
 from daq.replay import run_items
 
@@ -74,4 +74,5 @@ def export(paths: Iterable[Path], out: Path, fmt: str) -> int:
 def default_out(path: Path, fmt: str) -> Path:
     """``REC.mcap`` -> ``REC.log`` / ``.asc`` / ``.blf`` beside it (a directory: inside)."""
     suffix = FORMATS[fmt][1]
+    path = named(path)
     return path / f"{path.name}{suffix}" if path.is_dir() else path.with_suffix(suffix)

@@ -6,7 +6,8 @@ a run that fails half way (a bad config, a log that stops being readable, a file
 no MCAP) leaves what the path named as it was, never emptied or half written. And
 :func:`refuse_an_input` keeps an output from naming a recording the command reads
 (``replay REC.mcap --out REC.mcap`` replaced the recording with its CSV, ``export``
-emptied it before reading it).
+emptied it before reading it). :func:`named` gives a path given as ``.`` the name a
+default output is derived from.
 """
 
 import os
@@ -75,3 +76,14 @@ def refuse_an_input(out: Path, inputs: Iterable[Path], option: str = "--out") ->
             raise RecordingError(
                 out, f"{option} names {path}, which this reads; give {option} another file"
             )
+
+
+def named(path: Path) -> Path:
+    """``path``, or where it is ``.`` or ends in ``..`` (no name of its own), the
+    directory it stands for: a default output is named after it (``report .`` was a
+    ValueError traceback, ``export . --to asc`` wrote a hidden ``./.asc``).
+
+    >>> named(Path("rec.mcap")), named(Path("/data/day1/.")), named(Path("/data/day1/.."))
+    (PosixPath('rec.mcap'), PosixPath('/data/day1'), PosixPath('/data'))
+    """
+    return path if path.name not in ("", "..") else Path(os.path.abspath(path))

@@ -14,7 +14,8 @@ recording of an earlier release) is a run of its own.
 
 :func:`run_files` takes files and directories (a directory stands for its ``*.mcap``
 files), checks that they are one run, and orders them; :func:`runs` groups the files
-of many runs (a campaign) the same way. A file given twice (a directory and a file in
+of many runs (a campaign, whose directories stand for every ``*.mcap`` file below them)
+the same way. A file given twice (a directory and a file in
 it, a symbolic link) counts once, and so does a copy of a file (a backup folder in the
 campaign's tree: the same bytes, found by size and then content), with a warning line:
 counted twice, a copy of a run without run metadata doubled its rows, and one of a run
@@ -77,20 +78,37 @@ def _run_file(path: Path, metadata: dict[str, str]) -> RunFile:
         raise RecordingError(path, f"unreadable {RUN_METADATA} metadata {metadata}") from exc
 
 
-def expand(paths: Sequence[Path]) -> list[Path]:
-    """The files named, a directory replaced by its ``*.mcap`` files (sorted by name)."""
+def expand(paths: Sequence[Path], *, recursive: bool = False) -> list[Path]:
+    """The files named, a directory replaced by its ``*.mcap`` files (sorted by path);
+    ``recursive``: those in its subdirectories too (a campaign's tree of days or machines:
+    without, a tree of day folders was "no .mcap files", and one with a recording at its
+    top was reported without its folders, unsaid)."""
     files: list[Path] = []
     for path in paths:
         if path.is_dir():
-            found = sorted(p for p in path.iterdir() if p.suffix.lower() == MCAP_SUFFIX)
+            found = _mcap_files(path, recursive)
             if not found:
-                raise RecordingError(path, "no .mcap files in this directory")
+                below = " or below it" if recursive else ""
+                raise RecordingError(path, f"no .mcap files in this directory{below}")
             files.extend(found)
         else:
             files.append(path)
     if not files:
         raise RecordingError("", "no recording given")
     return list(dict.fromkeys(files))
+
+
+def _mcap_files(directory: Path, recursive: bool) -> list[Path]:
+    """The ``*.mcap`` files in ``directory`` (and below it, without following links to
+    directories, if ``recursive``), sorted."""
+    if not recursive:
+        return sorted(p for p in directory.iterdir() if p.suffix.lower() == MCAP_SUFFIX)
+    return sorted(
+        Path(folder, name)
+        for folder, _, names in os.walk(directory)
+        for name in names
+        if Path(name).suffix.lower() == MCAP_SUFFIX
+    )
 
 
 def run_files(paths: Sequence[Path]) -> list[Path]:
@@ -109,15 +127,18 @@ def run_files(paths: Sequence[Path]) -> list[Path]:
     return found[0][1]
 
 
-def runs(paths: Sequence[Path]) -> list[tuple[str, list[Path]]]:
-    """The runs among the MCAP files of ``paths`` (a campaign), each as its name and its
-    files in order; runs in the order their first file was given (or found).
+def runs(paths: Sequence[Path], *, recursive: bool = False) -> list[tuple[str, list[Path]]]:
+    """The runs among the MCAP files of ``paths`` (a campaign; ``recursive``: a directory's
+    subdirectories' too), each as its name and its files in order; runs in the order
+    their first file was given (or found).
 
     Raises :class:`~daq.errors.RecordingError` for an unreadable file or two files
     claiming one index of a run.
     """
     grouped: dict[tuple[str, str] | Path, list[RunFile]] = {}
-    for file in _without_copies([read_run_file(path) for path in expand(paths)]):
+    for file in _without_copies(
+        [read_run_file(path) for path in expand(paths, recursive=recursive)]
+    ):
         grouped.setdefault(file.run or file.path, []).append(file)
     return [(_run_name(key), _ordered(members)) for key, members in grouped.items()]
 

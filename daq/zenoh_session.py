@@ -32,12 +32,22 @@ DEFAULT_LISTEN = "tcp/127.0.0.1:7447"
 #: A put to a link that stays congested this long (µs) closes the link instead of
 #: stalling the publisher thread (below the watchdog's 2 s heartbeat limit).
 BLOCK_WAIT_BEFORE_CLOSE_US = 1_000_000
+#: The lease the service's session announces (ms), and its keep-alives per lease: a
+#: router (or peer) drops a machine that vanishes without closing its session (power,
+#: cable, a frozen process) after the lease the *machine* announces, so its liveliness
+#: token goes and the fleet views show it gone within ~2 s. With Zenoh's default of
+#: 10 s it took 8-10 s, measured through the site router, whose own 2 s lease only
+#: governs how the machines judge the router. As ``zenoh.json5`` sets it.
+LEASE_MS = 2000
+KEEP_ALIVES = 4
 #: Applied when there is no ``config_file`` (the explicit keys still win); a client
 #: listens nowhere, so it gets no listener.
 SAFE_DEFAULTS: dict[str, object] = {
     "listen/endpoints": [DEFAULT_LISTEN],
     "scouting/multicast/enabled": False,
     "scouting/gossip/enabled": False,
+    "transport/link/tx/lease": LEASE_MS,
+    "transport/link/tx/keep_alive": KEEP_ALIVES,
 }
 
 

@@ -62,6 +62,9 @@ class CampaignRow:
     weight_residual_max_abs_N: float
     #: The limit ``time_above_limit_s`` counts against (the machine's, or the default).
     pressure_limit_Pa: float
+    #: False: a file of the recording ends without its summary (cut short by a crash or
+    #: a power loss): read up to its last complete chunk, its end is missing.
+    complete: bool
 
 
 #: The table's columns, in order (the CSV header).
@@ -113,6 +116,7 @@ def campaign_rows(recording: Recording) -> list[CampaignRow]:
                 weight_residual_median_N=float(np.median(residual)) if residual.size else NAN,
                 weight_residual_max_abs_N=float(np.abs(residual).max()) if residual.size else NAN,
                 pressure_limit_Pa=content.settings.pressure_limit_Pa,
+                complete=recording.complete,
             )
         )
     return rows

@@ -57,8 +57,9 @@ def _fraction(rows: Sequence[CampaignRow]) -> float:
 
 
 def recording_rows(rows: Sequence[CampaignRow]) -> list[list[str]]:
-    """Per recording: machine, cycles, duration, highest peak (foot, cycle), longest
-    time above the limit, invalid share, the range of the cycles' median weight residuals."""
+    """Per recording (flagged when cut short): machine, cycles, duration, highest peak
+    (foot, cycle), longest time above the limit, invalid share, the range of the cycles'
+    median weight residuals."""
     table = []
     for name, group in groupby(rows, key=lambda r: r.recording):
         members = list(group)
@@ -69,7 +70,7 @@ def recording_rows(rows: Sequence[CampaignRow]) -> list[list[str]]:
         residuals = [c.weight_residual_median_N for c in cycles]
         table.append(
             [
-                name,
+                name + ("" if members[0].complete else " (cut short: its end is missing)"),
                 members[0].machine_id,
                 str(len(cycles)),
                 _number(sum(c.cycle_duration_s for c in cycles)),

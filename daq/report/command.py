@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from daq.errors import EmptyRecordingError, RecordingError
+from daq.output_file import named
 from daq.subcommand import Subcommand, add_channel_option
 from dbc.errors import ConfigError, DbcError, PortalDaqError
 
@@ -47,7 +48,7 @@ class ReportOptions:
     def directory(self) -> Path:
         if self.out_dir is not None:
             return self.out_dir
-        first = self.recording if isinstance(self.recording, Path) else self.recording[0]
+        first = named(self.recording if isinstance(self.recording, Path) else self.recording[0])
         suffix = "campaign" if self.campaign else "report"
         return first.with_name(f"{first.stem}_{suffix}")
 
@@ -79,8 +80,8 @@ def parse_report_args(args: Sequence[str]) -> ReportOptions:
     campaign.add_argument(
         "--campaign",
         action="store_true",
-        help="every run among the files and directories given: campaign.csv + campaign.html "
-        "(default --out: <first stem>_campaign)",
+        help="every run among the files and directories given (and their subdirectories): "
+        "campaign.csv + campaign.html (default --out: <first stem>_campaign)",
     )
     campaign.add_argument(
         "--cluster",
@@ -140,7 +141,7 @@ def campaign_report(options: ReportOptions) -> list[Path]:
     from daq.report.campaign_run import campaign
 
     given = [options.recording] if isinstance(options.recording, Path) else options.recording
-    found = runs(given)
+    found = runs(given, recursive=True)
     rows = campaign(found, options.config_path, cluster=options.cluster, workers=options.workers)
     reported = len({row.recording for row in rows})
     if not rows:

@@ -1,10 +1,14 @@
 """Calculated against true foot force: matching by time and the deviation statistics.
 
 Pure computation, as in section 3.4 of the paper (Figures 5 and 6). An estimate is
-matched to the truth sample nearest to it in time, if that is at most half a truth
-sample period away (the period is the median spacing of the truth samples): the truth
-is stamped with the Unix time its frames went onto the bus, the estimate with the
-frame time of the frame it came from, so the two agree to the receive latency.
+matched to the truth sample nearest to it in time, if that is at most half a sample
+period away, of the truth's or the leg's estimates', whichever is shorter (a period is
+the median spacing of the samples): the truth is stamped with the Unix time its frames
+went onto the bus, the estimate with the frame time of the frame it came from, so the
+two agree to the receive latency. Truth sampled more sparsely than the estimates
+(``portal-sim --truth-every 100``: one a second) is compared with the estimates made at
+its instants only: within half the truth's period, every estimate was compared with a
+truth sample up to 0.5 s away, and a correct estimator was out of the paper's bounds.
 
 The deviation is the calculated, median-filtered force minus the true force, over the
 valid estimates that have a known true force. The paper filters offline, with a
@@ -147,16 +151,23 @@ def compare_leg(
 def compare(
     tracks: Mapping[str, LegTrack], truth: TruthTrack, median_window: int, contact_N: float
 ) -> dict[str, LegComparison]:
-    """Every leg that has truth, matched within half the truth's sample period; stance
-    where the true force is above ``contact_N``."""
-    tolerance_s = sample_period_s(truth.t_s) / 2
-    if not math.isfinite(tolerance_s):
-        tolerance_s = 0.0  # one truth sample: only an estimate at the same instant
+    """Every leg that has truth, matched within half the shorter of the truth's and the
+    leg's sample period; stance where the true force is above ``contact_N``."""
+    truth_period_s = sample_period_s(truth.t_s)
     return {
-        leg: compare_leg(track, truth, tolerance_s, median_window, contact_N)
+        leg: compare_leg(
+            track, truth, _tolerance_s(truth_period_s, track.t_s), median_window, contact_N
+        )
         for leg, track in tracks.items()
         if leg in truth.force_true_N
     }
+
+
+def _tolerance_s(truth_period_s: float, t_s: FloatArray) -> float:
+    """Half the shorter of the truth's period and that of the estimates at ``t_s``; 0
+    (only an estimate at a truth sample's instant) where neither has one."""
+    periods = [p for p in (truth_period_s, sample_period_s(t_s)) if math.isfinite(p)]
+    return min(periods) / 2 if periods else 0.0
 
 
 def deviation_stats(comparison: LegComparison, stance: bool = True) -> DeviationStats:

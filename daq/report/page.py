@@ -265,7 +265,8 @@ def render_page(content: ReportContent, pictures: Mapping[str, Picture]) -> str:
     if content.deviations:
         parts += [
             "<p class=note>Each valid estimate matched to the simulation truth sample "
-            "nearest in time (within half a truth sample period); deviation = calculated - "
+            "nearest in time (within half a sample period, the truth's or the leg's, whichever "
+            "is shorter); deviation = calculated - "
             "true force. Calculated: eq. (4) with the median centred on the frame, like the "
             "paper's offline filter (the running median "
             f"{(settings.median_window - 1) // 2} samples later). The paper (section 3.4) "
@@ -296,10 +297,30 @@ def render_page(content: ReportContent, pictures: Mapping[str, Picture]) -> str:
             ),
         ]
         parts += [_picture(pictures[r]) for r in ("comparison", "deviation") if r in pictures]
-    else:
-        parts.append("<p class=note>No simulation truth (/sim/truth) in this recording.</p>")
+    parts += [f"<p class=note>{html.escape(note)}</p>" for note in [truth_note(content)] if note]
     parts.append("</body></html>")
     return "\n".join(parts) + "\n"
+
+
+def truth_note(content: ReportContent) -> str:
+    """What the comparison leaves out: the truth altogether, or legs of the recording it
+    does not name (truth recorded with another machine config, say); '' when nothing.
+
+    A truth that names none of the recording's legs was told "No simulation truth in
+    this recording", under a header counting its samples."""
+    truth = content.recording.truth
+    legs = list(content.recording.legs)
+    if not len(truth):
+        return "No simulation truth (/sim/truth) in this recording."
+    if not content.comparisons:
+        return (
+            f"The simulation truth (/sim/truth, {len(truth)} samples) is of the legs "
+            f"{', '.join(truth.force_true_N) or 'none'}, none of them a leg of this "
+            f"recording ({', '.join(legs) or 'none'}): nothing to compare (truth of "
+            "another machine config?)."
+        )
+    missing = [leg for leg in legs if leg not in content.comparisons]
+    return f"No simulation truth for {', '.join(missing)}: not compared." if missing else ""
 
 
 def _live_filter(settings: EstimatorSettings) -> str:

@@ -359,3 +359,48 @@ def test_recordings_of_one_name_in_two_folders_are_two(tmp_path: Path) -> None:
     assert [len(found) for found in per_recording.values()] == [6, 6 * 2]  # 1 and 2 cycles
     page = (out / "campaign.html").read_text()
     assert "Campaign report: 2 recordings" in page and "hold nothing" not in page
+
+
+def test_a_campaign_directory_is_searched_below_its_top(tmp_path: Path) -> None:
+    """A season kept in folders of days (and machines): the recordings below the
+    directory given are the campaign's. Only its top was read: a tree of day folders was
+    "no .mcap files in this directory" (exit 1), and one with a recording at its top was
+    reported without its folders' recordings, unsaid."""
+    from daq.report.command import report_main
+
+    season = tmp_path / "season"
+    (season / "day2" / "pam-2").mkdir(parents=True)
+    (season / "day1").mkdir()
+    record(season / "day1" / "a.mcap", seconds=1.0)
+    record(season / "day2" / "pam-2" / "a.mcap", seconds=1.5)
+    out = tmp_path / "out"
+    assert report_main(["--campaign", str(season), "--workers", "1", "--out", str(out)]) == 0
+    record(season / "top.mcap", seconds=2.0)  # other bytes than day1/a.mcap: no copy
+    assert report_main(["--campaign", str(season), "--workers", "1", "--out", str(out)]) == 0
+    with open(out / "campaign.csv") as table:
+        names = list(dict.fromkeys(row["recording"] for row in csv.DictReader(table)))
+    assert names == ["day1/a.mcap", "day2/pam-2/a.mcap", "top.mcap"]
+    assert "Campaign report: 3 recordings" in (out / "campaign.html").read_text()
+    # one run's directory (replay, report, export) is its own files only
+    assert run_files([season]) == [season / "top.mcap"]
+
+
+def test_a_recording_cut_short_is_flagged_in_the_table_and_on_the_page(tmp_path: Path) -> None:
+    """A file a crash cut short is read up to its last complete chunk: its cycles are
+    shorter and its peaks may be missing. The single report's header flags it; the
+    campaign's page and table said nothing (a warning on stderr only)."""
+    from daq.report.command import report_main
+
+    season = tmp_path / "season"
+    season.mkdir()
+    whole = record(season / "a_whole.mcap", seconds=2.0)
+    cut = record(tmp_path / "b_cut.mcap", seconds=5.0, chunk_size=64 * 1024)
+    (season / "b_cut.mcap").write_bytes(cut.read_bytes()[: cut.stat().st_size // 2])
+    out = tmp_path / "out"
+    assert report_main(["--campaign", str(season), "--workers", "1", "--out", str(out)]) == 0
+    with open(out / "campaign.csv") as table:
+        flags = {row["recording"]: row["complete"] for row in csv.DictReader(table)}
+    assert flags == {whole.name: "True", "b_cut.mcap": "False"}
+    page = (out / "campaign.html").read_text()
+    assert "b_cut.mcap (cut short: its end is missing)" in page
+    assert "a_whole.mcap (cut" not in page

@@ -116,3 +116,30 @@ def test_an_export_that_fails_leaves_the_earlier_file(tmp_path: Path) -> None:
     assert sorted(p.name for p in tmp_path.iterdir()) == ["rec.log"]
     assert write_frames(FRAMES, out, "candump") == len(FRAMES)
     assert out.read_text().count(" can0 ") == len(FRAMES)
+
+
+def test_outputs_of_a_directory_given_as_dot_are_named_after_it(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Run in a run's directory, ``export . --to asc`` wrote a hidden ``./.asc`` and
+    ``report .`` (also ``--campaign``) stopped with a ValueError traceback ('.' has an
+    empty name): the default outputs are named after the directory '.' stands for."""
+    from daq.report.command import ReportOptions
+
+    run = tmp_path / "run1"
+    run.mkdir()
+    recording(run / "rec.mcap")
+    done = subprocess.run(
+        [sys.executable, "-m", "daq", "export", ".", "--to", "asc"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        cwd=run,
+    )
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == f"{run / 'run1.asc'}: {len(FRAMES)} frames"
+    assert sorted(p.name for p in run.iterdir()) == ["rec.mcap", "run1.asc"]
+    monkeypatch.chdir(run)
+    assert ReportOptions(Path(".")).directory == tmp_path / "run1_report"
+    assert ReportOptions((Path("."),), campaign=True).directory == tmp_path / "run1_campaign"
+    assert ReportOptions(Path("..")).directory == tmp_path.parent / f"{tmp_path.name}_report"

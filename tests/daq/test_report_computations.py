@@ -205,6 +205,25 @@ def test_the_calculated_force_is_the_median_centred_on_the_frame() -> None:
     assert both["L"].t_s.tolist() == comparison.t_s.tolist() + [t[9]]
 
 
+def test_sparse_truth_is_compared_with_the_estimates_at_its_instants_only() -> None:
+    """Truth once a second (``portal-sim --truth-every 100``), estimates every 10 ms: an
+    estimate 0.4 s from a truth sample is not compared with it (half the truth's period
+    matched every estimate, each off by the force's change over up to 0.5 s)."""
+    t = np.round(100.0 + np.arange(300) * 0.01, 6)
+    t[200] += 0.003  # receive latency: still the truth sample's frame
+    force = 1000.0 * np.arange(300)  # a ramp: 100 kN a second
+    leg = LegTrack("L", t, force, force / 0.33, np.ones(300, bool), force, force > 0)
+    truth_t = np.array([100.0, 101.0, 102.0])
+    truth = TruthTrack(truth_t, {"L": np.array([0.0, 100e3, 200e3])})
+
+    comparison = compare({"L": leg}, truth, median_window=1, contact_N=0.0)["L"]
+    assert comparison.t_s.tolist() == [t[0], t[100], t[200]]
+    assert comparison.deviation_N.tolist() == [0.0, 0.0, 0.0]
+    # truth denser than the estimates: half the truth's period, as before
+    dense = TruthTrack(np.round(100.0 + np.arange(3000) * 0.001, 6), {"L": np.zeros(3000)})
+    assert compare({"L": leg}, dense, 1, 0.0)["L"].t_s.size == 300
+
+
 def test_deviation_statistics_are_of_the_absolute_deviation() -> None:
     deviation = np.array([-10.0, -4.0, -2.0, 0.0, 1.0, 3.0])
     true_N = np.array([100.0, 200.0, 300.0, 400.0, 500.0, 600.0])

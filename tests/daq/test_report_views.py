@@ -10,7 +10,7 @@ import pytest
 
 from daq.report.content import ReportContent, analyse
 from daq.report.figures import comparison_figure, time_series_figure
-from daq.report.page import header_rows, metrics_rows
+from daq.report.page import header_rows, metrics_rows, render_page
 from daq.report.tracks import RecordingCollector
 
 T0_S = 1_750_000_000.0
@@ -23,9 +23,12 @@ def add(collector: RecordingCollector, topic: str, payload: dict) -> None:  # ty
     collector.add(topic, json.dumps(payload).encode())
 
 
-def played_cycle(machine_state: bool = True) -> ReportContent:
+def played_cycle(
+    machine_state: bool = True, truth_legs: dict[str, str] | None = None
+) -> ReportContent:
     """SB1_F1 loaded with a peak at cycle time 6 s; SB2_F1 lifted (contact false, eq. 5
-    negative: -13 kPa) from cycle time 3 s to 7 s, in contact otherwise."""
+    negative: -13 kPa) from cycle time 3 s to 7 s, in contact otherwise. ``truth_legs``:
+    the truth's name of each leg it has (default: every leg, by its own name)."""
     collector = RecordingCollector()
     for i in range(int(CYCLE_S / SPEED / STEP_S) + 1):
         t = T0_S + i * STEP_S
@@ -44,7 +47,8 @@ def played_cycle(machine_state: bool = True) -> ReportContent:
                 "Machine_Phase": phase, "Machine_CycleCount": 0,
                 "Machine_CycleTime": round(cycle_t, 2)}})  # fmt: skip
         truth = {"SB1_F1": sb1, "SB2_F1": 0.0 if lifted else sb2}
-        legs = {leg: {"force_true_N": force} for leg, force in truth.items()}
+        names = truth_legs if truth_legs is not None else {leg: leg for leg in LEGS}
+        legs = {names[leg]: {"force_true_N": f} for leg, f in truth.items() if leg in names}
         add(collector, "/sim/truth", {"t_unix_s": t, "legs": legs})
     return analyse(collector.recording("run.mcap", None, machine_id="m"))
 
@@ -122,3 +126,19 @@ def test_two_cycles_are_laid_over_one_another_not_joined() -> None:
     assert gap.size == 1  # one break between the cycles, no line drawn back to 0
     assert kPa[gap[0] - 1] == pytest.approx(1e4 / 0.33 / 1e3)
     assert kPa[gap[0] + 1] == pytest.approx(2e4 / 0.33 / 1e3)
+
+
+def test_the_page_says_which_legs_the_truth_leaves_out() -> None:
+    """Truth of other leg names (recorded with another machine config) was told "No
+    simulation truth in this recording" under a header counting its samples; a leg the
+    truth does not name was left out of the table unsaid."""
+    assert "No simulation truth" not in render_page(played_cycle(), {})
+    renamed = render_page(played_cycle(truth_legs={"SB1_F1": "FL", "SB2_F1": "FR"}), {})
+    assert "No simulation truth (/sim/truth) in this recording" not in renamed
+    assert (
+        "The simulation truth (/sim/truth, 1001 samples) is of the legs FL, FR, none of them "
+        "a leg of this recording (SB1_F1, SB2_F1): nothing to compare" in renamed
+    )
+    partial = played_cycle(truth_legs={"SB1_F1": "SB1_F1"})
+    assert list(partial.deviations) == ["SB1_F1"]
+    assert "No simulation truth for SB2_F1: not compared." in render_page(partial, {})
