@@ -138,7 +138,12 @@ class Pipeline:
             if frame.is_remote_frame:
                 raise RemoteFrameError(frame.arbitration_id, "remote frame, no data")
             decoded = self.decoder.decode(
-                frame.arbitration_id, frame.data, frame.t_s, frame.is_extended_id, frame.is_fd
+                frame.arbitration_id,
+                frame.data,
+                frame.t_s,
+                frame.is_extended_id,
+                frame.is_fd,
+                bus_s,
             )
         except FrameError as error:
             self.bad[error.kind] += 1

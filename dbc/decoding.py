@@ -189,7 +189,12 @@ class _MessageCodec:
                     self._counter_scaling = (counter_signal.scale, counter_signal.offset)
 
     def decode(
-        self, arbitration_id: int, data: bytes, t_s: float, source_address: int | None
+        self,
+        arbitration_id: int,
+        data: bytes,
+        t_s: float,
+        source_address: int | None,
+        bus_s: float,
     ) -> DecodedFrame:
         name = self.name
         if len(data) != self.length:
@@ -234,7 +239,7 @@ class _MessageCodec:
             return DecodedFrame(name, t_s, signals, (CRC_FAULT,), 0, source_address)
         if counter is None or counter_value is None:
             return DecodedFrame(name, t_s, signals, (), 0, source_address)
-        result = counter.update(counter_value, t_s)
+        result = counter.update(counter_value, bus_s)
         faults = (result.fault,) if result.fault is not None else ()
         return DecodedFrame(name, t_s, signals, faults, result.lost, source_address)
 
@@ -383,10 +388,15 @@ class FrameDecoder:
         t_s: float,
         is_extended_id: bool = False,
         is_fd: bool = False,
+        bus_s: float | None = None,
     ) -> DecodedFrame:
         """Decode one frame; raises a :class:`~dbc.errors.FrameError` subclass if unusable.
 
         An FD frame decodes only for a message the DBC defines as FD (else ``fd_frame``).
+        ``bus_s``: the bus time at the frame (:class:`estimator.machine.BusClock`), on which
+        a silence that restarts the rolling counter's check is judged; its frame time when
+        not given (then a message silent across a clock step back came back with a
+        ``counter`` fault).
         """
         codec = self._codecs.get((arbitration_id, is_extended_id))
         source_address = None
@@ -401,7 +411,9 @@ class FrameDecoder:
             raise FdFrameError(arbitration_id, "CAN FD frame of no FD message in the DBC")
         if codec is None:
             raise UnknownFrameError(arbitration_id, "ID not in the DBC")
-        return codec.decode(arbitration_id, bytes(data), t_s, source_address)
+        return codec.decode(
+            arbitration_id, bytes(data), t_s, source_address, t_s if bus_s is None else bus_s
+        )
 
     def _j1939_codec(self, frame_id: int) -> _MessageCodec | None:
         """The codec of a 29-bit frame ID by its PGN, source and (where only that tells

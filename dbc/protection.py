@@ -264,10 +264,12 @@ class CounterCheck:
     first frame, and the first after :meth:`reset` (also called after a frame
     whose CRC failed: its counter is not trusted), is accepted as it comes; the
     next frame is always judged against the value just seen. So is a frame that comes
-    more than ``resync_after_s`` after the one before (frame times): after a silence
-    as long as a whole turn of the counter (the sender switched off, a log's gap),
-    the counter can no longer tell how many frames went missing, and the check starts
-    anew, as AUTOSAR's receivers resynchronise after a timeout.
+    more than ``resync_after_s`` after the one before (the times given: the pipeline's
+    bus time, :class:`estimator.machine.BusClock`, on which a clock stepped back during
+    the silence hides none of it): after a silence as long as a whole turn of the
+    counter (the sender switched off, a log's gap), the counter can no longer tell how
+    many frames went missing, and the check starts anew, as AUTOSAR's receivers
+    resynchronise after a timeout.
 
     >>> check = CounterCheck(modulo=16, max_delta=2)
     >>> [(r.fault, r.lost) for r in map(check.update, (3, 4, 6, 6, 10, 11))]
@@ -295,7 +297,7 @@ class CounterCheck:
         self._last = None
 
     def update(self, counter: int, t_s: float = math.nan) -> CounterResult:
-        """Judge ``counter`` of a frame at frame time ``t_s`` (NaN: time not judged)."""
+        """Judge ``counter`` of a frame at time ``t_s`` (NaN: time not judged)."""
         if not 0 <= counter < self.modulo:  # a value it never takes (profile 1's 15)
             self._last = None
             return CounterResult(COUNTER_JUMP, 0)

@@ -66,9 +66,17 @@ class Instants:
     still_phases: tuple[str, ...] = ()
     #: The legs valid in no snapshot of any recording.
     never_valid: tuple[str, ...] = ()
+    #: Snapshots of the longest recording (an instant needs :data:`WINDOW` either side).
+    longest: int = 0
 
     def why_none(self) -> str:
         """Why there is no instant (:attr:`t_s` empty), for the user."""
+        if not self.steady and self.longest <= 2 * WINDOW:
+            return (
+                f"no quasi-static instant: the longest recording has {self.longest} snapshots "
+                f"({self.longest * PERIOD_S:.1f} s), and an instant needs "
+                f"{WINDOW * PERIOD_S:.1f} s steady either side"
+            )
         if not self.steady:
             return (
                 f"no quasi-static instant: none of {self.total} snapshots had every leg "
@@ -142,7 +150,7 @@ def read_instants(paths: Sequence[Path], machine: Machine, channel: str | None =
     ``channel``'s frames when it is given)."""
     legs = tuple(machine[0].legs)
     parts: list[Snapshots] = []
-    total = steady = 0
+    total = steady = longest = 0
     phases: dict[str, None] = {}
     ever_valid = np.zeros(len(legs), dtype=bool)
     config = machine[0]
@@ -158,6 +166,7 @@ def read_instants(paths: Sequence[Path], machine: Machine, channel: str | None =
         steady_here = quasi_static(snaps, WINDOW, MAX_CHANGE_N)
         keep = steady_here & still
         total += len(snaps.t_s)
+        longest = max(longest, len(snaps.t_s))
         steady += int(steady_here.sum())
         ever_valid |= snaps.valid.any(axis=0)
         phases.update(dict.fromkeys(phase for _, _, _, phase in states))
@@ -176,6 +185,7 @@ def read_instants(paths: Sequence[Path], machine: Machine, channel: str | None =
         phases=tuple(phases),
         still_phases=tuple(phase for phase in phases if meanings.get(phase) in STILL_PHASES),
         never_valid=tuple(leg for leg, ever in zip(legs, ever_valid, strict=True) if not ever),
+        longest=longest,
     )
 
 

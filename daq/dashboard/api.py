@@ -7,7 +7,7 @@ and whether it is stale::
      "waiting_for": "<prefix>/status" | "<prefix>/ground" | null,
      "status": null | {"age_s", "stale", "bus": {"state", "interface", "channel",
                 "reason", "reopens"}, "frames_per_s", "frames_received",
-                "frames_bad", "dropped", "healthy", "uptime_s", "t"},
+                "frames_bad", "dropped", "healthy", "problems", "uptime_s", "t"},
      "ground": null | {"age_s", "stale", "t", "total_force_N", "weight_N",
                 "residual_N", "legs_in_contact", "complete",
                 "stability": null | {"margin_m", "cop_m", "legs", "polygon_m", "feet_m"},
@@ -105,6 +105,7 @@ def _status(received: Received[StatusReading], now_s: float, stale_after_s: floa
         "frames_bad": status.frames_bad,
         "dropped": status.dropped,
         "healthy": status.healthy,
+        "problems": list(status.problems),
     }
 
 

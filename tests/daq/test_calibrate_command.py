@@ -318,7 +318,14 @@ def test_no_instant_says_whether_the_legs_or_the_phases_kept_them_out() -> None:
 
     empty = np.empty(0)
     kept_out = Instants(
-        ("A",), empty, empty.reshape(0, 1), empty.reshape(0, 1) > 0, 901, 240, ("fold", "unfold")
+        ("A",),
+        empty,
+        empty.reshape(0, 1),
+        empty.reshape(0, 1) > 0,
+        901,
+        240,
+        ("fold", "unfold"),
+        longest=901,
     )
     assert kept_out.why_none() == (
         "no quasi-static instant: 240 of 901 snapshots had every leg valid and steady, none "
@@ -328,6 +335,13 @@ def test_no_instant_says_whether_the_legs_or_the_phases_kept_them_out() -> None:
     never = dataclasses.replace(kept_out, steady=0)
     assert never.why_none() == (
         "no quasi-static instant: none of 901 snapshots had every leg valid and steady"
+    )
+    # A recording too short for any instant says so: it said "none of 9 snapshots had
+    # every leg valid and steady" of a 0.9 s log whose legs were all valid and steady.
+    short = dataclasses.replace(never, total=9, longest=9)
+    assert short.why_none() == (
+        "no quasi-static instant: the longest recording has 9 snapshots (0.9 s), and an "
+        "instant needs 0.5 s steady either side"
     )
     # A leg never valid (a transducer out, a status never fine) is named: the message
     # said only "every leg", and which one of six to look at was left to guess.

@@ -120,6 +120,19 @@ def test_latest_document_waiting_then_values_and_staleness() -> None:
     assert latest_document(VIEWER, state, 13.5)["status"]["stale"] is True
 
 
+def test_latest_document_says_why_the_service_is_unhealthy() -> None:
+    # The page said "UNHEALTHY" and /api/latest had no word of why (a recording stopped,
+    # an unreached endpoint), which only the service's own log and /status told.
+    problems = ["recording stopped (write error)", "zenoh connect tcp/10.0.0.9:7447 not reached"]
+    state = LiveState(PREFIX)
+    payload = status_payload(50.0) | {"healthy": False, "problems": problems}
+    state.apply(f"{PREFIX}/status", json.dumps(payload).encode(), 10.0)
+    status = latest_document(VIEWER, state, 10.5)["status"]
+    assert status["healthy"] is False and status["problems"] == problems
+    state.apply(f"{PREFIX}/status", json.dumps(status_payload(51.0)).encode(), 11.0)
+    assert latest_document(VIEWER, state, 11.5)["status"]["problems"] == []
+
+
 def test_http_address() -> None:
     assert http_address("127.0.0.1:8080") == ("127.0.0.1", 8080)
     assert http_address("[::1]:0") == ("::1", 0)

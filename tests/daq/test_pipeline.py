@@ -90,6 +90,23 @@ def test_a_silence_longer_than_a_turn_of_the_counter_restarts_its_check() -> Non
     assert pipeline.bad == {"counter": 1} and pipeline.frames_lost == 7
 
 
+def test_a_silence_across_a_clock_step_back_restarts_the_counters_check() -> None:
+    """LEG_SB1_F1 is lost for 0.5 s (three turns of its counter) while SB1_F2 goes on,
+    and NTP steps the clock back an hour meanwhile: its frame times say it came back
+    before it went, and its first frame was a ``counter`` fault (a sample invalid, a
+    fault counted, where the sender was fine). On bus time the silence is 0.5 s."""
+    pipeline, encoder = make()
+    results = []
+    for i in range(100):  # 10 ms apart; SB1_F1 silent for 0.5 s from 0.2 s
+        t_s = 1000.0 + 0.01 * i - (3600.0 if i >= 40 else 0.0)
+        for leg in ("SB1_F1", "SB1_F2"):
+            frame = encoder.encode(f"LEG_{leg}", leg_signals(leg, 9e6, 1e6))  # counts on
+            if leg == "SB1_F2" or not 20 <= i < 70:  # a loose connector: none arrives
+                results.append(pipeline.process(raw(frame, t_s)))
+    assert all(estimate.valid for result in results for estimate in result.estimates)
+    assert not pipeline.bad and pipeline.frames_lost == 0
+
+
 def test_json_payload_writes_nan_as_null() -> None:
     pipeline, _ = make()
     snapshot = pipeline.snapshot(100.0)
