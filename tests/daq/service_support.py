@@ -179,6 +179,39 @@ class Collector:
         return found[0]
 
 
+class KeysSeen:
+    """A subscriber on ``key`` that keeps the key of every sample it gets, whatever the
+    payload: which puts got through (an access control's test)."""
+
+    def __init__(self, session: zenoh.Session, key: str = "**") -> None:
+        self._keys: list[str] = []
+        self._arrived = threading.Condition()
+        self._subscriber = session.declare_subscriber(key, self._on_sample)
+
+    def _on_sample(self, sample: zenoh.Sample) -> None:
+        with self._arrived:
+            self._keys.append(str(sample.key_expr))
+            self._arrived.notify_all()
+
+    def __contains__(self, key: str) -> bool:
+        with self._arrived:
+            return key in self._keys
+
+    def routed(self, put: Callable[[], None], key: str) -> None:
+        """``put`` again until a sample on ``key`` arrived: the routes are up."""
+        with self._arrived:
+            while key not in self._keys:
+                put()
+                self._arrived.wait(0.1)
+
+    def wait_for(self, key: str) -> None:
+        with self._arrived:
+            assert self._arrived.wait_for(lambda: key in self._keys, WAIT_S), f"no {key}"
+
+    def undeclare(self) -> None:
+        self._subscriber.undeclare()
+
+
 @contextmanager
 def subscriber_session(port: int) -> Iterator[zenoh.Session]:
     session = zenoh.open(peer_config(connect=f"tcp/127.0.0.1:{port}"))

@@ -48,7 +48,7 @@ from sim_bridge.params import ModelParams
 from sim_bridge.playout import Playout
 from sim_bridge.result import SimulationResult
 from tests.daq.live_support import synthetic_service
-from tests.daq.service_support import WAIT_S, free_port, peer_config
+from tests.daq.service_support import WAIT_S, KeysSeen, free_port, peer_config
 from tests.daq.test_dashboard import get, get_json, wait_for_json
 from tests.daq.test_dashboard_chromium import CHROMIUM, chromium
 from tests.helpers import EXAMPLE_CONFIG, LEGS, ROOT, example_machine
@@ -284,29 +284,17 @@ def test_the_router_lets_no_simulation_truth_through(tmp_path: Path) -> None:
     """The shipped router's access control: data passes, ``portal/*/sim/**`` does not."""
     port = free_port()
     router = f"tcp/127.0.0.1:{port}"
-    received: list[str] = []
-    arrived = threading.Condition()
-
-    def on_sample(sample: zenoh.Sample) -> None:
-        with arrived:
-            received.append(str(sample.key_expr))
-            arrived.notify_all()
-
     with (
         process(["router", "--config", str(router_file(tmp_path, port))]),
         zenoh.open(client_config(router)) as viewer,
         zenoh.open(client_config(router)) as other,
     ):
-        subscriber = viewer.declare_subscriber("portal/**", on_sample)
-        with arrived:  # until the router routes to the subscriber
-            while "portal/m/ground" not in received:
-                other.put("portal/m/ground", b"{}")
-                arrived.wait(0.1)
+        received = KeysSeen(viewer, "portal/**")
+        received.routed(lambda: other.put("portal/m/ground", b"{}"), "portal/m/ground")
         other.put("portal/m/sim/truth", b"{}")
         other.put("portal/m/status", b"{}")  # after the truth, from the same session
-        with arrived:
-            assert arrived.wait_for(lambda: "portal/m/status" in received, WAIT_S)
-        subscriber.undeclare()
+        received.wait_for("portal/m/status")
+        received.undeclare()
     assert "portal/m/sim/truth" not in received
 
 

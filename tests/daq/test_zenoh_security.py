@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 import logging
-import threading
 import time
 import uuid
 from pathlib import Path
@@ -23,6 +22,7 @@ from dbc.errors import ConfigError
 from tests.daq.service_support import (
     WAIT_S,
     Collector,
+    KeysSeen,
     free_port,
     leg_messages,
     peer_config,
@@ -61,6 +61,16 @@ def locked_down_service(tmp_path: Path, *more_listen: str) -> tuple[ServiceConfi
     )
     path.write_text(text)
     return load_service_config(path), tcp
+
+
+def on_own_zenoh_file(config: ServiceConfig, zenoh_text: str) -> tuple[ServiceConfig, Path]:
+    """``config`` (of :func:`locked_down_service`) on a zenoh.json5 of its own beside it,
+    holding ``zenoh_text``: the config loaded again, and that file."""
+    path = Path(config.source)
+    zenoh_file = path.parent / "zenoh.json5"
+    zenoh_file.write_text(zenoh_text)
+    path.write_text(path.read_text().replace(str(ROOT / "deploy" / "zenoh.json5"), "zenoh.json5"))
+    return load_service_config(path), zenoh_file
 
 
 def test_foreign_puts_are_refused_and_the_local_socket_may_put_truth(tmp_path: Path) -> None:
@@ -169,11 +179,8 @@ def test_an_access_control_that_leaves_the_key_prefix_open_stops_the_service(
     config, tcp = locked_down_service(tmp_path)
     path = Path(config.source)
     path.write_text(path.read_text().replace("[zenoh]\n", '[zenoh]\nkey_prefix = "site7/pam"\n'))
-    zenoh_file = tmp_path / "zenoh.json5"
     shipped = (ROOT / "deploy" / "zenoh.json5").read_text()
-    zenoh_file.write_text(shipped)
-    path.write_text(path.read_text().replace(str(ROOT / "deploy" / "zenoh.json5"), "zenoh.json5"))
-    config = load_service_config(path)
+    config, zenoh_file = on_own_zenoh_file(load_service_config(path), shipped)
     assert config.zenoh.key_prefix == "site7/pam" and config.zenoh.config_file == zenoh_file
     with pytest.raises(ConfigError) as error:
         open_session(config.zenoh, config.source)
@@ -189,26 +196,14 @@ def test_an_access_control_that_leaves_the_key_prefix_open_stops_the_service(
         live_service(config) as service,
         zenoh.open(peer_config(connect=tcp)) as foreign,
     ):
-        received: list[str] = []
-        arrived = threading.Condition()
-
-        def on_sample(sample: zenoh.Sample) -> None:
-            with arrived:
-                received.append(str(sample.key_expr))
-                arrived.notify_all()
-
         # What reaches the service's session (its ingress is what the access control checks).
-        service.session.declare_subscriber("**", on_sample)
+        received = KeysSeen(service.session)
         connected(foreign)
-        with arrived:  # until the foreign peer's puts are routed to the service
-            while "marker/0" not in received:
-                foreign.put("marker/0", b"{}")
-                arrived.wait(0.1)
+        received.routed(lambda: foreign.put("marker/0", b"{}"), "marker/0")
         for _ in range(5):
             foreign.put("site7/pam/sim/truth", FAKE)
         foreign.put("marker/1", b"{}")  # after them, on the same link
-        with arrived:
-            assert arrived.wait_for(lambda: "marker/1" in received, WAIT_S)
+        received.wait_for("marker/1")
         assert service.truth is not None and service.truth.received == 0
         assert "site7/pam/sim/truth" not in received
 
@@ -290,11 +285,8 @@ def test_an_access_control_blind_to_the_zenoh_namespace_stops_the_service(tmp_pa
     config, tcp = locked_down_service(tmp_path)
     prefix = config.zenoh.key_prefix
     shipped = (ROOT / "deploy" / "zenoh.json5").read_text()
-    zenoh_file = tmp_path / "zenoh.json5"
-    zenoh_file.write_text(shipped.replace('mode: "peer",', 'mode: "peer",\n  namespace: "site7",'))
-    path = Path(config.source)
-    path.write_text(path.read_text().replace(str(ROOT / "deploy" / "zenoh.json5"), "zenoh.json5"))
-    config = load_service_config(path)
+    namespaced = shipped.replace('mode: "peer",', 'mode: "peer",\n  namespace: "site7",')
+    config, zenoh_file = on_own_zenoh_file(config, namespaced)
     with pytest.raises(ConfigError) as error:
         open_session(config.zenoh, config.source)
     assert str(error.value).startswith(
@@ -309,27 +301,16 @@ def test_an_access_control_blind_to_the_zenoh_namespace_stops_the_service(tmp_pa
         open_session(config.zenoh, config.source) as service,
         zenoh.open(peer_config(connect=tcp)) as foreign,
     ):
-        received: list[str] = []
-        arrived = threading.Condition()
-
-        def on_sample(sample: zenoh.Sample) -> None:
-            with arrived:
-                received.append(str(sample.key_expr))
-                arrived.notify_all()
-
-        subscriber = service.declare_subscriber("**", on_sample)
+        received = KeysSeen(service)
         connected(foreign)
-        with arrived:  # until the foreign peer's puts are routed to the service
-            while "marker/0" not in received:
-                foreign.put("site7/marker/0", b"{}")
-                arrived.wait(0.1)
+        # The service's namespace: what it gets under site7/ comes without it.
+        received.routed(lambda: foreign.put("site7/marker/0", b"{}"), "marker/0")
         for _ in range(5):
             foreign.put(f"site7/{prefix}/sim/truth", FAKE)
         foreign.put("site7/marker/1", b"{}")  # after them, on the same link
-        with arrived:
-            assert arrived.wait_for(lambda: "marker/1" in received, WAIT_S)
+        received.wait_for("marker/1")
         assert f"{prefix}/sim/truth" not in received
-        subscriber.undeclare()
+        received.undeclare()
 
 
 @pytest.mark.parametrize(
@@ -354,11 +335,7 @@ def test_a_deny_rule_that_keeps_no_put_out_is_no_cover_for_the_key_prefix(
     config, _ = locked_down_service(tmp_path)
     shipped = (ROOT / "deploy" / "zenoh.json5").read_text()
     assert old in shipped
-    zenoh_file = tmp_path / "zenoh.json5"
-    zenoh_file.write_text(shipped.replace(old, new, 1))
-    path = Path(config.source)
-    path.write_text(path.read_text().replace(str(ROOT / "deploy" / "zenoh.json5"), "zenoh.json5"))
-    config = load_service_config(path)
+    config, zenoh_file = on_own_zenoh_file(config, shipped.replace(old, new, 1))
     with pytest.raises(ConfigError) as error:
         open_session(config.zenoh, config.source)
     assert str(error.value).startswith(
