@@ -29,6 +29,7 @@ def test_hampel_filter_keys_load(tmp_path: Path) -> None:
         ('filter = "median"', "filter = 1", "estimator.filter", "string"),
         ("hampel_window = 7", "hampel_window = 2", "estimator.hampel_window", ">= 3"),
         ("hampel_window = 7", "hampel_window = 7.5", "estimator.hampel_window", "integer"),
+        ("hampel_window = 7", "hampel_window = 202", "estimator.hampel_window", "at most 201"),
         ("hampel_k = 3.0", "hampel_k = 0", "estimator.hampel_k", "> 0"),
     ],
 )

@@ -60,7 +60,9 @@ def test_batch_equals_streaming(values: list[float], window: int) -> None:
     assert streamed.tobytes() == filter_series(values, settings).tobytes()
 
 
-@pytest.mark.parametrize(("window", "k"), [(2, 3.0), (7, 0.0), (7, math.inf), (True, 3.0)])
+@pytest.mark.parametrize(
+    ("window", "k"), [(2, 3.0), (202, 3.0), (7, 0.0), (7, math.inf), (True, 3.0)]
+)
 def test_bad_parameters_are_refused(window: int, k: float) -> None:
     with pytest.raises(ValueError, match="hampel_"):
         RunningHampel(window, k)
