@@ -23,7 +23,7 @@ from daq.errors import RecordingError
 from daq.frames import BusEvent, RawFrame
 from daq.output_file import named, refuse_an_input, replacing_path
 from daq.recording_run import expand, run_files
-from daq.replay import lost_frames, run_items
+from daq.replay import count_loss, lost_frames, run_items
 
 logger = logging.getLogger(__name__)
 
@@ -89,7 +89,7 @@ def _frames(items: Iterable[RawFrame | BusEvent], lost: Counter[str]) -> Iterato
         if isinstance(item, RawFrame):
             yield item
         else:
-            lost.update(kernel_dropped=item.kernel_dropped, rx_dropped=item.rx_dropped)
+            count_loss(lost, item)
 
 
 def default_out(path: Path, fmt: str) -> Path:

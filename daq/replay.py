@@ -111,7 +111,7 @@ def results(
             if item.reset_counters:
                 pipeline.reset_counters()
             if lost is not None:
-                lost.update(kernel_dropped=item.kernel_dropped, rx_dropped=item.rx_dropped)
+                count_loss(lost, item)
             continue
         yield pipeline.process(item)
 
@@ -566,6 +566,12 @@ def run_source(
         return None
     pipeline = Pipeline.from_config(*(machine or embedded_machine(attachments, files[0])))
     return pipeline, itertools.chain((first,), items)
+
+
+def count_loss(lost: Counter[str], event: BusEvent) -> None:
+    """Add the frames ``event`` says were lost before the recording or log to ``lost``,
+    by the keys :func:`lost_frames` reads."""
+    lost.update(kernel_dropped=event.kernel_dropped, rx_dropped=event.rx_dropped)
 
 
 def lost_frames(lost: Counter[str], where: str) -> str:

@@ -52,25 +52,23 @@ def test_exported_frames_read_back_the_same(tmp_path: Path, fmt: str) -> None:
     assert times == pytest.approx([f.t_s - FRAMES[0].t_s for f in FRAMES], abs=1e-5)
 
 
-def test_the_command_line(tmp_path: Path) -> None:
-    source = recording(tmp_path / "rec.mcap")
-    done = subprocess.run(
-        [sys.executable, "-m", "daq", "export", str(source), "--to", "candump"],
+def run_export(*args: str, cwd: Path = ROOT) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "daq", "export", *args],
         capture_output=True,
         text=True,
         timeout=60,
-        cwd=ROOT,
+        cwd=cwd,
     )
+
+
+def test_the_command_line(tmp_path: Path) -> None:
+    source = recording(tmp_path / "rec.mcap")
+    done = run_export(str(source), "--to", "candump")
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip() == f"{tmp_path / 'rec.log'}: {len(FRAMES)} frames"
     assert (tmp_path / "rec.log").read_text().count(" can0 ") == len(FRAMES)
-    missing = subprocess.run(
-        [sys.executable, "-m", "daq", "export", str(tmp_path / "no.mcap"), "--to", "asc"],
-        capture_output=True,
-        text=True,
-        timeout=60,
-        cwd=ROOT,
-    )
+    missing = run_export(str(tmp_path / "no.mcap"), "--to", "asc")
     assert missing.returncode == 1 and missing.stderr.count("\n") == 1
     assert missing.stderr.startswith("portal-daq: ")
 
@@ -129,13 +127,7 @@ def test_outputs_of_a_directory_given_as_dot_are_named_after_it(
     run = tmp_path / "run1"
     run.mkdir()
     recording(run / "rec.mcap")
-    done = subprocess.run(
-        [sys.executable, "-m", "daq", "export", ".", "--to", "asc"],
-        capture_output=True,
-        text=True,
-        timeout=60,
-        cwd=run,
-    )
+    done = run_export(".", "--to", "asc", cwd=run)
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip() == f"{run / 'run1.asc'}: {len(FRAMES)} frames"
     assert sorted(p.name for p in run.iterdir()) == ["rec.mcap", "run1.asc"]
