@@ -57,6 +57,17 @@ def test_leg_table_overrides_leg_defaults(tmp_path: Path) -> None:
         ("A_foot_m2 = 0.33", 'A_foot_m2 = "big"', "leg_defaults.A_foot_m2", "must be a number"),
         ("alpha_cyl_deg = 75.0", "alpha_cyl_deg = nan", "leg_defaults.alpha_cyl_deg", "finite"),
         ("[legs.SB1_F2]", "[legs.SB1_F2]\nalpha_cyl_deg = 5.0", "legs.SB1_F2", "cannot carry"),
+        # The key named is the one of the table whose value broke the rule: the leg's own
+        # piston area below [leg_defaults]' annulus (leg_defaults.A_rod_m2 was blamed),
+        # the lever of [leg_defaults] alone (legs.SB1_F1 was: the first leg to use it).
+        (
+            "[legs.SB2_F1]",
+            "[legs.SB2_F1]\nA_piston_m2 = 4.0e-3",
+            "legs.SB2_F1.A_piston_m2",
+            "A_rod_m2 (0.004737) must be smaller than A_piston_m2 (0.004)",
+        ),
+        ("[legs.SB2_F1]", "[legs.SB2_F1]\nA_rod_m2 = 9e-3", "legs.SB2_F1.A_rod_m2", "smaller"),
+        ("alpha_cyl_deg = 75.0", "alpha_cyl_deg = 5.0", "leg_defaults", "cannot carry"),
         (
             'piston = "LEG_SB1_F2.SB1_F2_pPiston"',
             'piston = "LEG_SB1_F2.SB1_F2_pPistn"',
