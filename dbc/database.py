@@ -71,6 +71,9 @@ def load_database_string(text: str, source: str) -> Database:
         database = _load(text, source, strict=True)
     except (UnsupportedDatabaseFormatError, ValueError, KeyError) as exc:
         database = _without_layout_checks(text, source, exc)
+    else:
+        if isinstance(database, Database):
+            _warn_undecodable(database, source)
     if not isinstance(database, Database) or not database.messages:
         raise DbcError(source, "holds no CAN messages")
     _mark_j1939_network(database)
@@ -238,16 +241,47 @@ def _load(text: str, source: str, strict: bool) -> object:
 CAN_FD_MAX_BYTES = 64
 
 
-def unsound(message: Message) -> str | None:
-    """Why cantools' checks refuse ``message`` (signals that overlap, or do not fit in
-    its length; two of one name, which cantools tells as overlapping), or why no frame
-    can be it (longer than a CAN FD frame: cantools takes it, and every frame on the bus
-    was ``wrong_dlc``); None where they pass."""
+#: The lengths of an IEEE float signal (``SIG_VALTYPE_``) cantools decodes: half, single
+#: and double precision.
+FLOAT_BITS = (16, 32, 64)
+
+
+def undecodable(message: Message) -> str | None:
+    """Why no frame on the bus can be ``message``, which cantools' checks take: longer
+    than a CAN FD frame (every frame was ``wrong_dlc``), or an IEEE float signal of
+    another length than 16, 32 or 64 bits (a ``SIG_VALTYPE_`` on the wrong signal:
+    cantools cannot unpack it, and every frame of the message was ``decode_error``);
+    None where it can be decoded."""
     if message.length > CAN_FD_MAX_BYTES:
         return (
             f"{message.name} is {message.length} bytes long: a CAN frame carries "
             f"{CAN_FD_MAX_BYTES} at most (CAN FD)"
         )
+    for signal in message.signals:
+        if signal.is_float and signal.length not in FLOAT_BITS:
+            return (
+                f"{message.name}.{signal.name} is an IEEE float by its SIG_VALTYPE_ but "
+                f"{signal.length} bits long (a float is 16, 32 or 64): no frame of "
+                f"{message.name} can be decoded (remove the SIG_VALTYPE_ or fix the length)"
+            )
+    return None
+
+
+def _warn_undecodable(database: Database, source: str) -> None:
+    """One warning line naming the messages no frame can be (:func:`undecodable`) in a
+    DBC that cantools' checks take: the config refuses one it uses (:func:`unsound`)."""
+    problems = [problem for problem in map(undecodable, database.messages) if problem]
+    if problems:
+        logger.warning("%s: %s", source, "; ".join(problems))
+
+
+def unsound(message: Message) -> str | None:
+    """Why cantools' checks refuse ``message`` (signals that overlap, or do not fit in
+    its length; two of one name, which cantools tells as overlapping), or why no frame
+    can be it (:func:`undecodable`); None where they pass."""
+    problem = undecodable(message)
+    if problem is not None:
+        return problem
     names = [signal.name for signal in message.signals]
     twice = next((name for name in names if names.count(name) > 1), None)
     if twice is not None:  # cantools says they overlap, wherever they are
