@@ -3,10 +3,12 @@
 import codecs
 import logging
 import re
+from collections import OrderedDict
 from pathlib import Path
 
 import cantools
 from cantools.database.can import Database, Message
+from cantools.database.conversion import BaseConversion
 from cantools.database.errors import Error as CantoolsError
 from cantools.database.errors import UnsupportedDatabaseFormatError
 
@@ -77,7 +79,33 @@ def load_database_string(text: str, source: str) -> Database:
     if not isinstance(database, Database) or not database.messages:
         raise DbcError(source, "holds no CAN messages")
     _mark_j1939_network(database)
+    _signed_value_tables(database)
     return database
+
+
+def _signed_value_tables(database: Database) -> None:
+    """Keys the value tables of signed integer signals by the values their bits decode
+    to: a table that lists the bits as unsigned (``VAL_ ... 65535 "SNA" 65534 "Error"``
+    of a 16-bit signed signal, as a vendor's sheet writes them) is keyed -1, -2, what
+    cantools looks a frame's raw value up by. Keyed 65535 the name was never found: a
+    transducer's "not available" 0xFFFF was a valid -1 step (-0.01 bar), and encoding
+    the name overflowed. Where both forms name one value, the signed one is kept."""
+    for message in database.messages:
+        for signal in message.signals:
+            if not signal.is_signed or signal.is_float or not signal.choices:
+                continue
+            half = 1 << (signal.length - 1)
+            unsigned = [raw for raw in signal.choices if half <= raw < 2 * half]
+            if not unsigned:
+                continue
+            choices = OrderedDict(
+                (raw, name) for raw, name in signal.choices.items() if raw not in unsigned
+            )
+            for raw in unsigned:
+                choices.setdefault(raw - 2 * half, signal.choices[raw])
+            signal.conversion = BaseConversion.factory(
+                signal.scale, signal.offset, choices, signal.is_float
+            )
 
 
 def _mark_j1939_network(database: Database) -> None:
