@@ -13,7 +13,8 @@ nanoseconds; ``-a``'s ASCII column, ``-x``'s direction and ``-c``'s colours igno
 parses; a CAN FD frame, whose length candump prints in two digits (``[08]``), stays one
 (with ``-x``'s BRS and ESI flags), as its ``-L`` line ``100##1...`` is. An ``-L`` line
 passes as it is, unless its data has an odd number of hex digits (python-can dropped
-the last one: ``1C`` cut to ``1`` read as 0x01). A line without a time (plain
+the last one: ``1C`` cut to ``1`` read as 0x01); :class:`CandumpReader` drops its raw
+DLC (``100#1122334455667788_9``: 8 bytes). A line without a time (plain
 ``candump can0``) cannot be replayed (every rule of the estimator judges frame times):
 ValueError saying which option writes one; so do ``-td``'s steps between frames,
 which :class:`CandumpReader` tells by times going backwards from a time before 2000 (a
@@ -54,6 +55,12 @@ _DASH_L_DATA = re.compile(r"[^#]*#(?:#[0-9A-Fa-f])?(?P<data>[0-9A-Fa-f]*)(?:\s|$
 #: The same without a time (plain ``candump can0``).
 _WITHOUT_TIME = re.compile(
     r"\s*\S+\s+(?:[RT]X\s+\S+\s+\S+\s+)?[0-9A-Fa-f]{3,8}\s+(?:\[\d{1,2}\]|\{[0-9A-Fa-f]\})"
+)
+#: An ``-L`` line of a classic frame of 8 bytes whose DLC on the bus was 9 to F: candump
+#: writes it after the data (``100#1122334455667788_9``) when the interface reports such
+#: DLCs (``ip link set can0 type can cc-len8-dlc on``).
+_DASH_L_RAW_DLC = re.compile(
+    r"(?P<head>[^#]*#[0-9A-Fa-f]{16})_[0-9A-Fa-f](?P<tail>\s.*|)$", re.DOTALL
 )
 #: ``-tA``'s local date and time (to the second; then 6 digits, or ``-N``'s 9).
 _DATE_FORMAT = "%Y-%m-%d %H:%M:%S"
@@ -150,6 +157,9 @@ class CandumpReader(can.CanutilsLogReader):
                 continue
             if _ERROR_DETAIL.match(line):  # the error frame's line before says it all
                 continue
+            raw_dlc = _DASH_L_RAW_DLC.match(line)
+            if raw_dlc is not None:  # python-can stopped at it: a classic frame's 8 bytes
+                line = raw_dlc["head"] + raw_dlc["tail"]
             converted = dash_l_line(line)
             if converted is not line:  # a readable line: undated times must not go back
                 t_s = float(converted[1 : converted.index(")")])

@@ -11,7 +11,7 @@ The export holds a time column and pressure columns under any names; a mapping f
     dt_s = 0.01              # step of the uniform grid the data is resampled to
 
     [legs.SB1_F1]            # one table per leg SB1_F1 .. SB2_F3 (or the machine
-                             # config's leg that plays it), all six required
+                             # config's leg that plays it), each leg the config plays
     piston = "p_cap_1"       # piston chamber pressure column
     rod = "p_ann_1"          # rod chamber pressure column
     force = "Fz_1"           # optional: the true foot force (ground truth)
@@ -212,9 +212,10 @@ def _scale(table: TomlTable, unit_key: str, scale_key: str, units: Mapping[str, 
     return units[unit]
 
 
-def _leg_tables(legs: TomlTable, config_legs: Mapping[str, str]) -> list[TomlTable]:
+def _leg_tables(legs: TomlTable, config_legs: Mapping[str, str]) -> list[TomlTable | None]:
     """The table of each simulated leg, in LEGS order: named after it, or after the
-    config leg that plays it (``config_legs``: config leg -> simulated leg)."""
+    config leg that plays it (``config_legs``: config leg -> simulated leg). A simulated
+    leg no config leg plays (a machine of fewer legs) may be left out: None, never sent."""
     legs.reject_unknown((*LEGS, *config_legs))
     names: dict[str, str] = {}
     for name in legs.data:
@@ -222,12 +223,20 @@ def _leg_tables(legs: TomlTable, config_legs: Mapping[str, str]) -> list[TomlTab
         if simulated in names:
             raise legs.error(name, f"maps {simulated} again (legs.{names[simulated]} does)")
         names[simulated] = name
-    tables = []
+    played = [leg for leg in LEGS if leg in config_legs.values()] if config_legs else LEGS
+    tables: list[TomlTable | None] = []
     for leg in LEGS:
-        if leg not in names:
-            name = next((c for c, s in config_legs.items() if s == leg), leg)
-            raise legs.error(name, f"missing; map every leg ({', '.join(LEGS)}), a number for none")
-        tables.append(legs.table(names[leg]))
+        if leg in names:
+            tables.append(legs.table(names[leg]))
+        elif leg not in played:
+            tables.append(None)
+        else:
+            named = {s: c for c, s in reversed(list(config_legs.items()))}  # the first one
+            every = ", ".join(named.get(p, p) for p in played)
+            raise legs.error(
+                named.get(leg, leg),
+                f"missing; map every leg the machine plays ({every}), a number for none",
+            )
     return tables
 
 
@@ -272,6 +281,8 @@ def build_result(
     leg_tables = _leg_tables(root.table("legs"), legs or {})
     per_leg: dict[str, list[FloatArray]] = {"piston": [], "rod": [], "force": [], "stroke": []}
     for table in leg_tables:
+        if table is None:  # not played: filled as a leg the export does not model
+            table = TomlTable({"piston": 0.0, "rod": 0.0}, source, "legs")
         table.reject_unknown(per_leg)
         for key in ("piston", "rod"):
             if key not in table:

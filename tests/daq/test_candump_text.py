@@ -124,6 +124,26 @@ def test_a_dash_l_line_with_an_odd_number_of_hex_digits_stops_the_replay(
     )
 
 
+def test_a_dash_l_line_with_a_raw_dlc_over_8_replays_as_its_8_bytes(tmp_path: Path) -> None:
+    """An interface with ``cc-len8-dlc`` on: candump -l writes a classic frame of 8
+    bytes sent with DLC 9..F as ``100#1122334455667788_9``; python-can stopped at it
+    (``invalid literal for int() with base 16: '_9'``, exit 1)."""
+    log = sim_log(tmp_path, seconds=0.1)
+    expected = io.StringIO()
+    rows = replay(log, expected, EXAMPLE_CONFIG)
+    lines = log.read_text().splitlines()
+    raw_dlc = tmp_path / "raw_dlc.log"
+    # python-can writes `(T) vcan0 ID#DATA R`: the raw DLC goes after DATA, before ` R`
+    raw_dlc.write_text(
+        "\n".join(line.replace(" R", "_9 R") if i % 3 else line for i, line in enumerate(lines))
+        + "\n"
+    )
+    assert raw_dlc.read_text().count("_9 R") == len(lines) - len(lines[::3])
+    got = io.StringIO()
+    assert replay(raw_dlc, got, EXAMPLE_CONFIG) == rows == 6 * 10
+    assert got.getvalue() == expected.getvalue()
+
+
 @pytest.mark.parametrize(
     ("text", "reason"),
     [

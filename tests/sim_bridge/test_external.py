@@ -119,7 +119,44 @@ def test_a_missing_column_is_named(tmp_path: Path) -> None:
 def test_a_missing_leg_is_named(tmp_path: Path) -> None:
     legs = "\n".join(line for line in leg_tables().splitlines() if not line.startswith("SB2_F3"))
     message = refused(tmp_path, MAPPING.format(legs=legs))
-    assert "legs.SB2_F3: missing; map every leg" in message
+    assert "legs.SB2_F3: missing; map every leg the machine plays (SB1_F1, " in message
+
+
+#: A four-legged machine's legs and the simulated legs they play (SB1_F1, SB2_F1 unplayed).
+FOUR_LEGS = {"FL": "SB1_F2", "FR": "SB1_F3", "RL": "SB2_F2", "RR": "SB2_F3"}
+
+
+def four_leg_tables() -> str:
+    """The mapping's leg tables of FOUR_LEGS, named as the config does, reading the
+    columns of the simulated leg each plays."""
+    return "\n".join(
+        f'{leg} = {{ piston = "pA{LEGS.index(s)}", rod = "pB{LEGS.index(s)}", '
+        f'force = "F{LEGS.index(s)}" }}'
+        for leg, s in FOUR_LEGS.items()
+    )
+
+
+def test_a_machine_of_fewer_legs_maps_only_the_legs_it_plays(tmp_path: Path) -> None:
+    # A four-legged config plays four of the six simulated legs: its mapping names those
+    # (by the config's leg names) and no others. It was refused: "legs.SB1_F1: missing;
+    # map every leg", a leg no config leg plays and the mapping cannot name.
+    data = write_csv(tmp_path / "export.csv", export_columns())
+    result = load_external(
+        data, write_mapping(tmp_path, MAPPING.format(legs=four_leg_tables())), FOUR_LEGS
+    )
+    assert result.p_piston_Pa[33, 1] == pytest.approx(104.3e5)  # FL plays SB1_F2: pA1
+    assert result.force_true_N[10, 5] == pytest.approx(55e3)  # RR plays SB2_F3: F5
+    for unplayed in (0, 3):  # SB1_F1, SB2_F1: never sent
+        assert np.all(result.p_piston_Pa[:, unplayed] == 0.0)
+        assert np.all(np.isnan(result.force_true_N[:, unplayed]))
+
+
+def test_a_played_leg_missing_is_named_as_the_config_names_it(tmp_path: Path) -> None:
+    legs = "\n".join(line for line in four_leg_tables().splitlines() if not line.startswith("RL"))
+    data = write_csv(tmp_path / "export.csv", export_columns())
+    with pytest.raises(ConfigError) as info:
+        load_external(data, write_mapping(tmp_path, MAPPING.format(legs=legs)), FOUR_LEGS)
+    assert "legs.RL: missing; map every leg the machine plays (FL, FR, RL, RR)" in str(info.value)
 
 
 def test_a_missing_pressure_key_is_named(tmp_path: Path) -> None:
