@@ -4,6 +4,7 @@ read back with python-can's reader into the same frames."""
 import subprocess
 import sys
 from collections.abc import Iterator
+from datetime import datetime
 from pathlib import Path
 
 import can
@@ -163,3 +164,37 @@ def test_frames_the_recording_says_were_lost_are_said_by_the_export(
     with caplog.at_level("WARNING", logger="daq.export"):
         export([recording(tmp_path / "whole.mcap")], tmp_path / "whole.log", "candump")
     assert caplog.messages == []
+
+
+@pytest.mark.parametrize("fmt", ["asc", "blf"])
+def test_frames_after_a_clock_step_back_keep_their_times(tmp_path: Path, fmt: str) -> None:
+    """ASC and BLF store offsets from the log's start, which python-can took from the
+    first frame: after NTP stepped the clock back an hour, ASC wrote the later frames
+    with their Unix time as the offset (read back 56 years late) and BLF at offset 0
+    (every one at the first frame's time)."""
+    stepped = [
+        RawFrame(T0_S + 0.0123, 0x100, False, bytes(8)),
+        RawFrame(T0_S + 0.0223, 0x101, False, bytes(8)),
+        RawFrame(T0_S - 3600.0 + 0.0323, 0x100, False, bytes(8)),
+        RawFrame(T0_S - 3600.0 + 0.0423, 0x101, False, bytes(8)),
+    ]
+    _, database = example_machine()
+    source = tmp_path / "rec.mcap"
+    with open(source, "wb") as stream, McapFile(stream, database) as mcap:
+        mcap.start()
+        mcap.write_batch(RecordBatch(stepped, []))
+    out = tmp_path / f"out{FORMATS[fmt][1]}"
+    assert export([source], out, fmt) == len(stepped)
+    with can.LogReader(out) as reader:
+        back = [m.timestamp for m in reader]
+    earliest_s = min(f.t_s for f in stepped)
+    assert [t - min(back) for t in back] == pytest.approx(
+        [f.t_s - earliest_s for f in stepped], abs=2e-6
+    )
+    if fmt == "asc":  # its date is the log's start (it was the time of the export)
+        absolute = [m.timestamp for m in can.ASCReader(out, relative_timestamp=False)]
+        assert absolute == pytest.approx([f.t_s for f in stepped], abs=2e-6)
+        lines = out.read_text().splitlines()
+        start = datetime.fromtimestamp(earliest_s).strftime("%a %b %d %H:%M:%S.%f")[:-3]
+        assert lines[0] == f"date {start} {datetime.fromtimestamp(earliest_s).year}"
+        assert lines[3] == f"Begin Triggerblock {lines[0].removeprefix('date ')}"
