@@ -24,7 +24,7 @@ from cantools.database.can import Database, Message, Signal
 
 from dbc import DEFAULT_DBC_PATH, _across_legs
 from dbc.database import load_database, unsound
-from dbc.decoding import is_j1939, j1939_destination, j1939_pgn
+from dbc.decoding import J1939_NULL_ADDRESS, is_j1939, j1939_destination, j1939_pgn
 from dbc.errors import ConfigError
 from dbc.machine_signals import NO_SIGNALS, MachineSignals, parse_signals
 from dbc.names import did_you_mean, messages_with
@@ -846,11 +846,6 @@ def _in_frames_of(message: Message, signal_name: str, mux_ids: tuple[int, ...] |
     """Every frame carrying multiplexer values ``mux_ids`` (None: any) carries the signal."""
     own = _mux_ids(message, signal_name)
     return own is None or (mux_ids is not None and set(mux_ids) <= set(own))
-
-
-#: J1939-81's null address: a node that could not claim an address sends its Cannot
-#: Claim from it and nothing else; 0xFF, above it, is the global destination.
-J1939_NULL_ADDRESS = 0xFE
 
 
 def _source_address(table: TomlTable, message: Message, database: Database) -> int | None:

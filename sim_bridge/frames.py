@@ -128,6 +128,8 @@ class _ChamberSignals:
     status: Signal | None
     #: What the status signal says when the sensor is fine.
     status_nominal: SignalValue
+    #: Every status value this chamber's leg takes as fine (names and numbers).
+    status_ok: frozenset[object] = frozenset()
 
 
 @dataclass(frozen=True, slots=True)
@@ -267,15 +269,18 @@ class FrameBuilder:
         }
 
     def leg_status_names(self) -> dict[str, frozenset[str]]:
-        """Leg -> the names every status signal of the leg has in its value table (what
-        a fault may set them all to; empty without a status signal, or one without a
-        value table)."""
+        """Leg -> the names every status signal of the leg has in its value table and
+        the leg does not take as fine (what a fault may set them all to; empty without a
+        status signal, or one without a value table). A status the legs of a message
+        share, each fine with the others' fault bits (``SENSOR_FAULT_F1`` is fine for
+        F2), offers each leg its own: the first fault name was sent for every leg."""
         names: dict[str, frozenset[str]] = {}
         for plan in self._plans.values():
             for chamber in plan.chambers:
                 if chamber.status is None:
                     continue
                 choices = frozenset(str(c) for c in (chamber.status.choices or {}).values())
+                choices -= chamber.status_ok
                 names[chamber.leg] = names.get(chamber.leg, choices) & choices
         return names
 
@@ -330,7 +335,11 @@ class FrameBuilder:
             # the bits' end, which the service flags; clipped to the range's end it was a
             # valid sample the truth disagreed with.
             values[chamber.pressure.name] = clip(chamber.pressure, p_Pa, chamber.to_Pa, False)
-            if chamber.status is not None:
+            # A status the legs of the message share keeps a faulty leg's fault: the
+            # next leg's "fine" overwrote it, and --sensor-fault sent nothing.
+            if chamber.status is not None and (
+                chamber.status.name not in values or status != chamber.status_nominal
+            ):
                 values[chamber.status.name] = status
         for signal, getter, to_si in plan.named:
             values[signal.name] = clip(signal, getter(result, row, cycle), to_si)
@@ -391,6 +400,7 @@ def _chamber_signals(
         atmosphere_Pa=mapped.atmosphere_Pa,
         status=message.get_signal_by_name(status.signal) if status is not None else None,
         status_nominal=status.nominal if status is not None else 0,
+        status_ok=status.ok if status is not None else frozenset(),
     )
 
 

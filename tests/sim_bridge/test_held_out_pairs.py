@@ -175,13 +175,22 @@ def test_a_rod_message_that_stops_makes_its_legs_samples_invalid() -> None:
 
 @pytest.mark.parametrize(
     ("name", "leg", "status"),
-    [("iom_channels", "VL", "Sensorfehler"), ("xdcr_two_rates", "A1", "ShortCircuit")],
+    [
+        ("iom_channels", "VL", "Sensorfehler"),
+        ("xdcr_two_rates", "A1", "ShortCircuit"),
+        ("split_rates", "SB1_F1", "SENSOR_FAULT_F1"),
+        ("split_rates", "SB1_F3", "SENSOR_FAULT_F3"),
+        ("split_rates", "SB2_F2", "SENSOR_FAULT_F2"),
+    ],
 )
 def test_a_sensor_fault_sends_what_the_dbc_names_a_fault(name: str, leg: str, status: str) -> None:
     """--sensor-fault on held-out status tables without 'fault', 'error' or 'fail' in a
     name (a German I/O module's Sensorfehler, Drahtbruch, Kurzschluss; a J1939
     transducer's OpenCircuit, ShortCircuit): portal-sim refused the flag; now the leg's
-    samples in the window carry the fault, the other legs' none."""
+    samples in the window carry the fault, the other legs' none. split_rates' three legs
+    of a base share one state byte, each fine with the others' bits: a fault on F1 or F2
+    was overwritten by F3's "OK" (nothing sent), and one on F3 sent SENSOR_FAULT_F1,
+    F1's fault, fine for F3."""
     window = FaultWindow(leg, 0.2, 0.1)
     _, _, estimates, _ = played(name, faults=FaultConfig(seed=1, sensor_fault=(window,)))
     for other, of_leg in estimates.items():
