@@ -52,6 +52,12 @@ EFF_MASK = 0x1FFFFFFF
 #: PDU1 (destination-specific) one, whose PDU specific is the destination address.
 J1939_PDU2_MASK = 0x03FFFF00
 J1939_PDU1_MASK = 0x03FF0000
+#: J1939-81's null address: a node that could not claim an address sends its Cannot
+#: Claim from it and nothing else; 0xFF, above it, is the global destination.
+J1939_NULL_ADDRESS = 0xFE
+J1939_GLOBAL_ADDRESS = 0xFF
+#: The proprietary A PGN (peer to peer; A2 is it on data page 1), its low 16 bits.
+J1939_PROPRIETARY_A = 0xEF00
 
 
 class ReceiveFilter(NamedTuple):
@@ -425,7 +431,21 @@ class FrameDecoder:
         destinations = self._by_destination.get((pgn, frame_id & 0xFF))
         if destinations is not None:
             return destinations.get(j1939_destination(frame_id))
-        return by_address.get(frame_id & 0xFF, by_address[None])
+        codec = by_address.get(frame_id & 0xFF, by_address[None])
+        # A proprietary A message the DBC gives a destination is the frames to it (and to
+        # all, 0xFF): its content is the manufacturer's for each pair of nodes, so the PGN
+        # to another node (a controller's to a valve block, where the DBC has its frames to
+        # the DAQ only) is another message. A DBC's 0xFE, 0xFF: any. A standard PGN has
+        # one layout to any node.
+        wanted = j1939_destination(codec.message.frame_id)
+        if (
+            pgn & 0xFFFF == J1939_PROPRIETARY_A
+            and wanted is not None
+            and wanted < J1939_NULL_ADDRESS
+            and j1939_destination(frame_id) not in (wanted, J1939_GLOBAL_ADDRESS)
+        ):
+            return None
+        return codec
 
     def reset_counters(self) -> None:
         """Forget the last counters, e.g. after the bus was down: no false counter faults."""

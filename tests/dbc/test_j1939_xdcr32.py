@@ -4,6 +4,7 @@ priority is its chamber's, and what a config gets wrong about them is one line."
 
 import math
 import tomllib
+from pathlib import Path
 
 import pytest
 
@@ -11,7 +12,7 @@ from daq.frames import RawFrame
 from daq.pipeline import Pipeline
 from dbc.errors import ConfigError
 from dbc.machine import load_machine_config, machine_from_toml
-from tests.helpers import FILES
+from tests.helpers import FILES, dbc_text, machine_on
 
 STRANGER = FILES / "stranger"
 TOML = (STRANGER / "xdcr32_pdu1.toml").read_text()
@@ -69,6 +70,45 @@ def test_a_piston_at_another_priority_is_its_chambers_and_another_address_is_cou
         for frame_id in (0x18EF8032, 0x0CEF8035)
     ]
     assert made == [["VR"], []] and pipeline.bad == {"unmapped_source": 1}
+
+
+def test_a_piston_transducers_frames_to_another_destination_are_no_pressure() -> None:
+    """The DBC has the pistons' proprietary A to the DAQ (0x80) only; the same PGN from
+    VR's transducer to a display at 0x28 (its own content) was read as VR's piston: a
+    valid, wrong force. It is no message of the DBC, counted ``unknown_id``; to all
+    (0xFF), which is to the DAQ too, it is VR's piston."""
+    config, database = load_machine_config(STRANGER / "xdcr32_pdu1.toml")
+    pipeline = Pipeline.from_config(config, database)
+    pipeline.process(RawFrame(1.0, 0x18FF6042, True, rod(15_000_000)))
+    to_display = pipeline.process(RawFrame(1.001, 0x18EF2832, True, piston(3_000_000)))
+    (estimate,) = pipeline.process(RawFrame(1.002, 0x18EF8032, True, piston(20_000_000))).estimates
+    assert to_display.estimates == () and pipeline.bad == {"unknown_id": 1}
+    assert (estimate.leg, estimate.p_piston_Pa, estimate.valid) == ("VR", 20e6, True)
+    (to_all,) = pipeline.process(RawFrame(1.003, 0x18EFFF32, True, piston(21_000_000))).estimates
+    assert (to_all.leg, to_all.p_piston_Pa, to_all.valid) == ("VR", 21e6, True)
+
+
+def test_a_standard_peer_to_peer_pgn_is_read_to_any_destination(tmp_path: Path) -> None:
+    """A standard PGN has one layout whatever node it goes to: TSC1 (PGN 0) that the DBC
+    gives to the engine (0x00) is TSC1 to a retarder (0x0F) too; proprietary A is not."""
+    messages = (
+        'BO_ 2364506161 PRESS: 8 Hub\n SG_ pPiston : 0|16@1+ (0.01,0) [0|0] "bar" DAQ\n'
+        ' SG_ pRod : 16|16@1+ (0.01,0) [0|0] "bar" DAQ\n'
+        'BO_ 2348810243 TSC1: 8 Hub\n SG_ ReqSpeed : 8|16@1+ (0.125,0) [0|0] "rpm" DAQ\n'
+    )
+    attributes = "".join(
+        f'BA_ "GenMsgCycleTime" BO_ {i} 10;\nBA_ "VFrameFormat" BO_ {i} 3;\n'
+        for i in (2364506161, 2348810243)
+    )
+    legs = '[legs.A]\npiston = "PRESS.pPiston"\nrod = "PRESS.pRod"\n'
+    pipeline = Pipeline.from_config(*machine_on(tmp_path, dbc_text(messages, attributes), legs))
+    data = (1000).to_bytes(2, "little") * 2 + bytes(4)
+    assert pipeline.decoder.decode(0x0C000F03, data, 1.0, True).message == "TSC1"
+    assert [e.leg for e in pipeline.process(RawFrame(1.0, 0x0CEF8031, True, data)).estimates] == [
+        "A"
+    ]
+    assert pipeline.process(RawFrame(1.01, 0x0CEF2831, True, data)).estimates == ()
+    assert pipeline.bad == {"unknown_id": 1}
 
 
 @pytest.mark.parametrize(
