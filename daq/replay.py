@@ -385,10 +385,11 @@ def can_log_frames(path: Path, channel: str | None = None) -> Iterator[RawFrame 
                     channels.add(name)
                     if channel is None and len(channels) == 2:
                         logger.warning(
-                            "%s: frames of more than one channel (%s): replayed as one bus; "
+                            "%s: frames of more than one channel (%s%s): replayed as one bus; "
                             "pick one with --channel",
                             path,
                             ", ".join(sorted(channels)),
+                            _channel_numbers(path),
                         )
                 if channel is None or name in (None, channel):
                     yield from_can_message(message)
@@ -433,8 +434,19 @@ def can_log_frames(path: Path, channel: str | None = None) -> Iterator[RawFrame 
         logger.warning("%s is cut short (%s): read up to frame %d", path, cut, count)
     if channel is not None and channel not in channels:
         raise RecordingError(
-            path, f"no frame on channel {channel!r}; its channels: {', '.join(sorted(channels))}"
+            path,
+            f"no frame on channel {channel!r}; its channels: {', '.join(sorted(channels))}"
+            f"{_channel_numbers(path)}",
         )
+
+
+def _channel_numbers(path: Path) -> str:
+    """How python-can numbers the channels of ``path``'s format, where it is not as the
+    logging tool does (CANalyzer counts from 1: its channel 1 was taken for ``--channel
+    1``, the other bus, replayed without a word but the legs' silence)."""
+    if _log_suffix(path)[0] in (".asc", ".blf"):
+        return "; numbered from 0: CANalyzer's and CANoe's channel 1 is 0"
+    return ""
 
 
 #: The most of a reader's word on a line an error line quotes (it quotes the line's

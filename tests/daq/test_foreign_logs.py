@@ -884,3 +884,24 @@ def test_a_block_of_zero_bytes_inside_a_text_log_is_said_in_a_short_line(
         "(a block of the file left zeroed"
     )
     assert len(reason) < 400
+
+
+def test_the_channels_of_an_asc_log_are_said_numbered_from_0(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """python-can numbers ASC and BLF channels from 0, CANalyzer from 1: the warning and
+    the error listed `0, 1` of a log of CANalyzer's channels 1 and 2, and `--channel 2`
+    (CANalyzer's second bus) was refused without saying why."""
+    log = tmp_path / "canoe.asc"
+    log.write_text(CANOE_TWO_CHANNELS)
+    list(can_log_frames(log))
+    assert (
+        f"{log}: frames of more than one channel (0, 1; numbered from 0: CANalyzer's and "
+        "CANoe's channel 1 is 0): replayed as one bus" in caplog.text
+    )
+    with pytest.raises(RecordingError) as refused:
+        list(can_log_frames(log, "2"))
+    assert str(refused.value) == (
+        f"{log}: no frame on channel '2'; its channels: 0, 1; numbered from 0: CANalyzer's "
+        "and CANoe's channel 1 is 0"
+    )
