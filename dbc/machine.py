@@ -418,6 +418,7 @@ def parse_machine_config(
     if not legs_table.data:
         raise legs_table.error("", "no legs configured; add a [legs.<LEG>] table per leg")
     cycle_times_ms = _cycle_times_ms(root.table("messages", required=False), database)
+    _warn_angle_in_radians([leg_defaults, *(table for _, table in legs_table.subtables())])
     legs = {
         name: _leg(name, table, leg_defaults, database, status_ok, cycle_times_ms)
         for name, table in legs_table.subtables()
@@ -500,6 +501,23 @@ def _contact_below_the_weight_per_leg(
             mass_kg,
             legs,
         )
+
+
+def _warn_angle_in_radians(tables: list[TomlTable]) -> None:
+    """One warning line per ``alpha_cyl_deg`` of at most 2 pi, a value in radians (1.309
+    for 75 deg): read as degrees, the cylinder lies along the r axis and its lever arm is
+    a fraction of the design's, each foot force as many times too low (or, with l_z_m >= 0,
+    the lever is refused as negative, which did not say why)."""
+    for table in tables:
+        value = table.data.get("alpha_cyl_deg")
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            continue  # not a number: refused when the leg is read
+        if 0 < abs(value) <= 2 * math.pi:
+            logger.warning(
+                "%s: %s: %g is in degrees, a cylinder %g deg off the r axis; if it is in "
+                "radians, write %.4g (degrees)",
+                table.source, table.key("alpha_cyl_deg"), value, value, math.degrees(value),
+            )  # fmt: skip
 
 
 #: Static soil pressure of a foot carrying the weight per leg, Pa, outside which its
