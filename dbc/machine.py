@@ -972,7 +972,9 @@ def _status_check(
                     )
                 )
                 raise table.error(
-                    key, f"{value!r} is not a value of {message.name}.{signal_name}: {known}"
+                    key,
+                    f"{value!r} is not a value of {message.name}.{signal_name}: {known}"
+                    + _inherited(table, key),
                 )
             ok |= {value, by_name[value]}
         else:
@@ -984,9 +986,23 @@ def _status_check(
         raise table.error(
             key,
             f"{message.name}.{signal_name} takes {low:g}..{high:g}: none of {list(status_ok)} "
-            "is one of them (every sample would be invalid)",
+            "is one of them (every sample would be invalid)" + _inherited(table, key),
         )
     return StatusCheck(signal=signal_name, ok=frozenset(ok), nominal=status_ok[0])
+
+
+def _inherited(table: TomlTable, key: str) -> str:
+    """Where a ``status_ok`` that ``table`` does not set comes from, for an error about it:
+    a foreign DBC's status names its fine value otherwise than the default ``"ok"``, and
+    the error named a key the config does not have."""
+    if key in table.data:
+        return ""
+    chamber = table.path.count(".") > 1  # legs.VL.piston: a chamber's table, in its leg's
+    source = "the leg's status_ok, or " if chamber else ""
+    return (
+        f" (no {key} in {table.path}: {source}[sensors] status_ok, "
+        f"{list(DEFAULT_STATUS_OK)} by default; set {key} in {table.path})"
+    )
 
 
 def _leg_status(table: TomlTable, database: Database) -> tuple[Message, str, int | None]:
