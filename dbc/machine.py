@@ -24,7 +24,13 @@ from cantools.database.can import Database, Message, Signal
 
 from dbc import DEFAULT_DBC_PATH, _across_legs
 from dbc.database import load_database, unsound
-from dbc.decoding import J1939_NULL_ADDRESS, is_j1939, j1939_destination, j1939_pgn
+from dbc.decoding import (
+    CLASSIC_MAX_BYTES,
+    J1939_NULL_ADDRESS,
+    is_j1939,
+    j1939_destination,
+    j1939_pgn,
+)
 from dbc.errors import ConfigError
 from dbc.machine_signals import NO_SIGNALS, MachineSignals, parse_signals
 from dbc.names import did_you_mean, messages_with
@@ -654,6 +660,17 @@ def _chamber(
                 "would be taken by the scaled value, not the raw one the DBC's pages are; "
                 "give it (1,0) in the DBC",
             )
+    if is_j1939(message) and message.length > CLASSIC_MAX_BYTES and not message.is_fd:
+        # J1939-21 sends it in TP.CM/TP.DT packets: no frame of its PGN ever comes, the
+        # leg was silent with nothing saying why (and the bridge sent FD frames of it).
+        raise chamber.error(
+            signal_key,
+            f"{message.name} is a J1939 parameter group of {message.length} bytes: J1939 "
+            "sends one of more than 8 in transport-protocol packets (TP.CM/TP.DT, PGN "
+            "0xEC00/0xEB00), which are not reassembled, so no frame of it would come; a "
+            "chamber needs one of up to 8 bytes (or a CAN FD message: VFrameFormat "
+            "ExtendedCAN_FD)",
+        )
     if _enumerated(signal):  # with a unit, a 2-bit status was a valid 0..3 bar
         names = ", ".join(f'{raw} "{name}"' for raw, name in sorted((signal.choices or {}).items()))
         raise chamber.error(
