@@ -3,10 +3,12 @@
 import codecs
 import logging
 import re
+from collections import OrderedDict
 from pathlib import Path
 
 import cantools
 from cantools.database.can import Database, Message
+from cantools.database.conversion import BaseConversion
 from cantools.database.errors import Error as CantoolsError
 from cantools.database.errors import UnsupportedDatabaseFormatError
 
@@ -71,10 +73,39 @@ def load_database_string(text: str, source: str) -> Database:
         database = _load(text, source, strict=True)
     except (UnsupportedDatabaseFormatError, ValueError, KeyError) as exc:
         database = _without_layout_checks(text, source, exc)
+    else:
+        if isinstance(database, Database):
+            _warn_undecodable(database, source)
     if not isinstance(database, Database) or not database.messages:
         raise DbcError(source, "holds no CAN messages")
     _mark_j1939_network(database)
+    _signed_value_tables(database)
     return database
+
+
+def _signed_value_tables(database: Database) -> None:
+    """Keys the value tables of signed integer signals by the values their bits decode
+    to: a table that lists the bits as unsigned (``VAL_ ... 65535 "SNA" 65534 "Error"``
+    of a 16-bit signed signal, as a vendor's sheet writes them) is keyed -1, -2, what
+    cantools looks a frame's raw value up by. Keyed 65535 the name was never found: a
+    transducer's "not available" 0xFFFF was a valid -1 step (-0.01 bar), and encoding
+    the name overflowed. Where both forms name one value, the signed one is kept."""
+    for message in database.messages:
+        for signal in message.signals:
+            if not signal.is_signed or signal.is_float or not signal.choices:
+                continue
+            half = 1 << (signal.length - 1)
+            unsigned = [raw for raw in signal.choices if half <= raw < 2 * half]
+            if not unsigned:
+                continue
+            choices = OrderedDict(
+                (raw, name) for raw, name in signal.choices.items() if raw not in unsigned
+            )
+            for raw in unsigned:
+                choices.setdefault(raw - 2 * half, signal.choices[raw])
+            signal.conversion = BaseConversion.factory(
+                signal.scale, signal.offset, choices, signal.is_float
+            )
 
 
 def _mark_j1939_network(database: Database) -> None:
@@ -238,16 +269,47 @@ def _load(text: str, source: str, strict: bool) -> object:
 CAN_FD_MAX_BYTES = 64
 
 
-def unsound(message: Message) -> str | None:
-    """Why cantools' checks refuse ``message`` (signals that overlap, or do not fit in
-    its length; two of one name, which cantools tells as overlapping), or why no frame
-    can be it (longer than a CAN FD frame: cantools takes it, and every frame on the bus
-    was ``wrong_dlc``); None where they pass."""
+#: The lengths of an IEEE float signal (``SIG_VALTYPE_``) cantools decodes: half, single
+#: and double precision.
+FLOAT_BITS = (16, 32, 64)
+
+
+def undecodable(message: Message) -> str | None:
+    """Why no frame on the bus can be ``message``, which cantools' checks take: longer
+    than a CAN FD frame (every frame was ``wrong_dlc``), or an IEEE float signal of
+    another length than 16, 32 or 64 bits (a ``SIG_VALTYPE_`` on the wrong signal:
+    cantools cannot unpack it, and every frame of the message was ``decode_error``);
+    None where it can be decoded."""
     if message.length > CAN_FD_MAX_BYTES:
         return (
             f"{message.name} is {message.length} bytes long: a CAN frame carries "
             f"{CAN_FD_MAX_BYTES} at most (CAN FD)"
         )
+    for signal in message.signals:
+        if signal.is_float and signal.length not in FLOAT_BITS:
+            return (
+                f"{message.name}.{signal.name} is an IEEE float by its SIG_VALTYPE_ but "
+                f"{signal.length} bits long (a float is 16, 32 or 64): no frame of "
+                f"{message.name} can be decoded (remove the SIG_VALTYPE_ or fix the length)"
+            )
+    return None
+
+
+def _warn_undecodable(database: Database, source: str) -> None:
+    """One warning line naming the messages no frame can be (:func:`undecodable`) in a
+    DBC that cantools' checks take: the config refuses one it uses (:func:`unsound`)."""
+    problems = [problem for problem in map(undecodable, database.messages) if problem]
+    if problems:
+        logger.warning("%s: %s", source, "; ".join(problems))
+
+
+def unsound(message: Message) -> str | None:
+    """Why cantools' checks refuse ``message`` (signals that overlap, or do not fit in
+    its length; two of one name, which cantools tells as overlapping), or why no frame
+    can be it (:func:`undecodable`); None where they pass."""
+    problem = undecodable(message)
+    if problem is not None:
+        return problem
     names = [signal.name for signal in message.signals]
     twice = next((name for name in names if names.count(name) > 1), None)
     if twice is not None:  # cantools says they overlap, wherever they are

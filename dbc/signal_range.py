@@ -138,16 +138,20 @@ def named_values(signal: Signal, j1939: bool) -> dict[str, float]:
 def codes_at_the_ends(signal: Signal) -> set[int]:
     """The raw values of ``signal``'s value table that are codes by their place: the
     named value at the top of what the bits hold (all ones; a signed signal's greatest,
-    and its least too) and the named values next to it, one after another (``4095
-    "SNA"``, ``4094 "Error"``, ``4093 "Init"``), but never an unsigned 0 (``0 "Zero"``).
-    A vendor names these ends for "not available" and "error"; a measurement named at
-    the very end of the bits would be a saturated one, no pressure either."""
+    its least, and its all ones, -1, too) and the named values next to it, one after
+    another (``4095 "SNA"``, ``4094 "Error"``, ``4093 "Init"``; signed ``-1 "SNA"``,
+    ``-2 "Error"``), but never 0 (``0 "Zero"``). A vendor names these ends for "not
+    available" and "error"; a measurement named at the very end of the bits would be a
+    saturated one, no pressure either. A signed signal's -1 is a measurement (-1 step)
+    where the table does not name it; named, it is the transducer's 0xFFFF "not
+    available" (a signed 16-bit ``[-10|400] "bar"`` pressure's ``-1 "SNA"`` was a valid
+    -0.01 bar)."""
     if signal.is_float or not signal.choices:
         return set()
     named = {int(raw) for raw in signal.choices}
     if signal.is_signed:
         half = 1 << (signal.length - 1)
-        ends = [(half - 1, -1), (-half, 1)]
+        ends = [(half - 1, -1), (-half, 1), (-1, -1)]
     else:
         ends = [((1 << signal.length) - 1, -1)]
     codes: set[int] = set()

@@ -103,3 +103,48 @@ def test_value_tables_and_float_types_of_signals_the_dbc_lacks_are_left_out(
         .estimates
     )
     assert estimate.valid
+
+
+#: A float type (SIG_VALTYPE_ 1) on the cab's 4-bit GearAlt: a hand edit that put it on
+#: the wrong signal. cantools' checks take it and then unpack no frame of CAB_1.
+FLOAT_GEAR = (
+    'BO_ 1600 CAB_1: 2 Hub\n SG_ Gear : 0|4@1+ (1,0) [0|15] "" DAQ\n'
+    ' SG_ GearAlt : 4|4@1+ (1,0) [0|15] "" DAQ\n\n'
+)
+
+
+def test_a_float_signal_no_frame_can_be_decoded_is_warned_of(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """A message the legs do not use: one warning line at load (every frame of it was
+    decode_error, and nothing said why)."""
+    dbc = _dbc(FLOAT_GEAR) + "SIG_VALTYPE_ 1600 GearAlt : 1;\n"
+    with caplog.at_level(logging.WARNING, logger="dbc.database"):
+        config, database = load_machine_config(_machine(tmp_path, dbc))
+    assert [r.getMessage() for r in caplog.records] == [
+        f"{tmp_path / 'motorola_psi.dbc'}: CAB_1.GearAlt is an IEEE float by its "
+        "SIG_VALTYPE_ but 4 bits long (a float is 16, 32 or 64): no frame of CAB_1 can be "
+        "decoded (remove the SIG_VALTYPE_ or fix the length)"
+    ]
+    (estimate,) = (
+        Pipeline.from_config(config, database)
+        .process(RawFrame(1.0, HUB_FRONT_ID, True, _hub_frame(0, 15000, 1000)))
+        .estimates
+    )
+    assert estimate.valid
+
+
+def test_a_float_signal_no_frame_can_be_decoded_in_a_leg_message_stops_the_config(
+    tmp_path: Path,
+) -> None:
+    """SIG_VALTYPE_ 1 on a leg's 4-bit rolling counter: `check` said fine, and the
+    service counted every frame of the legs' message decode_error, the legs silent."""
+    dbc = _dbc("") + "SIG_VALTYPE_ 2164195329 FL_Alive : 1;\n"
+    with pytest.raises(ConfigError) as refused:
+        load_machine_config(_machine(tmp_path, dbc))
+    assert refused.value.key == "legs.FL.piston"
+    assert refused.value.reason == (
+        "message HUB_FRONT of the DBC: HUB_FRONT.FL_Alive is an IEEE float by its "
+        "SIG_VALTYPE_ but 4 bits long (a float is 16, 32 or 64): no frame of HUB_FRONT can "
+        "be decoded (remove the SIG_VALTYPE_ or fix the length)"
+    )

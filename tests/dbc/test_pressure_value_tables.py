@@ -234,3 +234,57 @@ BO_ 2566856704 XDCR: 8 Hub
     # J1939's valid raw range ends at 0xFAFF: 0xFE00 (error) is 25.6 kPa here, below it.
     assert (0xFAFF + 0.5) * -50 + 3276.75e3 == pytest.approx(low_Pa)
     assert high_Pa == pytest.approx(3276.75e3 + 25, rel=1e-9)
+
+
+#: Two hubs of signed 16-bit pressures (0.01 bar/bit, [-10|400] bar) whose value tables
+#: name the transducer's 0xFFFF "not available" and 0xFFFE "error": as the bits decode
+#: (-1, -2) and as a vendor's sheet lists them (65535, 65534).
+SIGNED_DBC = dbc_text(
+    """
+BO_ 400 DRUCK_A: 4 Tx
+ SG_ A_pK : 0|16@1- (0.01,0) [-10|400] "bar" DAQ
+ SG_ A_pS : 16|16@1- (0.01,0) [-10|400] "bar" DAQ
+
+BO_ 401 DRUCK_B: 4 Tx
+ SG_ B_pK : 0|16@1- (0.01,0) [-10|400] "bar" DAQ
+ SG_ B_pS : 16|16@1- (0.01,0) [-10|400] "bar" DAQ
+""",
+    """
+BA_ "GenMsgCycleTime" BO_ 400 10;
+BA_ "GenMsgCycleTime" BO_ 401 10;
+VAL_ 400 A_pK -1 "SNA" -2 "Error" 0 "Null" ;
+VAL_ 401 B_pK 65535 "SNA" 65534 "Error" ;
+""",
+    nodes="Tx DAQ",
+)
+
+
+@pytest.mark.parametrize("compiled", [True, False], ids=["compiled", "reference"])
+def test_a_signed_pressure_named_at_all_ones_is_no_pressure(tmp_path: Path, compiled: bool) -> None:
+    """A non-J1939 signed pressure's 0xFFFF named "SNA" was a valid -0.01 bar (inside the
+    declared range, so taken for a named measurement; keyed 65535 the name was never
+    found), and the piston's "not available" made a valid foot force of -933 N. Unnamed,
+    -1 step is a measurement."""
+    legs = (
+        '[legs.A]\npiston = "DRUCK_A.A_pK"\nrod = "DRUCK_A.A_pS"\n'
+        '[legs.B]\npiston = "DRUCK_B.B_pK"\nrod = "DRUCK_B.B_pS"\n'
+    )
+    config, database = machine_on(tmp_path, SIGNED_DBC, legs)
+    assert config.legs["A"].piston.named_Pa == {"Null": 0.0}
+    pipeline = Pipeline.from_config(config, database)
+    if not compiled:
+        pipeline.decoder = type(pipeline.decoder)(
+            database, config.protection, config.unit_factors, compiled=False
+        )
+    for frame_id in (400, 401):
+        samples = []
+        for t_s, piston_raw in ((1.0, 0xFFFF), (1.01, 0xFFFE), (1.02, 4000)):
+            data = piston_raw.to_bytes(2, "little") + (0xFFFF).to_bytes(2, "little")
+            samples += pipeline.process(RawFrame(t_s, frame_id, False, data)).estimates
+        assert [(e.valid, e.reasons) for e in samples] == [(False, ("range",))] * 2 + [(True, ())]
+        assert math.isnan(samples[0].p_piston_Pa) and math.isnan(samples[1].p_piston_Pa)
+        # The rod's 0xFFFF is named in neither table: -1 step, a measurement.
+        assert (samples[2].p_piston_Pa, samples[2].p_rod_Pa) == (40e5, pytest.approx(-1e3))
+    decoded = pipeline.process(RawFrame(1.03, 401, False, bytes(4 * [0xFF]))).decoded
+    assert decoded is not None and decoded.signals["B_pK"] == "SNA"
+    assert not pipeline.bad
