@@ -24,7 +24,13 @@ from cantools.database.can import Database, Message, Signal
 
 from dbc import DEFAULT_DBC_PATH, _across_legs
 from dbc.database import load_database, unsound
-from dbc.decoding import J1939_NULL_ADDRESS, is_j1939, j1939_destination, j1939_pgn
+from dbc.decoding import (
+    CLASSIC_MAX_BYTES,
+    J1939_NULL_ADDRESS,
+    is_j1939,
+    j1939_destination,
+    j1939_pgn,
+)
 from dbc.errors import ConfigError
 from dbc.machine_signals import NO_SIGNALS, MachineSignals, parse_signals
 from dbc.names import did_you_mean, messages_with
@@ -423,6 +429,7 @@ def parse_machine_config(
         for name, table in legs_table.subtables()
     }
     _contact_below_the_weight_per_leg(estimator, settings, mass_kg, len(legs))
+    _warn_implausible_areas(legs_table, leg_defaults, legs, mass_kg, settings)
     _across_legs.check_simulated_legs(legs_table, legs)
     _across_legs.check_own_chambers(legs_table, legs)
     sender_cycle_times_ms = _across_legs.sender_cycle_times_ms(legs_table, legs, cycle_times_ms)
@@ -499,6 +506,60 @@ def _contact_below_the_weight_per_leg(
             mass_kg,
             legs,
         )
+
+
+#: Static soil pressure of a foot carrying the weight per leg, Pa, outside which its
+#: A_foot_m2 is warned of: the paper's feet stand at ~60..190 kPa; 3300 (cm2 for 0.33 m2)
+#: stood at 9 Pa and every soil pressure was 10,000 times too low, silently.
+PLAUSIBLE_GROUND_PA = (1e3, 1e7)
+#: Piston pressure, Pa, below which a leg cylinder holding the weight per leg is warned
+#: of (above, the transducers' range ends it): 78.54 (cm2 for a 100 mm bore) held it at
+#: 0.01 bar, and every foot force was 10,000 times too high.
+PLAUSIBLE_PISTON_MIN_PA = 1e5
+
+
+def _warn_implausible_areas(
+    legs_table: TomlTable,
+    defaults: TomlTable,
+    legs: Mapping[str, LegConfig],
+    mass_kg: float,
+    settings: EstimatorSettings,
+) -> None:
+    """One warning line per key whose area puts the machine's weight per leg at a
+    pressure no foot or leg cylinder stands at: an area written in cm2 or mm2 (or a mass
+    in t). Warned, not refused: a machine may carry part of its weight on other supports."""
+    per_leg_N = mass_kg * G_M_S2 / len(legs)
+    warned: set[str] = set()
+
+    def warn(name: str, key: str, value: str, why: str) -> None:
+        table = legs_table.table(name)
+        owner = table if key in table else defaults
+        if owner.key(key) not in warned:
+            warned.add(owner.key(key))
+            logger.warning(
+                "%s: %s: %s the weight per leg, %.0f N (machine.mass_kg %g on %d legs), at %s",
+                owner.source, owner.key(key), value, per_leg_N, mass_kg, len(legs), why,
+            )  # fmt: skip
+
+    for name, leg in legs.items():
+        geometry = leg.geometry
+        unit = "areas are in m2: is it written in cm2 or mm2 (or the mass in t)?"
+        foot = f"{geometry.A_foot_m2:g} m2 would carry"
+        ground_Pa = per_leg_N / geometry.A_foot_m2
+        if not PLAUSIBLE_GROUND_PA[0] <= ground_Pa <= PLAUSIBLE_GROUND_PA[1]:
+            warn(name, "A_foot_m2", foot, f"{ground_Pa:.4g} Pa of soil pressure; {unit}")
+        piston = f"{geometry.A_piston_m2:g} m2 would hold"
+        cylinder_N = (per_leg_N - geometry.calibrated_term_N) / geometry.calibrated_ratio
+        piston_Pa = cylinder_N / geometry.A_piston_m2
+        if 0 < piston_Pa < PLAUSIBLE_PISTON_MIN_PA:
+            warn(name, "A_piston_m2", piston, f"{piston_Pa:.4g} Pa in the piston chamber; {unit}")
+        elif piston_Pa > settings.pressure_max_Pa:
+            warn(
+                name, "A_piston_m2", piston,
+                f"{piston_Pa:.4g} Pa in the piston chamber, above [sensors] pressure_max_Pa "
+                f"({settings.pressure_max_Pa:g}): every sample of the leg standing would be "
+                "invalid (range)",
+            )  # fmt: skip
 
 
 def _find_signal(name: str, database: Database) -> SignalRef | None:
@@ -654,6 +715,17 @@ def _chamber(
                 "would be taken by the scaled value, not the raw one the DBC's pages are; "
                 "give it (1,0) in the DBC",
             )
+    if is_j1939(message) and message.length > CLASSIC_MAX_BYTES and not message.is_fd:
+        # J1939-21 sends it in TP.CM/TP.DT packets: no frame of its PGN ever comes, the
+        # leg was silent with nothing saying why (and the bridge sent FD frames of it).
+        raise chamber.error(
+            signal_key,
+            f"{message.name} is a J1939 parameter group of {message.length} bytes: J1939 "
+            "sends one of more than 8 in transport-protocol packets (TP.CM/TP.DT, PGN "
+            "0xEC00/0xEB00), which are not reassembled, so no frame of it would come; a "
+            "chamber needs one of up to 8 bytes (or a CAN FD message: VFrameFormat "
+            "ExtendedCAN_FD)",
+        )
     if _enumerated(signal):  # with a unit, a 2-bit status was a valid 0..3 bar
         names = ", ".join(f'{raw} "{name}"' for raw, name in sorted((signal.choices or {}).items()))
         raise chamber.error(

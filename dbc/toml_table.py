@@ -132,7 +132,12 @@ class TomlTable:
         """Call ``factory(**kwargs)``; its ValueError becomes a ConfigError.
 
         The error names the key of the field the message starts with, in the
-        table ``owners`` says it came from (this table by default).
+        table ``owners`` says it came from (this table by default). Where the fields
+        the message names come from several tables (a leg's own ``A_piston_m2`` below
+        ``[leg_defaults]``' ``A_rod_m2``), it names this one, and this table's key among
+        them: the value set here is the one that broke what the others allow; before,
+        ``leg_defaults.A_rod_m2`` was blamed for a leg's piston area. Where they all
+        come from one other table (the lever of ``[leg_defaults]`` alone), that one.
         """
         try:
             return factory(**kwargs)
@@ -140,5 +145,17 @@ class TomlTable:
             message = str(exc)
             match = _FIELD_NAME.match(message)
             field = match.group(1) if match and match.group(1) in kwargs else ""
-            owner = (owners or {}).get(field, self)
+
+            def owner_of(name: str) -> "TomlTable":
+                return (owners or {}).get(name, self)
+
+            def names(name: str) -> bool:
+                return re.search(rf"\b{re.escape(name)}\b", message) is not None
+
+            # An angle's message names it without its unit: alpha_cyl for alpha_cyl_rad.
+            named = [n for n in kwargs if n == field or names(n) or names(n.removesuffix("_rad"))]
+            tables = {id(owner_of(n)): owner_of(n) for n in named}
+            owner = next(iter(tables.values())) if len(tables) == 1 else self
+            if owner is self and owner_of(field) is not self:
+                field = next((n for n in named if owner_of(n) is self and names(n)), "")
             raise owner.error(field, message) from exc

@@ -57,6 +57,17 @@ def test_leg_table_overrides_leg_defaults(tmp_path: Path) -> None:
         ("A_foot_m2 = 0.33", 'A_foot_m2 = "big"', "leg_defaults.A_foot_m2", "must be a number"),
         ("alpha_cyl_deg = 75.0", "alpha_cyl_deg = nan", "leg_defaults.alpha_cyl_deg", "finite"),
         ("[legs.SB1_F2]", "[legs.SB1_F2]\nalpha_cyl_deg = 5.0", "legs.SB1_F2", "cannot carry"),
+        # The key named is the one of the table whose value broke the rule: the leg's own
+        # piston area below [leg_defaults]' annulus (leg_defaults.A_rod_m2 was blamed),
+        # the lever of [leg_defaults] alone (legs.SB1_F1 was: the first leg to use it).
+        (
+            "[legs.SB2_F1]",
+            "[legs.SB2_F1]\nA_piston_m2 = 4.0e-3",
+            "legs.SB2_F1.A_piston_m2",
+            "A_rod_m2 (0.004737) must be smaller than A_piston_m2 (0.004)",
+        ),
+        ("[legs.SB2_F1]", "[legs.SB2_F1]\nA_rod_m2 = 9e-3", "legs.SB2_F1.A_rod_m2", "smaller"),
+        ("alpha_cyl_deg = 75.0", "alpha_cyl_deg = 5.0", "leg_defaults", "cannot carry"),
         (
             'piston = "LEG_SB1_F2.SB1_F2_pPiston"',
             'piston = "LEG_SB1_F2.SB1_F2_pPistn"',
@@ -178,3 +189,43 @@ def test_a_contact_threshold_above_the_weight_per_leg_is_warned_of(
         "1634 N (1000 kg on 6 legs): with every foot down some would count as in the air; "
         "set contact_on_N and contact_off_N below it"
     ]
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "expected"),
+    [
+        # The paper's 0.33 m2 foot written in cm2: soil pressures 10,000 times too low.
+        (
+            "A_foot_m2 = 0.33",
+            "A_foot_m2 = 3300",
+            "leg_defaults.A_foot_m2: 3300 m2 would carry the weight per leg, 30728 N "
+            "(machine.mass_kg 18800 on 6 legs), at 9.311 Pa of soil pressure; areas are in "
+            "m2: is it written in cm2 or mm2 (or the mass in t)?",
+        ),
+        # One leg's 100 mm piston in cm2: its foot force 10,000 times too high.
+        (
+            "[legs.SB2_F1]\n",
+            "[legs.SB2_F1]\nA_piston_m2 = 78.54\nA_rod_m2 = 47.37\n",
+            "legs.SB2_F1.A_piston_m2: 78.54 m2 would hold the weight per leg, 30728 N "
+            "(machine.mass_kg 18800 on 6 legs), at 540.8 Pa in the piston chamber; areas are "
+            "in m2: is it written in cm2 or mm2 (or the mass in t)?",
+        ),
+        # A 20 mm piston: 1,350 bar to hold the leg, beyond the 400 bar transducers.
+        (
+            "A_piston_m2 = 7.854e-3\nA_rod_m2 = 4.737e-3",
+            "A_piston_m2 = 3.1416e-4\nA_rod_m2 = 1.5e-4",
+            "leg_defaults.A_piston_m2: 0.00031416 m2 would hold the weight per leg, 30728 N "
+            "(machine.mass_kg 18800 on 6 legs), at 1.352e+08 Pa in the piston chamber, above "
+            "[sensors] pressure_max_Pa (4e+07): every sample of the leg standing would be "
+            "invalid (range)",
+        ),
+    ],
+)
+def test_an_area_no_foot_or_cylinder_stands_on_is_warned_of_once_naming_its_key(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture, old: str, new: str, expected: str
+) -> None:
+    assert old in EXAMPLE
+    path = write(tmp_path, EXAMPLE.replace(old, new, 1))
+    with caplog.at_level(logging.WARNING, logger="dbc.machine"):
+        load_machine_config(path)
+    assert [r.getMessage() for r in caplog.records] == [f"{path}: {expected}"]
