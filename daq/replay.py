@@ -407,7 +407,7 @@ def can_log_frames(path: Path, channel: str | None = None) -> Iterator[RawFrame 
                     or (count == 0 and _what_it_looks_like(path, at_all=True))
                     or ""
                 )
-                reason = f"{str(exc) or type(exc).__name__}{hint}"  # BLFParseError(): nothing
+                reason = f"{_reason(exc, lines)}{hint}"
                 at = f" (line {lines.number})" if lines is not None and lines.number else ""
                 raise RecordingError(path, f"unreadable after frame {count}{at}: {reason}") from exc
     if isinstance(reader, CandumpReader) and reader.dropped_frames != dropped:  # at the end
@@ -435,6 +435,26 @@ def can_log_frames(path: Path, channel: str | None = None) -> Iterator[RawFrame 
         raise RecordingError(
             path, f"no frame on channel {channel!r}; its channels: {', '.join(sorted(channels))}"
         )
+
+
+#: The most of a reader's word on a line an error line quotes (it quotes the line's
+#: text: a line of thousands of zero bytes made an error line of 16 KB).
+_REASON_CHARS = 300
+#: The byte a block the file system left unwritten reads as.
+_ZERO = "\0"
+
+
+def _reason(exc: Exception, lines: LogLines | None) -> str:
+    """Why a log's reader stopped, in a line: a line of zero bytes (a block of the
+    file the file system left zeroed, a power cut as it was written) said as such."""
+    line = lines.last if lines is not None else None
+    if line is not None and line.count(_ZERO) > len(line) // 2:
+        return (
+            f"{line.count(_ZERO)} zero bytes (a block of the file left zeroed: the logger "
+            "stopped by a power cut as it wrote it?)"
+        )
+    reason = str(exc) or type(exc).__name__  # BLFParseError(): nothing
+    return reason if len(reason) <= _REASON_CHARS else f"{reason[:_REASON_CHARS]}..."
 
 
 def _readable(path: Path) -> None:

@@ -863,3 +863,24 @@ def test_replay_names_the_legs_silent_as_the_report_does_across_clock_steps(
     caplog.clear()
     replay(log, io.StringIO(), EXAMPLE_CONFIG)
     assert f"legs silent (no estimate for longer than their stale time): {silent}" in caplog.text
+
+
+def test_a_block_of_zero_bytes_inside_a_text_log_is_said_in_a_short_line(
+    tmp_path: Path,
+) -> None:
+    """A block the file system left zeroed (a power cut as the logger wrote it) in the
+    middle of a candump log: the error quoted the line, a single line of 16 KB of
+    ``\\x00``; it says how many zero bytes, on which line."""
+    log = sim_log(tmp_path, seconds=0.1)
+    text = log.read_bytes()
+    middle = text.index(b"\n", len(text) // 2) + 8  # inside the time of a line
+    log.write_bytes(text[:middle] + bytes(4096) + text[middle:])
+    line_number = text[:middle].count(b"\n") + 1
+    with pytest.raises(RecordingError) as refused:
+        list(can_log_frames(log))
+    reason = str(refused.value)
+    assert reason.startswith(
+        f"{log}: unreadable after frame {line_number - 1} (line {line_number}): 4096 zero bytes "
+        "(a block of the file left zeroed"
+    )
+    assert len(reason) < 400
