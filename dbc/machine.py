@@ -24,7 +24,13 @@ from cantools.database.can import Database, Message, Signal
 
 from dbc import DEFAULT_DBC_PATH, _across_legs
 from dbc.database import load_database, unsound
-from dbc.decoding import J1939_NULL_ADDRESS, is_j1939, j1939_destination, j1939_pgn
+from dbc.decoding import (
+    CLASSIC_MAX_BYTES,
+    J1939_NULL_ADDRESS,
+    is_j1939,
+    j1939_destination,
+    j1939_pgn,
+)
 from dbc.errors import ConfigError
 from dbc.machine_signals import NO_SIGNALS, MachineSignals, parse_signals
 from dbc.names import did_you_mean, messages_with
@@ -418,6 +424,7 @@ def parse_machine_config(
     if not legs_table.data:
         raise legs_table.error("", "no legs configured; add a [legs.<LEG>] table per leg")
     cycle_times_ms = _cycle_times_ms(root.table("messages", required=False), database)
+    _warn_angle_in_radians([leg_defaults, *(table for _, table in legs_table.subtables())])
     legs = {
         name: _leg(name, table, leg_defaults, database, status_ok, cycle_times_ms)
         for name, table in legs_table.subtables()
@@ -500,6 +507,23 @@ def _contact_below_the_weight_per_leg(
             mass_kg,
             legs,
         )
+
+
+def _warn_angle_in_radians(tables: list[TomlTable]) -> None:
+    """One warning line per ``alpha_cyl_deg`` of at most 2 pi, a value in radians (1.309
+    for 75 deg): read as degrees, the cylinder lies along the r axis and its lever arm is
+    a fraction of the design's, each foot force as many times too low (or, with l_z_m >= 0,
+    the lever is refused as negative, which did not say why)."""
+    for table in tables:
+        value = table.data.get("alpha_cyl_deg")
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            continue  # not a number: refused when the leg is read
+        if 0 < abs(value) <= 2 * math.pi:
+            logger.warning(
+                "%s: %s: %g is in degrees, a cylinder %g deg off the r axis; if it is in "
+                "radians, write %.4g (degrees)",
+                table.source, table.key("alpha_cyl_deg"), value, value, math.degrees(value),
+            )  # fmt: skip
 
 
 #: Static soil pressure of a foot carrying the weight per leg, Pa, outside which its
@@ -709,6 +733,17 @@ def _chamber(
                 "would be taken by the scaled value, not the raw one the DBC's pages are; "
                 "give it (1,0) in the DBC",
             )
+    if is_j1939(message) and message.length > CLASSIC_MAX_BYTES and not message.is_fd:
+        # J1939-21 sends it in TP.CM/TP.DT packets: no frame of its PGN ever comes, the
+        # leg was silent with nothing saying why (and the bridge sent FD frames of it).
+        raise chamber.error(
+            signal_key,
+            f"{message.name} is a J1939 parameter group of {message.length} bytes: J1939 "
+            "sends one of more than 8 in transport-protocol packets (TP.CM/TP.DT, PGN "
+            "0xEC00/0xEB00), which are not reassembled, so no frame of it would come; a "
+            "chamber needs one of up to 8 bytes (or a CAN FD message: VFrameFormat "
+            "ExtendedCAN_FD)",
+        )
     if _enumerated(signal):  # with a unit, a 2-bit status was a valid 0..3 bar
         names = ", ".join(f'{raw} "{name}"' for raw, name in sorted((signal.choices or {}).items()))
         raise chamber.error(
@@ -1027,7 +1062,9 @@ def _status_check(
                     )
                 )
                 raise table.error(
-                    key, f"{value!r} is not a value of {message.name}.{signal_name}: {known}"
+                    key,
+                    f"{value!r} is not a value of {message.name}.{signal_name}: {known}"
+                    + _inherited(table, key),
                 )
             ok |= {value, by_name[value]}
         else:
@@ -1039,9 +1076,23 @@ def _status_check(
         raise table.error(
             key,
             f"{message.name}.{signal_name} takes {low:g}..{high:g}: none of {list(status_ok)} "
-            "is one of them (every sample would be invalid)",
+            "is one of them (every sample would be invalid)" + _inherited(table, key),
         )
     return StatusCheck(signal=signal_name, ok=frozenset(ok), nominal=status_ok[0])
+
+
+def _inherited(table: TomlTable, key: str) -> str:
+    """Where a ``status_ok`` that ``table`` does not set comes from, for an error about it:
+    a foreign DBC's status names its fine value otherwise than the default ``"ok"``, and
+    the error named a key the config does not have."""
+    if key in table.data:
+        return ""
+    chamber = table.path.count(".") > 1  # legs.VL.piston: a chamber's table, in its leg's
+    source = "the leg's status_ok, or " if chamber else ""
+    return (
+        f" (no {key} in {table.path}: {source}[sensors] status_ok, "
+        f"{list(DEFAULT_STATUS_OK)} by default; set {key} in {table.path})"
+    )
 
 
 def _leg_status(table: TomlTable, database: Database) -> tuple[Message, str, int | None]:

@@ -11,6 +11,7 @@ from daq.frames import RawFrame
 from daq.pipeline import Pipeline
 from dbc.database import load_database_string
 from dbc.decoding import is_j1939
+from dbc.errors import ConfigError
 from tests.dbc.test_held_out_machines import eq4_N
 from tests.helpers import machine_on
 
@@ -33,6 +34,7 @@ BA_DEF_DEF_ "GenMsgCycleTime" 0;
 BA_ "ProtocolType" "J1939";
 BA_ "GenMsgCycleTime" BO_ 2583638064 10;
 """
+LEG = '[legs.front]\npiston = "DUAL_P.P1"\nrod = "DUAL_P.P2"\n'
 
 
 def test_the_29_bit_messages_of_a_j1939_network_are_parameter_groups() -> None:
@@ -45,9 +47,7 @@ def test_the_29_bit_messages_of_a_j1939_network_are_parameter_groups() -> None:
 
 def test_a_transducer_at_another_priority_than_the_dbcs_feeds_its_leg(tmp_path: Path) -> None:
     """Matched by the whole ID, its frames were unknown_id and the leg stale."""
-    config, database = machine_on(
-        tmp_path, DBC, '[legs.front]\npiston = "DUAL_P.P1"\nrod = "DUAL_P.P2"\n'
-    )
+    config, database = machine_on(tmp_path, DBC, LEG)
     pipeline = Pipeline.from_config(config, database)
     frame_id = frame_id_pack(3, 0, 1, 0xFF, 0x30, 0x30)  # priority 3, not the DBC's 6
     data = (25000).to_bytes(2, "little") + (2000).to_bytes(2, "little") + b"\xff" * 4
@@ -55,3 +55,16 @@ def test_a_transducer_at_another_priority_than_the_dbcs_feeds_its_leg(tmp_path: 
     assert result.error_kind is None
     (estimate,) = result.estimates
     assert estimate.valid and estimate.force_raw_N == pytest.approx(eq4_N(12.5e6, 1e6))
+
+
+def test_a_chamber_in_a_parameter_group_longer_than_a_frame_is_refused(tmp_path: Path) -> None:
+    """J1939 sends a 12-byte group in TP.CM/TP.DT packets, never as a frame of its PGN:
+    the config was taken and the leg silent for ever, nothing saying why."""
+    with pytest.raises(ConfigError) as refused:
+        machine_on(tmp_path, DBC.replace("DUAL_P: 8", "DUAL_P: 12"), LEG)
+    assert str(refused.value) == (
+        f"{tmp_path / 'm.toml'}: legs.front.piston: DUAL_P is a J1939 parameter group "
+        "of 12 bytes: J1939 sends one of more than 8 in transport-protocol packets (TP.CM/TP.DT, "
+        "PGN 0xEC00/0xEB00), which are not reassembled, so no frame of it would come; a chamber "
+        "needs one of up to 8 bytes (or a CAN FD message: VFrameFormat ExtendedCAN_FD)"
+    )

@@ -229,3 +229,27 @@ def test_an_area_no_foot_or_cylinder_stands_on_is_warned_of_once_naming_its_key(
     with caplog.at_level(logging.WARNING, logger="dbc.machine"):
         load_machine_config(path)
     assert [r.getMessage() for r in caplog.records] == [f"{path}: {expected}"]
+
+
+def test_an_angle_written_in_radians_is_warned_of_naming_its_key(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    # 1.309 (75 deg in radians) with the attachment below the pivot (l_z_m < 0) loads: a
+    # lever of 0.225 instead of 0.778, every foot force under a third, silently.
+    text = EXAMPLE.replace(
+        "[legs.SB1_F2]\n", "[legs.SB1_F2]\nalpha_cyl_deg = 1.309\nl_z_m = -0.25\n"
+    )
+    with caplog.at_level(logging.WARNING, logger="dbc.machine"):
+        config, _ = load_machine_config(write(tmp_path, text))
+    assert config.legs["SB1_F2"].geometry.force_ratio == pytest.approx(0.2254, abs=1e-4)
+    assert [r.getMessage() for r in caplog.records] == [
+        f"{tmp_path / 'machine.toml'}: legs.SB1_F2.alpha_cyl_deg: 1.309 is in degrees, a "
+        "cylinder 1.309 deg off the r axis; if it is in radians, write 75 (degrees)"
+    ]
+    # In [leg_defaults]: one line for the key, then the lever refused as before.
+    caplog.clear()
+    text = EXAMPLE.replace("alpha_cyl_deg = 75.0", "alpha_cyl_deg = 1.309")
+    with caplog.at_level(logging.WARNING, logger="dbc.machine"):
+        error = refused(tmp_path, text)
+    assert error.key == "leg_defaults" and "cannot carry the foot" in str(error)
+    assert [r.getMessage().split(": ")[1] for r in caplog.records] == ["leg_defaults.alpha_cyl_deg"]

@@ -32,7 +32,8 @@ def test_status_ok_numbers_the_status_signal_cannot_take_stop_the_config(
     assert refused.value.key == "legs.left-front.piston.status_ok"  # [sensors]' value here
     assert refused.value.reason == (
         f"PRESS_A.Diag takes 0..3: none of {expected} is one of them (every sample would be "
-        "invalid)"
+        "invalid) (no status_ok in legs.left-front.piston: the leg's status_ok, or [sensors] "
+        "status_ok, ['ok'] by default; set status_ok in legs.left-front.piston)"
     )
 
 
@@ -59,3 +60,27 @@ def test_a_status_in_a_message_of_its_own_is_refused_saying_why(tmp_path: Path) 
         "pressures; one sent in a message of its own cannot be (leave status out: the leg "
         "is not judged by status)"
     )
+
+
+def test_a_status_ok_the_config_does_not_set_is_told_where_it_comes_from(
+    tmp_path: Path,
+) -> None:
+    """A foreign DBC's status names its fine value "i.O.": the default "ok" is no value
+    of it, and the refusal named legs.VL.status_ok, a key the config does not have."""
+    text = dbc_text(
+        'BO_ 256 PRESS: 5 Hub\n SG_ pA : 0|16@1+ (0.01,0) [0|400] "bar" DAQ\n'
+        ' SG_ pB : 16|16@1+ (0.01,0) [0|400] "bar" DAQ\n'
+        ' SG_ Zustand : 32|2@1+ (1,0) [0|3] "" DAQ\n',
+        'BA_ "GenMsgCycleTime" BO_ 256 10;\nVAL_ 256 Zustand 0 "i.O." 1 "Kabelbruch" ;\n',
+    )
+    leg = '[legs.VL]\npiston = "PRESS.pA"\nrod = "PRESS.pB"\nstatus = "PRESS.Zustand"\n'
+    with pytest.raises(ConfigError) as refused:
+        machine_on(tmp_path, text, leg)
+    assert refused.value.key == "legs.VL.status_ok"
+    assert refused.value.reason == (
+        "'ok' is not a value of PRESS.Zustand: its value table has ['Kabelbruch', 'i.O.'] "
+        "(no status_ok in legs.VL: [sensors] status_ok, ['ok'] by default; set status_ok "
+        "in legs.VL)"
+    )
+    config, _ = machine_on(tmp_path, text, leg + 'status_ok = "i.O."\n')
+    assert config.legs["VL"].piston.status is not None
