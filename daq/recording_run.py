@@ -82,7 +82,8 @@ def expand(paths: Sequence[Path], *, recursive: bool = False) -> list[Path]:
     """The files named, a directory replaced by its ``*.mcap`` files (sorted by path);
     ``recursive``: those in its subdirectories too (a campaign's tree of days or machines:
     without, a tree of day folders was "no .mcap files", and one with a recording at its
-    top was reported without its folders, unsaid)."""
+    top was reported without its folders, unsaid). A path that does not exist is a
+    :class:`~daq.errors.RecordingError`."""
     files: list[Path] = []
     for path in paths:
         if path.is_dir():
@@ -91,8 +92,10 @@ def expand(paths: Sequence[Path], *, recursive: bool = False) -> list[Path]:
                 below = " or below it" if recursive else ""
                 raise RecordingError(path, f"no .mcap files in this directory{below}")
             files.extend(found)
-        else:
+        elif path.exists():
             files.append(path)
+        else:  # said first: a CAN log's was "needs --config", as if --config were missing
+            raise RecordingError(path, "no such file or directory")
     if not files:
         raise RecordingError("", "no recording given")
     return list(dict.fromkeys(files))

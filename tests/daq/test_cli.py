@@ -278,6 +278,15 @@ def test_replay_of_a_can_log_needs_a_config(tmp_path: Path) -> None:
     assert_one_line_error(run_cli("replay", str(log)), 2, "needs --config")
 
 
+@pytest.mark.parametrize("command", ["replay", "report", "calibrate"])
+def test_a_can_log_that_does_not_exist_is_said_before_the_config(
+    tmp_path: Path, command: str
+) -> None:
+    """A typo in the log's name was "needs --config", as if --config were what is missing."""
+    missing = tmp_path / "drvie.log"
+    assert_one_line_error(run_cli(command, str(missing)), 1, f"{missing}: no such file")
+
+
 def test_an_access_control_zenoh_refuses_is_one_line_naming_the_file(tmp_path: Path) -> None:
     # Zenoh checks a policy's subjects when the session opens: it was exit 1, blamed on
     # a taken port ("check [zenoh] listen/connect ...: is the port taken ...?").

@@ -162,7 +162,7 @@ def test_candump_error_frames_keep_to_the_channel_asked_and_are_counted(
             marks=pytest.mark.filterwarnings("ignore::pytest.PytestUnraisableExceptionWarning"),
         ),
         ("garbage.db", b"garbage\n" * 100, "unreadable after frame 0: file is not a database"),
-        ("missing.db", None, "cannot read it as a CAN log"),
+        ("missing.db", None, "missing.db: no such file or directory"),
         (  # python-can's 'No read support for unknown log format ".txt"' named no other
             "cycle.txt",
             b"(1.0) can0 100#00\n",

@@ -48,7 +48,7 @@ def test_a_bad_config_leaves_the_output_as_it_was(tmp_path: Path, earlier: Path)
 
 def test_a_missing_log_leaves_the_output_as_it_was(tmp_path: Path, earlier: Path) -> None:
     result = replay_into(tmp_path / "cylce.log", earlier)
-    assert_one_line_error(result, 1, "cylce.log: cannot read it as a CAN log: no such file")
+    assert_one_line_error(result, 1, "cylce.log: no such file or directory")
     _left_alone(earlier)
 
 

@@ -256,7 +256,7 @@ def test_the_command_line(tmp_path: Path) -> None:
     missing = run_cli(str(tmp_path / "nope.mcap"))
     assert missing.returncode == 1
     assert missing.stderr.strip().splitlines() == [
-        f"portal-daq: {tmp_path / 'nope.mcap'}: cannot open it: No such file or directory"
+        f"portal-daq: {tmp_path / 'nope.mcap'}: no such file or directory"
     ]
     bare = strip(path, tmp_path / "bare.mcap", keep=("/can/raw",), attachments=False)
     unconfigured = run_cli(str(bare), "--out", str(tmp_path / "x"))
