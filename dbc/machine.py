@@ -1197,6 +1197,11 @@ def _protection(
             raise table.error(key, _no_signal(table.string(key), message, database))
     counter = table.string("counter") if "counter" in table else None
     crc = table.string("crc") if "crc" in table else None
+    if counter is not None and counter == crc:
+        # Its CRC taken for a count: every frame a counter jump, every sample invalid.
+        raise table.error(
+            "counter", f"{counter} is the crc too: the rolling counter is a signal of its own"
+        )
     algorithm_name = table.string("crc_algorithm", DEFAULT_CRC_ALGORITHM)
     if algorithm_name not in CRC_ALGORITHMS:
         raise table.error(

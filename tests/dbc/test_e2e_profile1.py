@@ -167,6 +167,12 @@ def test_profiles_11_and_22_read_what_their_senders_send() -> None:
             "only e2e_p1 and e2e_p11 have a data ID mode",
         ),
         ('counter = "MZ_Zaehler"\n', "", "MASCHINE_ZUSTAND.data_id", "name the counter too"),
+        (
+            'counter = "ZYL_VL_Zaehler"',
+            'counter = "ZYL_VL_Pruefsumme"',
+            "ZYL_VL.counter",
+            "ZYL_VL_Pruefsumme is the crc too: the rolling counter is a signal of its own",
+        ),
     ],
 )
 def test_bad_profile_1_and_2_keys_are_one_line(old: str, new: str, key: str, reason: str) -> None:
