@@ -238,10 +238,10 @@ class _MessageCodec:
                 or (self._nibble is not None and signals.get(self._nibble[0]) != self._nibble[1])
             )
         ):
-            # The counter of a corrupted frame is not trusted: judge the next good frame
-            # as a first one, so one bad CRC costs exactly one sample.
+            # The counter of a corrupted frame is not trusted: the next good frame is not
+            # flagged (one bad CRC costs exactly one sample), the frames missing counted.
             if counter is not None:
-                counter.reset()
+                counter.skip()
             return DecodedFrame(name, t_s, signals, (CRC_FAULT,), 0, source_address)
         if counter is None or counter_value is None:
             return DecodedFrame(name, t_s, signals, (), 0, source_address)
