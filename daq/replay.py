@@ -191,6 +191,12 @@ def replay(
             pipeline.bad.total(),
             ", ".join(f"{kind} {n}" for kind, n in sorted(pipeline.bad.items())),
         )
+    if pipeline.frames_lost:  # the live status's frames_lost: said nowhere in a replay
+        logger.warning(
+            "%d frames lost on the bus before they were logged or recorded, as the rolling "
+            "counters of the frames after them tell (frames_lost)",
+            pipeline.frames_lost,
+        )
     if pipeline.frames == 0:  # an empty log (a logger stopped at once): say so
         logger.warning("%s: no CAN frame in it: the CSV has its header only", files[0])
         return rows

@@ -190,3 +190,37 @@ def test_a_channel_asked_of_a_service_recording_is_refused(tmp_path: Path) -> No
     with pytest.raises(ConfigError, match="--channel: picks a CAN log's bus; a service"):
         replay(path, io.StringIO(), EXAMPLE_CONFIG, channel="can1")
     assert replay(path, io.StringIO(), EXAMPLE_CONFIG) == 1  # without --channel, its frame
+
+
+def test_the_frames_the_rolling_counters_say_were_lost_are_said(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """The live status counts them (frames_lost) and the report's header too; a replay said
+    nothing of a log whose counters skip (its estimates valid within max_delta_counter)."""
+    from dbc.encoding import FrameEncoder
+    from dbc.machine import load_machine_config
+
+    config, database = load_machine_config(EXAMPLE_CONFIG)
+    encoder = FrameEncoder.from_config(config, database)
+    log = tmp_path / "skips.log"
+    signals = {"SB1_F1_pPiston": 9e6, "SB1_F1_pRod": 1e6, "SB1_F1_Status": "ok"}
+    with can.Logger(log) as writer:
+        for k, counter in enumerate((0, 1, 3, 4, 5, 9)):  # 2 lost (valid), 6..8 (counter)
+            frame = encoder.encode("LEG_SB1_F1", signals, counter=counter)
+            message = can.Message(
+                timestamp=1_750_000_000.0 + k / 100,
+                arbitration_id=frame.arbitration_id,
+                is_extended_id=False,
+                data=frame.data,
+            )
+            writer.on_message_received(message)
+    out = io.StringIO()
+    assert replay(log, out, EXAMPLE_CONFIG) == 6
+    rows = list(csv.DictReader(io.StringIO(out.getvalue())))
+    assert [row["reasons"] for row in rows] == ["", "", "", "", "", "counter"]
+    messages = [record.getMessage() for record in caplog.records]
+    assert "6 frames, 1 of them not used (counter 1)" in messages
+    assert (
+        "4 frames lost on the bus before they were logged or recorded, as the rolling "
+        "counters of the frames after them tell (frames_lost)" in messages
+    )
