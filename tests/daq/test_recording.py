@@ -284,3 +284,32 @@ def test_replay_of_a_recording_counts_the_frames_lost_before_it(
     err = capsys.readouterr().err
     assert "97 frames lost before they were recorded or logged, not in the file (80 by the " in err
     assert "kernel: receive buffer full; 17 by the service's queue)" in err
+
+
+def test_what_a_full_queue_dropped_is_a_gap_in_the_file_in_a_thread_too(tmp_path: Path) -> None:
+    _, database = example_machine()
+    clock = iter(range(10**6))
+    settings = RecordingSettings(directory=tmp_path, queue_size=2)
+    recorder = Recorder(settings, database, machine_id="m", now=lambda: float(next(clock)))
+    for i in range(4):  # not started: nothing takes from the queue
+        recorder.submit(RecordBatch.of(results(3, t0=1000.0 + i), signals=False))
+    assert recorder.dropped == 2 * 3
+    with recorder:  # opens its file at clock 1
+        wait_drained(recorder)
+        recorder.submit(RecordBatch.of(results(3, t0=1010.0), signals=False))
+        wait_drained(recorder)
+    with open(recorder.paths[0], "rb") as file:
+        written = [
+            (c.topic, json.loads(m.data) if c.topic == "/daq/recording" else None)
+            for _, c, m in make_reader(file).iter_messages(log_time_order=False)
+        ]
+    gaps = [payload for topic, payload in written if topic == "/daq/recording"]
+    # since the first drop (clock 0, before the start) until the next item, put after it
+    assert [(gap["stopped_t"], gap["dropped"], gap["reason"]) for gap in gaps] == [
+        (0.0, 6, "recorder's queue full")
+    ]
+    assert gaps[0]["t"] == gaps[0]["lost_s"] > 1.0
+    assert [topic for topic, _ in written].index("/daq/recording") == 2 * 2
+    assert (
+        recorder.gaps == [(0.0, gaps[0]["lost_s"])] and len(raw_times(recorder.paths[0])) == 3 * 3
+    )
