@@ -2,7 +2,9 @@
 # install.sh: install portal-daq as a systemd service on the machine's embedded PC.
 #
 #   sudo deploy/install.sh                 # from a clone: install its source tree into /
-#   deploy/install.sh --root /tmp/target   # install into another root (image builds, tests)
+#   deploy/install.sh --root /tmp/target   # install into another root (tests); the venv's
+#                                          # scripts name /tmp/target/opt/...: for a machine
+#                                          # image, run install.sh inside its chroot
 #   sudo ./install.sh --package portal_daq-0.1.0-py3-none-any.whl
 #                                          # from `portal-daq init DIR --deploy` (a wheel's)
 #

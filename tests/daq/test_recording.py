@@ -1,10 +1,12 @@
 """MCAP recording: rotation by size and time, the files of one run, reading back a file
 cut short by a crash."""
 
+import errno
 import io
 import itertools
 import json
 import logging
+import os
 import time
 from pathlib import Path
 
@@ -18,7 +20,7 @@ from daq.frames import BusEvent, RawFrame
 from daq.mcap_file import CONFIG_ATTACHMENT, DBC_ATTACHMENT, CountingFile, McapFile, RecordBatch
 from daq.mcap_reading import RecordedMessage, RecordingStream, json_items
 from daq.pipeline import Pipeline
-from daq.recorder import Recorder, file_name
+from daq.recorder import Recorder, cannot_create, file_name
 from daq.recorder_process import RecorderProcess
 from daq.recording_run import read_run_file, run_files
 from daq.replay import replay
@@ -349,3 +351,28 @@ def test_a_gap_restarts_the_rolling_counters_in_replay_and_report_and_is_said(
     said = f"{path}: {report.counts.recording_lost_s:.1f} s not recorded (recorder's queue full: 6"
     assert said in caplog.text
     assert ",counter" not in with_gap.getvalue()  # no estimate invalid for its counter
+
+
+@pytest.mark.parametrize("kind", [Recorder, RecorderProcess])
+def test_a_directory_it_cannot_create_names_the_key(
+    tmp_path: Path, kind: type[Recorder] | type[RecorderProcess]
+) -> None:
+    _, database = example_machine()
+    (tmp_path / "file").write_text("")
+    directory = tmp_path / "file" / "rec"
+    with pytest.raises(RecordingError) as raised:
+        kind(RecordingSettings(directory=directory), database, machine_id="m").start()
+    assert (
+        str(raised.value)
+        == f"{directory}: cannot create it ([recording] directory): Not a directory"
+    )
+
+
+@pytest.mark.parametrize("code", [errno.EROFS, errno.EACCES, errno.EPERM])
+def test_a_directory_it_may_not_create_says_where_the_unit_lets_it_write(code: int) -> None:
+    # Under the systemd unit (ProtectSystem=strict) a directory outside /var/lib/portal-daq
+    # is read-only: the service said '/data/rec: cannot create it: Read-only file system'.
+    reason = cannot_create(OSError(code, os.strerror(code)))
+    assert reason.startswith(f"cannot create it ([recording] directory): {os.strerror(code)} (")
+    assert "only /var/lib/portal-daq is writable" in reason and "ReadWritePaths=" in reason
+    assert "systemd" not in cannot_create(OSError(errno.ENOTDIR, "Not a directory"))

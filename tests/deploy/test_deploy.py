@@ -34,6 +34,7 @@ def test_unit_has_notify_watchdog_restart_user_state_and_hardening() -> None:
     assert service["Type"] == "notify"
     assert service["WatchdogSec"] == "10s"
     assert service["Restart"] == "on-failure"
+    assert service["RestartPreventExitStatus"] == "2"  # a bad config: no restart loop
     assert service["User"] == "portal-daq"
     assert service["StateDirectory"] == "portal-daq"
     assert service["ProtectSystem"] == "strict"
