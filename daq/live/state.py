@@ -39,7 +39,10 @@ class LegReading:
     t_s: float | None
     #: Filtered vertical foot force (eq. 4 + running median).
     force_N: float | None
-    #: Contact pressure (eq. 5) from the filtered force.
+    #: Contact pressure (eq. 5) from the filtered force; 0 for a foot not in
+    #: ``contact``, as the report draws it: the payload's eq. (5) of a lifted leg's
+    #: cylinder force (the leg's own weight and inertia, -10 kPa say) is no soil
+    #: pressure, and the monitor and dashboard showed it as one.
     pressure_Pa: float | None
     contact: bool
     valid: bool
@@ -184,11 +187,13 @@ class LiveState:
 
 def parse_leg(name: str, data: Mapping[str, Any]) -> LegReading:
     reasons = data.get("reasons")
+    pressure_Pa = _number(data, "pressure_Pa")
+    lifted = data.get("contact") is False and pressure_Pa is not None
     return LegReading(
         leg=name,
         t_s=_number(data, "t"),
         force_N=_number(data, "force_N"),
-        pressure_Pa=_number(data, "pressure_Pa"),
+        pressure_Pa=0.0 if lifted else pressure_Pa,
         contact=data.get("contact") is True,
         valid=data.get("valid") is True,
         reasons=tuple(str(r) for r in reasons) if isinstance(reasons, list) else (),
