@@ -28,6 +28,8 @@ GROUND, STATUS, METRICS = "ground", "status", "metrics"
 SUFFIXES = (GROUND, STATUS, METRICS)
 #: The service's liveliness token (no payload: it exists while the service runs).
 ALIVE = "alive"
+#: What a viewer without a Zenoh link says while it waits.
+NO_LINK = "no Zenoh link to any peer or router yet (is the service running there? --connect?)"
 
 
 @dataclass(frozen=True, slots=True)
@@ -153,9 +155,21 @@ class LiveState:
         #: Payloads that were not JSON objects, could not be read, or came on a key
         #: not viewed.
         self.ignored = 0
+        #: Whether the viewer's session has a Zenoh link (:meth:`LiveFeed.linked
+        #: <daq.live.feed.LiveFeed.linked>`); None: not known.
+        self.linked: bool | None = None
 
     def key(self, suffix: str) -> str:
         return f"{self.prefix}/{suffix}"
+
+    def waiting_for(self, suffix: str) -> str:
+        """``waiting for <prefix>/<suffix>``, saying so when the viewer has no Zenoh link
+        at all (the same line said nothing of it: a wrong ``--connect`` and a service
+        that is down looked like a service about to talk)."""
+        text = f"waiting for {self.key(suffix)}"
+        if self.linked is False:
+            text += f": {NO_LINK}"
+        return text
 
     def apply(self, key: str, payload: bytes, received_s: float) -> bool:
         """Take one payload received on ``key``; False (and counted) when unusable.
