@@ -15,8 +15,9 @@
 #   /etc/portal-daq/zenoh.json5          the Zenoh session configuration (the same)
 #   /etc/portal-daq/*.dbc                the DBCs beside it (the example's: a copy of the
 #                                        packaged DBC, which it reads until told otherwise)
-#   /etc/systemd/system/portal-daq.service
-#   /etc/systemd/network/80-can0.network (can0 at 500 kbit/s, bus-off restart)
+#   /etc/systemd/system/portal-daq.service  bound to the configuration's [bus] channel
+#   /etc/systemd/network/80-can0.network (can0 at 500 kbit/s, bus-off restart; named
+#                                        and matching the [bus] channel; none for a vcan)
 #   /etc/sysctl.d/90-portal-daq.conf     net.core.rmem_max for the CAN receive buffer
 #   /usr/lib/sysusers.d/portal-daq.conf  and the system user portal-daq (systemd-sysusers)
 #   the unit enabled (systemctl --root); started only when installing into / with --start.
@@ -39,7 +40,7 @@ while [ $# -gt 0 ]; do
         --with-vcan) VCAN=yes; shift ;;
         --package) PACKAGE=$2; shift 2 ;;
         --pip-args) PIP_ARGS=$2; shift 2 ;;
-        -h|--help) sed -n '2,26p' "$0"; exit 0 ;;
+        -h|--help) sed -n '2,/^set -euo/p' "$0" | sed '$d'; exit 0 ;;
         *) echo "install.sh: unknown option $1 (see --help)" >&2; exit 2 ;;
     esac
 done
@@ -85,9 +86,39 @@ for src in "$config"/portal-daq.toml "$config"/zenoh.json5 "$config"/*.dbc; do
     if [ -e "$dst" ]; then say "keeping existing $dst"; else install -m 0644 "$src" "$dst"; fi
 done
 
-say "systemd units"
-install -D -m 0644 "$KIT/systemd/portal-daq.service" "$(at /etc/systemd/system/portal-daq.service)"
-install -D -m 0644 "$KIT/network/80-can0.network" "$(at /etc/systemd/network/80-can0.network)"
+# The unit waits for, and is bound to, the CAN interface the installed configuration reads
+# ([bus] channel); the kit's files name can0. Bound to can0, a machine whose sensors are on
+# can1, or a bench on vcan0, never started the service (its start waited for can0).
+bus=$("$VENV/bin/python" - "$(at /etc/portal-daq/portal-daq.toml)" <<'PY'
+import sys, tomllib
+try:
+    with open(sys.argv[1], "rb") as file:
+        bus = tomllib.load(file).get("bus", {})
+except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as error:
+    sys.exit(f"install.sh: {sys.argv[1]}: {error}; fix it and run install.sh again")
+print(bus.get("interface", "socketcan"), bus.get("channel", "can0"))
+PY
+)
+read -r interface channel <<<"$bus"
+say "systemd units for [bus] interface $interface, channel $channel"
+unit=$(<"$KIT/systemd/portal-daq.service")
+can0=sys-subsystem-net-devices-can0.device
+if [ "$interface" = socketcan ]; then
+    device=$(systemd-escape --path --suffix=device "/sys/subsystem/net/devices/$channel")
+    unit=${unit//"$can0"/"$device"}
+else  # no network interface to wait for (a python-can interface of its own)
+    unit=$(grep -v "^BindsTo=$can0\$" <<<"$unit")
+    unit=${unit//" $can0"/}
+    unit=${unit//"After=$can0 "/After=}
+fi
+install -d -m 0755 "$(at /etc/systemd/system)"
+printf '%s\n' "$unit" > "$(at /etc/systemd/system/portal-daq.service)"
+chmod 0644 "$(at /etc/systemd/system/portal-daq.service)"
+install -d -m 0755 "$(at /etc/systemd/network)"
+if [ "$interface" = socketcan ] && [ "${channel#vcan}" = "$channel" ]; then
+    network=$(<"$KIT/network/80-can0.network")
+    printf '%s\n' "${network//Name=can0/"Name=$channel"}" > "$(at "/etc/systemd/network/80-$channel.network")"
+fi
 if [ "$VCAN" = yes ]; then
     install -m 0644 "$KIT/network/80-vcan0.netdev" "$KIT/network/80-vcan0.network" \
         "$(at /etc/systemd/network/)"

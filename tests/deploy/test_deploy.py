@@ -157,6 +157,59 @@ def test_install_script_into_a_temporary_root(tmp_path: Path) -> None:
     assert unit.read_text() == UNIT.read_text()
 
 
+def test_install_help_is_the_whole_header() -> None:
+    helped = subprocess.run(
+        [str(DEPLOY / "install.sh"), "--help"], capture_output=True, text=True, check=True
+    ).stdout
+    assert helped.startswith("# install.sh: install portal-daq")
+    assert helped.rstrip().endswith("(extra arguments for pip install, e.g. --no-deps).")
+
+
+@needs_systemd
+@pytest.mark.parametrize(
+    ("interface", "channel", "bound_to", "network"),
+    [
+        ("socketcan", "can-1", r"sys-subsystem-net-devices-can\x2d1.device", "80-can-1.network"),
+        ("socketcan", "vcan0", "sys-subsystem-net-devices-vcan0.device", None),
+        ("virtual", "can1", None, None),
+    ],
+    ids=["can_1", "vcan0", "not_socketcan"],
+)
+def test_the_installed_unit_is_bound_to_the_configured_channel(
+    tmp_path: Path, interface: str, channel: str, bound_to: str | None, network: str | None
+) -> None:
+    # The unit waited for can0 whatever [bus] channel said: on a machine whose sensors are
+    # on another interface, or a bench on vcan0, its start never came.
+    kit = tmp_path / "kit"
+    assert main(["init", str(kit), "--deploy"]) == 0
+    config = kit / "portal-daq.toml"
+    text = config.read_text()
+    edited = text.replace('interface = "socketcan"', f'interface = "{interface}"', 1)
+    config.write_text(edited.replace('channel = "can0"', f'channel = "{channel}"', 1))
+    root = tmp_path / "root"
+    subprocess.run(
+        [str(kit / "deploy/install.sh"), "--root", str(root), "--package", str(ROOT),
+         "--pip-args", "--no-deps"],
+        check=True, capture_output=True, timeout=600,
+    )  # fmt: skip
+    installed = root / "etc/systemd/system/portal-daq.service"
+    unit, install = unit_sections(installed)["Unit"], unit_sections(installed)["Install"]
+    assert "devices-can0" not in installed.read_text()
+    if bound_to is None:
+        assert "BindsTo" not in unit
+        assert unit["After"].split() == ["network-online.target"]
+        assert install["WantedBy"].split() == ["multi-user.target"]
+    else:
+        assert unit["BindsTo"] == bound_to
+        assert unit["After"].split() == [bound_to, "network-online.target"]
+        assert install["WantedBy"].split() == ["multi-user.target", bound_to]
+        assert (root / f"etc/systemd/system/{bound_to}.wants/portal-daq.service").is_symlink()
+    networks = sorted(path.name for path in (root / "etc/systemd/network").iterdir())
+    assert networks == ([] if network is None else [network])
+    if network is not None:
+        assert unit_sections(root / "etc/systemd/network" / network)["Match"]["Name"] == channel
+
+
 def test_init_writes_the_deployment_kit_of_the_repository(tmp_path: Path) -> None:
     # A user with the wheel alone had no install.sh, no unit: no way to deploy.
     assert main(["init", str(tmp_path), "--deploy"]) == 0
