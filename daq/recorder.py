@@ -32,6 +32,7 @@ counted (:attr:`Recorder.failed_items`) and the item skipped.
 summary; after a crash the file reads back up to its last written chunk.
 """
 
+import errno
 import logging
 import queue
 import time
@@ -110,6 +111,23 @@ def count(item: Item) -> int:
     if isinstance(item, RecordBatch):
         return len(item.frames) or 1
     return (item.frame_count or 1) if isinstance(item, EncodedBatch) else 1
+
+
+def cannot_create(exc: OSError) -> str:
+    """Why the ``[recording] directory`` cannot be made, and what to do when it is a right.
+
+    Under deploy/'s systemd unit (``ProtectSystem=strict``, user portal-daq) only
+    /var/lib/portal-daq is writable: a directory elsewhere was ``Read-only file system``,
+    with no word of the key or of the unit.
+    """
+    reason = f"cannot create it ([recording] directory): {exc.strerror or exc}"
+    if exc.errno in (errno.EROFS, errno.EACCES, errno.EPERM):
+        reason += (
+            " (the service's user may not write there; under the portal-daq systemd unit"
+            " only /var/lib/portal-daq is writable: record below it, or add"
+            " ReadWritePaths= for it to the unit)"
+        )
+    return reason
 
 
 class Recorder(Worker):
@@ -197,9 +215,7 @@ class Recorder(Worker):
         try:
             self.directory.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
-            raise RecordingError(
-                self.directory, f"cannot create it: {exc.strerror or exc}"
-            ) from exc
+            raise RecordingError(self.directory, cannot_create(exc)) from exc
         if self.run_id is None:
             self.run_id = uuid.uuid4().hex
         recover_cut_files(self.directory, self._machine_id, self.settings.compression)
@@ -349,7 +365,7 @@ class Recorder(Worker):
         try:  # a directory removed while recording is made again
             self.directory.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
-            raise RecordingError(self.directory, f"cannot create it: {exc.strerror}") from exc
+            raise RecordingError(self.directory, cannot_create(exc)) from exc
         path = self.directory / file_name(self._machine_id, t_s)
         serial = 0
         while path in self.paths or path.exists():

@@ -61,6 +61,7 @@ from dbc.database import load_database_bytes
 from dbc.errors import ConfigError
 from dbc.machine import MachineConfig, load_machine_config, parse_machine_config
 from estimator.leg import LegEstimate
+from estimator.validity import OTHER_CHAMBER_STALE
 
 logger = logging.getLogger(__name__)
 
@@ -207,9 +208,11 @@ def replay(
 
 
 class _Heard:
-    """The times of a replay's first and last frame, and each leg's estimates' times,
-    taken as they go by (for :func:`~daq.silences.leg_silences`), on the time line that
-    joins the clock's steps back, as the report's header takes them
+    """The times of a replay's first and last frame, and each leg's estimates' times
+    (those made with both chambers heard: a leg whose rod transducer fell silent has
+    estimates, every one ``rod_stale``, and was not named), taken as they go by (for
+    :func:`~daq.silences.leg_silences`), on the time line that joins the clock's steps
+    back, as the report's header takes them
     (:class:`~daq.report.timeline.Timeline`): on frame times, a leg silent for 5 s across
     a step back of an hour was named nowhere, and frames stamped 0 (a logger's glitch)
     made every leg silent for 56 years."""
@@ -235,7 +238,8 @@ class _Heard:
             leg_times = times.get(row.leg)
             if leg_times is None:
                 leg_times = times[row.leg] = array("d")
-            leg_times.append(line.at(row.t_s))
+            if not (row.reasons and OTHER_CHAMBER_STALE.intersection(row.reasons)):
+                leg_times.append(line.at(row.t_s))
             yield row
 
     def times(self) -> dict[str, npt.NDArray[np.float64]]:

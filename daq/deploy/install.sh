@@ -2,7 +2,9 @@
 # install.sh: install portal-daq as a systemd service on the machine's embedded PC.
 #
 #   sudo deploy/install.sh                 # from a clone: install its source tree into /
-#   deploy/install.sh --root /tmp/target   # install into another root (image builds, tests)
+#   deploy/install.sh --root /tmp/target   # install into another root (tests); the venv's
+#                                          # scripts name /tmp/target/opt/...: for a machine
+#                                          # image, run install.sh inside its chroot
 #   sudo ./install.sh --package portal_daq-0.1.0-py3-none-any.whl
 #                                          # from `portal-daq init DIR --deploy` (a wheel's)
 #
@@ -130,11 +132,11 @@ if [ "$ROOT" = / ]; then
     systemd-sysusers /usr/lib/sysusers.d/portal-daq.conf
     sysctl -q -p /etc/sysctl.d/90-portal-daq.conf
     systemctl daemon-reload
-    systemctl enable portal-daq.service
+    systemctl reenable portal-daq.service
     [ "$START" = yes ] && systemctl restart systemd-networkd portal-daq.service
 else
     install -d -m 0755 "$(at /etc)"
     systemd-sysusers --root="$ROOT" "$(at /usr/lib/sysusers.d/portal-daq.conf)"
-    systemctl --root="$ROOT" enable portal-daq.service
+    systemctl --root="$ROOT" reenable portal-daq.service
 fi
 say "done; check with: systemctl status portal-daq (journalctl -u portal-daq for its log)"

@@ -134,7 +134,8 @@ def weight_residuals_N(
     >>> def track(name, forces, contact=True):
     ...     n = len(forces)
     ...     return LegTrack(name, np.arange(n) * 0.01, np.array(forces), np.zeros(n),
-    ...                     np.ones(n, bool), np.array(forces), np.full(n, contact))
+    ...                     np.ones(n, bool), np.array(forces), np.full(n, contact),
+    ...                     np.ones(n, bool))
     >>> legs = {"A": track("A", [60.0, 70.0]), "B": track("B", [40.0, 40.0]),
     ...         "C": track("C", [3.0, 3.0], contact=False)}
     >>> weight_residuals_N(legs, Cycle(None, 0.0, 1.0, final=True), {}, 100.0).tolist()

@@ -129,9 +129,9 @@ def gap_after_s(recording: Recording) -> dict[str, float]:
 
 def silences(recording: Recording, gaps: Mapping[str, float]) -> dict[str, tuple[int, float]]:
     """Per leg of the recording or its machine: :func:`daq.silences.leg_silences` of its
-    estimates between the recording's first and last frame."""
+    estimates made with both chambers heard, between the recording's first and last frame."""
     legs = recording.machine.legs if recording.machine else ()
-    times = {leg: track.t_s for leg, track in recording.legs.items()}
+    times = {leg: track.t_s[track.heard] for leg, track in recording.legs.items()}
     return leg_silences(times, legs, recording.start_t_s, recording.end_t_s, gaps)
 
 

@@ -32,15 +32,16 @@ from daq.pipeline import FrameResult
 from daq.report.timeline import Timeline
 from dbc.machine import MachineConfig
 from dbc.protection import COUNTER_JUMP, CRC_FAULT
+from estimator.validity import OTHER_CHAMBER_STALE
 
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
 IntArray = npt.NDArray[np.int64]
 
 
-#: (t, force_N, pressure_Pa, valid, force_raw_N, contact), (t, count, cycle time, phase),
-#: (t, {leg: force}).
-LegRow = tuple[float, float, float, bool, float, bool]
+#: (t, force_N, pressure_Pa, valid, force_raw_N, contact, heard), (t, count, cycle time,
+#: phase), (t, {leg: force}).
+LegRow = tuple[float, float, float, bool, float, bool, bool]
 StateRow = tuple[float, int, float, str]
 TruthRow = tuple[float, dict[str, float]]
 
@@ -72,6 +73,10 @@ class LegTrack:
     #: The estimator's contact decision (hysteresis on ``force_N``): off the ground, a
     #: foot has no soil pressure, whatever eq. (5) gives.
     contact: BoolArray
+    #: Made with both chambers heard (neither ``piston_stale`` nor ``rod_stale``): a leg
+    #: whose rod transducer fell silent while its piston one goes on has estimates, all
+    #: invalid, and its sensors are silent all the same (the service's status says so).
+    heard: BoolArray
 
     @staticmethod
     def row(payload: Mapping[str, Any]) -> LegRow:
@@ -83,29 +88,31 @@ class LegTrack:
             bool(payload["valid"]),
             _number(payload["force_raw_N"]),
             bool(payload["contact"]),
+            not OTHER_CHAMBER_STALE.intersection(payload["reasons"]),
         )
 
 
 class LegColumns:
-    """A leg's rows as they come, a typed array per column: 34 bytes a row where a tuple
+    """A leg's rows as they come, a typed array per column: 35 bytes a row where a tuple
     of Python objects took ~190, so that a long recording's report fits in memory (8 h
     of six legs at 100 Hz: ~0.6 GB instead of ~3 GB)."""
 
     def __init__(self) -> None:
         self.t_s, self.force_N, self.pressure_Pa, self.force_raw_N = (array("d") for _ in "1234")
-        self.valid, self.contact = array("b"), array("b")
+        self.valid, self.contact, self.heard = array("b"), array("b"), array("b")
 
     def __len__(self) -> int:
         return len(self.t_s)
 
     def append(self, row: LegRow) -> None:
-        t_s, force_N, pressure_Pa, valid, force_raw_N, contact = row
+        t_s, force_N, pressure_Pa, valid, force_raw_N, contact, heard = row
         self.t_s.append(t_s)
         self.force_N.append(force_N)
         self.pressure_Pa.append(pressure_Pa)
         self.valid.append(valid)
         self.force_raw_N.append(force_raw_N)
         self.contact.append(contact)
+        self.heard.append(heard)
 
     def track(self, leg: str, shift_s: float = 0.0) -> LegTrack:
         """The rows in time order (equal times in the order they came), their times less
@@ -127,6 +134,7 @@ class LegColumns:
             valid=flags(self.valid)[order],
             force_raw_N=numbers(self.force_raw_N)[order],
             contact=flags(self.contact)[order],
+            heard=flags(self.heard)[order],
         )
 
 

@@ -525,6 +525,37 @@ def test_the_report_counts_j1939_frames_from_an_unmapped_source_address(
     assert "12 frames, 4 of them not used (unmapped_source 4)" in caplog.text
 
 
+def test_a_leg_whose_rod_transducer_fell_silent_is_named_by_replay_and_report(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """SB1_F1's rod transducer (0x22) stops after 0.2 s, its piston one (0x21) goes on:
+    every SB1_F1 estimate after it is ``rod_stale``. The live status names the leg silent;
+    replay and the report named only legs without any estimate, so not this one. SB1_F2
+    sends both chambers throughout and is not named."""
+    from daq.report.content import analyse
+    from daq.report.loading import load_recording
+    from daq.report.page import header_rows
+    from tests.helpers import ROOT
+
+    config_path = ROOT / "deploy/examples/j1939/portal-daq.toml"
+    log = tmp_path / "rod_silent.log"
+    log.write_text(
+        "".join(
+            f"({1_796_150_000 + k / 100 + source / 1e5:.6f}) can0 18FF20{source:02X}"
+            "#0807002800000000\n"
+            for k in range(100)
+            for source in (0x22, 0x24, 0x21, 0x23)  # rods first, then pistons
+            if source != 0x22 or k < 20
+        )
+    )
+    rows = dict(header_rows(analyse(load_recording(log, config_path))))
+    silent = rows["legs silent (no estimate for longer than the stale time)"]
+    assert silent.startswith("SB1_F1 1x, 0.79 s, SB1_F3 1x, 0.99 s"), silent
+    assert "SB1_F2" not in silent, silent
+    assert replay(log, io.StringIO(), config_path) == 200  # SB1_F1's, invalid, included
+    assert f"legs silent (no estimate for longer than their stale time): {silent}" in caplog.text
+
+
 def two_container_blf(tmp_path: Path) -> tuple[Path, bytes, int]:
     """A BLF of 4,000 frames in two containers (of 128 KiB before zlib): its path, its
     bytes and where the second container begins."""

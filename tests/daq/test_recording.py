@@ -1,9 +1,11 @@
 """MCAP recording: rotation by size and time, the files of one run, reading back a file
 cut short by a crash."""
 
+import errno
 import io
 import json
 import logging
+import os
 import time
 from pathlib import Path
 
@@ -17,7 +19,7 @@ from daq.frames import BusEvent, RawFrame
 from daq.mcap_file import CountingFile, McapFile, RecordBatch
 from daq.mcap_reading import RecordedMessage, RecordingStream, json_items
 from daq.pipeline import Pipeline
-from daq.recorder import Recorder, file_name
+from daq.recorder import Recorder, cannot_create, file_name
 from daq.recorder_process import RecorderProcess
 from daq.recording_run import read_run_file, run_files
 from daq.service_config import RecordingSettings
@@ -284,3 +286,28 @@ def test_replay_of_a_recording_counts_the_frames_lost_before_it(
     err = capsys.readouterr().err
     assert "97 frames lost before they were recorded or logged, not in the file (80 by the " in err
     assert "kernel: receive buffer full; 17 by the service's queue)" in err
+
+
+@pytest.mark.parametrize("kind", [Recorder, RecorderProcess])
+def test_a_directory_it_cannot_create_names_the_key(
+    tmp_path: Path, kind: type[Recorder] | type[RecorderProcess]
+) -> None:
+    _, database = example_machine()
+    (tmp_path / "file").write_text("")
+    directory = tmp_path / "file" / "rec"
+    with pytest.raises(RecordingError) as raised:
+        kind(RecordingSettings(directory=directory), database, machine_id="m").start()
+    assert (
+        str(raised.value)
+        == f"{directory}: cannot create it ([recording] directory): Not a directory"
+    )
+
+
+@pytest.mark.parametrize("code", [errno.EROFS, errno.EACCES, errno.EPERM])
+def test_a_directory_it_may_not_create_says_where_the_unit_lets_it_write(code: int) -> None:
+    # Under the systemd unit (ProtectSystem=strict) a directory outside /var/lib/portal-daq
+    # is read-only: the service said '/data/rec: cannot create it: Read-only file system'.
+    reason = cannot_create(OSError(code, os.strerror(code)))
+    assert reason.startswith(f"cannot create it ([recording] directory): {os.strerror(code)} (")
+    assert "only /var/lib/portal-daq is writable" in reason and "ReadWritePaths=" in reason
+    assert "systemd" not in cannot_create(OSError(errno.ENOTDIR, "Not a directory"))

@@ -53,6 +53,7 @@ def track(
         valid=np.array(valid if valid is not None else [True] * len(t_s), dtype=np.bool_),
         force_raw_N=pressure * 0.33,
         contact=pressure > 0,
+        heard=np.ones(len(t_s), dtype=np.bool_),
     )
 
 
@@ -180,7 +181,7 @@ def test_the_calculated_force_is_the_median_centred_on_the_frame() -> None:
     raw[[1, 8]] = [50e3, -50e3]  # spikes: the centred median removes them
     raw[6] = 1e9  # invalid: neither matched nor used as a later value
     force = 1000.0 * np.arange(12)  # as published by the live filter
-    leg = LegTrack("L", t, force, force / 0.33, valid, raw, force > 0)
+    leg = LegTrack("L", t, force, force / 0.33, valid, raw, force > 0, np.ones(12, bool))
     true_N = 1000.0 * np.arange(12) + 10.0
     true_N[3] = NAN  # unknown truth: left out
     truth = TruthTrack(np.round(np.arange(12) * 0.01 + 100.0, 6), {"L": true_N})
@@ -212,7 +213,9 @@ def test_sparse_truth_is_compared_with_the_estimates_at_its_instants_only() -> N
     t = np.round(100.0 + np.arange(300) * 0.01, 6)
     t[200] += 0.003  # receive latency: still the truth sample's frame
     force = 1000.0 * np.arange(300)  # a ramp: 100 kN a second
-    leg = LegTrack("L", t, force, force / 0.33, np.ones(300, bool), force, force > 0)
+    leg = LegTrack(
+        "L", t, force, force / 0.33, np.ones(300, bool), force, force > 0, np.ones(300, bool)
+    )
     truth_t = np.array([100.0, 101.0, 102.0])
     truth = TruthTrack(truth_t, {"L": np.array([0.0, 100e3, 200e3])})
 
