@@ -170,8 +170,9 @@ class _MessageCodec:
         # A counter with a value table (e.g. 15 "NotAvailable") decodes to a name for some
         # values; the check judges its number.
         self._counter_codes: dict[str, int] = {}
-        # A counter the DBC scales ((1,1): 1..16 for raw 0..15) is judged raw, as sent.
-        self._counter_scaling: tuple[float, float] | None = None
+        # A counter the DBC scales ((1,1): 1..16 for raw 0..15) or declares signed (@1-:
+        # -8..7 for raw 0..15) is judged by its raw bits, as sent: (scale, offset, 2**bits).
+        self._counter_scaling: tuple[float, float, int] | None = None
         # A CRC under a multiplexer value is in (and checked on) those frames only; so is a
         # counter, which then counts them.
         self._multiplexed_crc: str | None = None
@@ -189,10 +190,13 @@ class _MessageCodec:
                 choices: Mapping[int, object] = (
                     message.get_signal_by_name(protection.counter).choices or {}
                 )
-                self._counter_codes = {str(name): int(raw) for raw, name in choices.items()}
                 counter_signal = message.get_signal_by_name(protection.counter)
-                if (counter_signal.scale, counter_signal.offset) != (1, 0):
-                    self._counter_scaling = (counter_signal.scale, counter_signal.offset)
+                bits = 2**counter_signal.length
+                self._counter_codes = {str(name): int(raw) % bits for raw, name in choices.items()}
+                if (counter_signal.scale, counter_signal.offset) != (1, 0) or (
+                    counter_signal.is_signed
+                ):
+                    self._counter_scaling = (counter_signal.scale, counter_signal.offset, bits)
 
     def decode(
         self,
@@ -225,9 +229,9 @@ class _MessageCodec:
                     counter_value = self._counter_codes[value]
                 elif self._counter_scaling is None:
                     counter_value = int(value)
-                else:  # judged by what the sender counts: its raw value
-                    scale, offset = self._counter_scaling
-                    counter_value = round((value - offset) / scale)
+                else:  # judged by what the sender counts: its raw bits
+                    scale, offset, bits = self._counter_scaling
+                    counter_value = round((value - offset) / scale) % bits
                 counter = self._counters.get(source_address) or self._counter(source_address)
         crc = self.crc
         if (
@@ -238,10 +242,10 @@ class _MessageCodec:
                 or (self._nibble is not None and signals.get(self._nibble[0]) != self._nibble[1])
             )
         ):
-            # The counter of a corrupted frame is not trusted: judge the next good frame
-            # as a first one, so one bad CRC costs exactly one sample.
+            # The counter of a corrupted frame is not trusted: the next good frame is not
+            # flagged (one bad CRC costs exactly one sample), the frames missing counted.
             if counter is not None:
-                counter.reset()
+                counter.skip()
             return DecodedFrame(name, t_s, signals, (CRC_FAULT,), 0, source_address)
         if counter is None or counter_value is None:
             return DecodedFrame(name, t_s, signals, (), 0, source_address)

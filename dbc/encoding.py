@@ -100,8 +100,12 @@ class FrameEncoder:
             counter %= counter_modulo(message, protection.counter, protection.crc_algorithm)
             self._counters[key] = counter
             counter_signal = message.get_signal_by_name(protection.counter)
-            # ``counter`` is what the bits carry; a scaled counter is encoded from its value.
-            values[protection.counter] = counter * counter_signal.scale + counter_signal.offset
+            # ``counter`` is what the bits carry; a scaled or signed counter is encoded from
+            # its value (a signed one's upper half of counts from below zero).
+            raw = counter
+            if counter_signal.is_signed and counter >= 2 ** (counter_signal.length - 1):
+                raw -= 2**counter_signal.length
+            values[protection.counter] = raw * counter_signal.scale + counter_signal.offset
         with_crc = protection is not None and _carries(message, protection.crc, values)
         if with_crc:
             assert protection is not None and protection.crc is not None

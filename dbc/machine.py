@@ -1197,23 +1197,37 @@ def _protection(
             raise table.error(key, _no_signal(table.string(key), message, database))
     counter = table.string("counter") if "counter" in table else None
     crc = table.string("crc") if "crc" in table else None
+    if counter is not None and counter == crc:
+        # Its CRC taken for a count: every frame a counter jump, every sample invalid.
+        raise table.error(
+            "counter", f"{counter} is the crc too: the rolling counter is a signal of its own"
+        )
     algorithm_name = table.string("crc_algorithm", DEFAULT_CRC_ALGORITHM)
     if algorithm_name not in CRC_ALGORITHMS:
         raise table.error(
             "crc_algorithm", f"unknown {algorithm_name!r}; one of {', '.join(CRC_ALGORITHMS)}"
         )
     algorithm = CRC_ALGORITHMS[algorithm_name]
+    # An E2E config that leaves crc_algorithm out gets the default: say that it is one.
+    chosen = (
+        algorithm_name
+        if "crc_algorithm" in table
+        else f"{algorithm_name} (the default: no crc_algorithm given)"
+    )
     if crc is not None:
         signal = signals[crc]
         bits = 8 * algorithm.width_bytes
         aligned = signal.start % 8 == (7 if signal.byte_order == "big_endian" else 0)
         if signal.length != bits or not aligned:
             raise table.error(
-                "crc", f"{crc} must be a {bits}-bit signal on byte boundaries for {algorithm.name}"
+                "crc",
+                f"{crc} must be {'an' if bits == 8 else 'a'} {bits}-bit signal on byte boundaries "
+                f"for {chosen}, is {signal.length} bits from bit {signal.start}"
+                + ("" if "crc_algorithm" in table else "; e2e_p5's CRC is 16 bits"),
             )
         if signal.start // 8 + algorithm.width_bytes > message.length:
             raise table.error("crc", f"{crc} lies outside the {message.length}-byte frame")
-    data_id = _data_id(table, algorithm.data_id_layout)
+    data_id = _data_id(table, algorithm.data_id_layout, chosen)
     if isinstance(data_id, tuple) and counter is None:
         raise table.error(
             "data_id", "a DataIDList is picked by the counter's value: name the counter too"
@@ -1246,10 +1260,13 @@ def _protection(
     )
 
 
-def _data_id(table: TomlTable, layout: str) -> int | tuple[int, ...]:
+def _data_id(table: TomlTable, layout: str, algorithm: str) -> int | tuple[int, ...]:
     if layout == "none":
         if "data_id" in table:
-            raise table.error("data_id", "this crc_algorithm has no data ID")
+            e2e = ", ".join(name for name in CRC_ALGORITHMS if name.startswith("e2e_"))
+            raise table.error(
+                "data_id", f"{algorithm} has no data ID (the E2E profiles have: {e2e})"
+            )
         return 0
     if "data_id" not in table:
         raise table.error("data_id", "missing: the E2E profile's CRC covers a data ID")

@@ -261,9 +261,12 @@ class CounterCheck:
     sender, the sample is invalid); 1..``max_delta`` is fine, ``delta - 1`` frames
     were lost on the way (counted, the data of this frame is good); a larger jump
     is ``counter`` (invalid; the sender restarted or many frames were lost). The
-    first frame, and the first after :meth:`reset` (also called after a frame
-    whose CRC failed: its counter is not trusted), is accepted as it comes; the
-    next frame is always judged against the value just seen. So is a frame that comes
+    first frame, and the first after :meth:`reset`, is accepted as it comes; the
+    next frame is always judged against the value just seen. A frame whose CRC failed
+    is :meth:`skip`-ped (its counter is not trusted): the next good frame is not
+    flagged, and the frames missing between the last good one and it, less those that
+    came corrupted, are counted lost (a burst of interference corrupts some frames and
+    loses others; those lost went uncounted). So is a frame that comes
     more than ``resync_after_s`` after the one before (the times given: the pipeline's
     bus time, :class:`estimator.machine.BusClock`, on which a clock stepped back during
     the silence hides none of it): after a silence as long as a whole turn of the
@@ -274,6 +277,9 @@ class CounterCheck:
     >>> check = CounterCheck(modulo=16, max_delta=2)
     >>> [(r.fault, r.lost) for r in map(check.update, (3, 4, 6, 6, 10, 11))]
     [(None, 0), (None, 0), (None, 1), ('counter_repeat', 0), ('counter', 3), (None, 0)]
+    >>> check = CounterCheck(modulo=16, max_delta=2)
+    >>> check.update(3), check.skip(), check.update(7)  # 4 corrupted, 5 and 6 lost
+    (CounterResult(fault=None, lost=0), None, CounterResult(fault=None, lost=2))
     >>> check = CounterCheck(modulo=16, max_delta=2, resync_after_s=0.16)
     >>> [check.update(c, t).fault for c, t in ((3, 0.0), (9, 0.05), (5, 3600.0))]
     [None, 'counter', None]
@@ -291,21 +297,34 @@ class CounterCheck:
         self.resync_after_s = resync_after_s
         self._last: int | None = None
         self._last_t_s = math.nan
+        # Frames since the last value whose counter was not trusted (their CRC failed).
+        self._skipped = 0
 
     def reset(self) -> None:
         """Forget the last value (after a gap in reception)."""
         self._last = None
+        self._skipped = 0
+
+    def skip(self) -> None:
+        """A frame came whose counter is not trusted (its CRC failed): the next good frame
+        is judged against the last good one, never flagged, its frames lost counted."""
+        if self._last is not None:
+            self._skipped += 1
 
     def update(self, counter: int, t_s: float = math.nan) -> CounterResult:
         """Judge ``counter`` of a frame at time ``t_s`` (NaN: time not judged)."""
         if not 0 <= counter < self.modulo:  # a value it never takes (profile 1's 15)
-            self._last = None
+            self.reset()
             return CounterResult(COUNTER_JUMP, 0)
         last, self._last = self._last, counter
         last_t_s, self._last_t_s = self._last_t_s, t_s
         if last is None or t_s - last_t_s > self.resync_after_s:
+            self._skipped = 0
             return _OK
         delta = (counter - last) % self.modulo
+        if self._skipped:  # after corrupted frames: resynchronised, what is missing lost
+            skipped, self._skipped = self._skipped, 0
+            return CounterResult(None, max(0, delta - 1 - skipped))
         if delta == 1:
             return _OK
         if delta == 0:

@@ -132,11 +132,11 @@ if [ "$ROOT" = / ]; then
     systemd-sysusers /usr/lib/sysusers.d/portal-daq.conf
     sysctl -q -p /etc/sysctl.d/90-portal-daq.conf
     systemctl daemon-reload
-    systemctl enable portal-daq.service
+    systemctl reenable portal-daq.service
     [ "$START" = yes ] && systemctl restart systemd-networkd portal-daq.service
 else
     install -d -m 0755 "$(at /etc)"
     systemd-sysusers --root="$ROOT" "$(at /usr/lib/sysusers.d/portal-daq.conf)"
-    systemctl --root="$ROOT" enable portal-daq.service
+    systemctl --root="$ROOT" reenable portal-daq.service
 fi
 say "done; check with: systemctl status portal-daq (journalctl -u portal-daq for its log)"

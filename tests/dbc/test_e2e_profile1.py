@@ -167,6 +167,35 @@ def test_profiles_11_and_22_read_what_their_senders_send() -> None:
             "only e2e_p1 and e2e_p11 have a data ID mode",
         ),
         ('counter = "MZ_Zaehler"\n', "", "MASCHINE_ZUSTAND.data_id", "name the counter too"),
+        (
+            'counter = "ZYL_VL_Zaehler"',
+            'counter = "ZYL_VL_Pruefsumme"',
+            "ZYL_VL.counter",
+            "ZYL_VL_Pruefsumme is the crc too: the rolling counter is a signal of its own",
+        ),
+        # A profile's config without its crc_algorithm: the default's name alone did not
+        # say that it was the default, nor which profile has a data ID or a 16-bit CRC.
+        (
+            'crc = "ZYL_VL_Pruefsumme"\ncrc_algorithm = "e2e_p1"\n',
+            'crc = "ZYL_VL_Pruefsumme"\n',
+            "ZYL_VL.data_id",
+            "crc8_sae_j1850 (the default: no crc_algorithm given) has no data ID (the E2E "
+            "profiles have: e2e_p1, e2e_p11, e2e_p2, e2e_p22, e2e_p5)",
+        ),
+        (
+            'crc = "ZYL_VL_Pruefsumme"\ncrc_algorithm = "e2e_p1"\n',
+            'crc = "ZYL_VL_Pruefsumme"\ncrc_algorithm = "e2e_p5"\n',
+            "ZYL_VL.crc",
+            "ZYL_VL_Pruefsumme must be a 16-bit signal on byte boundaries for e2e_p5, is 8 "
+            "bits from bit 0",
+        ),
+        (
+            'crc = "ZYL_HL_CRC8"\ncrc_algorithm = "e2e_p1"\n',
+            'crc = "ZYL_HL_Zustand"\ncrc_algorithm = "e2e_p1"\n',
+            "ZYL_HL.crc",
+            "ZYL_HL_Zustand must be an 8-bit signal on byte boundaries for e2e_p1, is 4 bits "
+            "from bit 15",
+        ),
     ],
 )
 def test_bad_profile_1_and_2_keys_are_one_line(old: str, new: str, key: str, reason: str) -> None:

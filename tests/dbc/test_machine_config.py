@@ -104,7 +104,7 @@ def test_leg_table_overrides_leg_defaults(tmp_path: Path) -> None:
             "estimator.near_constant_window_s",
             "must be at least 0.01 s",
         ),
-        ('crc = "SB1_F1_CRC"', 'crc = "SB1_F1_Counter"', "protection.LEG_SB1_F1.crc", "8-bit"),
+        ('crc = "SB1_F1_CRC"', 'crc = "SB1_F1_Status"', "protection.LEG_SB1_F1.crc", "8-bit"),
         ("[legs.SB1_F1]", "[legs.SB1_F1]\nfoot = 1", "legs.SB1_F1.foot", "unknown key"),
     ],
 )

@@ -455,6 +455,27 @@ def test_one_bad_crc_costs_exactly_one_sample() -> None:
     assert bench.pipeline.frames_lost == 0 and bench.pipeline.bad["crc"] == 1
 
 
+def test_frames_lost_around_a_bad_crc_are_counted() -> None:
+    """The next good frame after a corrupted one is not flagged, but the frames missing
+    between it and the last good one went uncounted (frames_lost 0 here): a burst of
+    interference that corrupts some frames and loses others, or the simulator's --drop
+    with --bad-crc (184 frames lost in 3 s, 148 counted)."""
+    bench = Bench()
+    reasons = [
+        hub(bench, 0, 0.0),
+        hub(bench, 1, 0.01),
+        hub(bench, 2, 0.02, corrupt=True),
+        hub(bench, 5, 0.05),  # 3 and 4 lost
+        hub(bench, 6, 0.06, corrupt=True),
+        hub(bench, 7, 0.07, corrupt=True),
+        hub(bench, 8, 0.08),  # nothing lost
+        hub(bench, 9, 0.09, corrupt=True),
+        hub(bench, 9, 0.10),  # a corrupted frame sent again: nothing lost, no repeat
+    ]
+    assert reasons == [(), (), ("crc",), (), ("crc",), ("crc",), (), ("crc",), ()]
+    assert bench.pipeline.frames_lost == 2 and bench.pipeline.bad["crc"] == 4
+
+
 def test_counter_repeat_jump_within_and_beyond_max_delta() -> None:
     bench = Bench()  # LEG_HUB: default max_delta_counter 2
     reasons = [hub(bench, c, i * 0.01) for i, c in enumerate((5, 6, 6, 8, 12, 13))]

@@ -209,6 +209,18 @@ def test_the_installed_unit_is_bound_to_the_configured_channel(
     assert networks == ([] if network is None else [network])
     if network is not None:
         assert unit_sections(root / "etc/systemd/network" / network)["Match"]["Name"] == channel
+        # Another channel in the installed configuration, installed again: the unit is
+        # wanted by the new device alone (the old device's link started it as well).
+        installed_config = root / "etc/portal-daq/portal-daq.toml"
+        text = installed_config.read_text()
+        installed_config.write_text(text.replace(f'channel = "{channel}"', 'channel = "can2"'))
+        subprocess.run(
+            [str(kit / "deploy/install.sh"), "--root", str(root), "--package", str(ROOT),
+             "--pip-args", "--no-deps"],
+            check=True, capture_output=True, timeout=600,
+        )  # fmt: skip
+        wants = sorted(path.name for path in (root / "etc/systemd/system").glob("*.wants"))
+        assert wants == ["multi-user.target.wants", "sys-subsystem-net-devices-can2.device.wants"]
 
 
 def test_init_writes_the_deployment_kit_of_the_repository(tmp_path: Path) -> None:
