@@ -23,8 +23,10 @@ JSON Schema (``jsonschema``) and JSON messages:
 ``/daq/bus``             bus state changes (:data:`BUS_TOPIC`)
 ``/sim/truth``           simulation ground truth, when a simulator bridge
                          publishes it (:data:`TRUTH_TOPIC`)
-``/daq/recording``       a gap in the recording: the first message of the file
-                         that resumed it (:data:`RECORDING_TOPIC`)
+``/daq/recording``       a gap in the recording: after a write error, the first
+                         message of the file that resumed it; after the
+                         recorder's queue was full, just before the first item
+                         written again (:data:`RECORDING_TOPIC`)
 =======================  ===================================================
 
 The file also carries the configuration and the DBC as attachments, so that a
@@ -71,15 +73,23 @@ COMPRESSION = {
 }
 
 
+#: Why a :class:`RecordingGap` is: the file could not be written, or the recorder's queue
+#: was full (the recorder fell behind: a slow disk, a CPU busy with other work).
+WRITE_ERROR = "write error"
+QUEUE_FULL = "recorder's queue full"
+
+
 @dataclass(frozen=True, slots=True)
 class RecordingGap:
-    """Recording stopped (a write error) at ``stopped_t_s`` and resumed at ``resumed_t_s``."""
+    """Recording stopped at ``stopped_t_s`` and resumed at ``resumed_t_s``, for ``reason``."""
 
     #: Wall-clock times, Unix seconds.
     stopped_t_s: float
     resumed_t_s: float
     #: Items (frames with their results, bus events, truth samples) dropped meanwhile.
     dropped: int
+    #: :data:`WRITE_ERROR` or :data:`QUEUE_FULL`.
+    reason: str = WRITE_ERROR
 
     @property
     def lost_s(self) -> float:
@@ -344,12 +354,13 @@ class McapFile:
         )
 
     def write_gap(self, gap: RecordingGap) -> None:
-        """The gap before this file, logged at the time recording resumed."""
+        """A gap in the recording, logged at the time recording resumed."""
         payload = {
             "t": gap.resumed_t_s,
             "stopped_t": gap.stopped_t_s,
             "lost_s": gap.lost_s,
             "dropped": gap.dropped,
+            "reason": gap.reason,
         }
         self._write_json(
             RECORDING_TOPIC,

@@ -13,10 +13,16 @@ the shipped router config): such a token goes by itself.
 
 Liveliness tokens are no puts: the shipped access control (which refuses foreign
 puts under ``portal/**``) lets them through. The callback only updates a set.
+
+Zenoh routes nothing between two peers through a router (Zenoh 1.10, gossip off as
+shipped: neither samples nor tokens), so two services of one id, both in peer mode on
+one site router, never see each other's token: :meth:`PrefixOwners.tell_behind_router`
+says so once, as the check is blind there.
 """
 
 import logging
 import threading
+from collections.abc import Sequence
 from typing import Any
 
 import zenoh
@@ -41,6 +47,7 @@ class PrefixOwners:
         self._own = ""
         self._entities: list[Any] = []
         self._closed = False
+        self._router_told = False
 
     def __enter__(self) -> "PrefixOwners":
         self.start()
@@ -67,6 +74,23 @@ class PrefixOwners:
         """The ids of the other sessions with a service token under the prefix."""
         with self._lock:
             return sorted(self._zids - {self._own})
+
+    def tell_behind_router(self, mode: str, routers: Sequence[str]) -> None:
+        """One warning line, the first time a session in ``mode`` peer has a link to a
+        router (``routers``: their ids): another service under the prefix on that router
+        goes unseen, and so does this one for a viewer in peer mode connected there."""
+        if mode != "peer" or not routers or self._router_told:
+            return
+        self._router_told = True
+        logger.warning(
+            "zenoh: this service is a peer linked to a router (%s): Zenoh routes nothing "
+            "between two peers through a router, so another service publishing under %s "
+            "there goes unseen (zenoh.same_prefix), and so does this service for a viewer "
+            "that connects to the router in peer mode; on a site router set mode = "
+            '"client" ([zenoh] mode, or mode in its JSON5 file)',
+            " ".join(routers),
+            self.prefix,
+        )
 
     def close(self) -> None:
         """Undeclare (the session stays open: its owner closes it). Idempotent."""

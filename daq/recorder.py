@@ -26,6 +26,10 @@ with a ``/daq/recording`` message saying when recording stopped, how long the ga
 is and how many items were dropped (the report shows it). While recording is
 stopped, :attr:`Recorder.failing` is true and the service is not healthy.
 
+Items dropped on a full queue (the recorder fell behind) are a gap too
+(:class:`Overflow`): the next item put is preceded by a ``/daq/recording`` message
+saying since when and how many, so that the file says what it lacks, as the status did.
+
 Any other exception while writing one item (a bug, a payload nobody foresaw) is
 counted (:attr:`Recorder.failed_items`) and the item skipped.
 :meth:`Recorder.close` (also on SIGTERM) finishes the file, so it has its
@@ -47,7 +51,14 @@ from cantools.database.can import Database
 from daq._worker import Worker
 from daq.errors import RecordingError
 from daq.frames import BusEvent
-from daq.mcap_file import CountingFile, EncodedBatch, McapFile, RecordBatch, RecordingGap
+from daq.mcap_file import (
+    QUEUE_FULL,
+    CountingFile,
+    EncodedBatch,
+    McapFile,
+    RecordBatch,
+    RecordingGap,
+)
 from daq.recording_run import run_metadata
 from daq.recover import hold_while_writing, recover_cut_files
 from daq.service_config import RecordingSettings
@@ -64,7 +75,7 @@ RETRY_AFTER_S = 5.0
 #: a busy host) cut the last ~80 items of a recording that 2 s would have kept.
 DRAIN_S = 2.0
 
-Item = RecordBatch | EncodedBatch | BusEvent | TruthRecord | MachineSnapshot
+Item = RecordBatch | EncodedBatch | BusEvent | TruthRecord | MachineSnapshot | RecordingGap
 
 
 class ItemQueue(Protocol):
@@ -111,6 +122,36 @@ def count(item: Item) -> int:
     if isinstance(item, RecordBatch):
         return len(item.frames) or 1
     return (item.frame_count or 1) if isinstance(item, EncodedBatch) else 1
+
+
+class Overflow:
+    """The items a full queue dropped since the last one put, told in the file: the next
+    item put is preceded by a :class:`~daq.mcap_file.RecordingGap` (:data:`QUEUE_FULL`)
+    from the first drop to then, with the items dropped. Without it a recorder that fell
+    behind (a slow disk, a CPU busy with other work) left a hole in the file that nothing
+    in it explained: replayed, its legs were silent for as long, as if the sensors were.
+    """
+
+    def __init__(self, now: Callable[[], float] = time.time) -> None:
+        self._now = now
+        self._since_t_s: float | None = None
+        self._dropped = 0
+
+    def put(self, put_nowait: Callable[[Item], None], item: Item) -> bool:
+        """``put_nowait(item)``, after the gap of what was dropped before it; False when
+        the queue is full (``item`` is dropped: the caller counts it)."""
+        try:
+            if self._since_t_s is not None:
+                gap = RecordingGap(self._since_t_s, self._now(), self._dropped, QUEUE_FULL)
+                put_nowait(gap)
+                self._since_t_s, self._dropped = None, 0
+            put_nowait(item)
+        except queue.Full:
+            if self._since_t_s is None:
+                self._since_t_s = self._now()
+            self._dropped += count(item)
+            return False
+        return True
 
 
 def cannot_create(exc: OSError) -> str:
@@ -167,6 +208,7 @@ class Recorder(Worker):
         #: Names this run of the service in every file's metadata; drawn at start if None.
         self.run_id = run_id
         self._queue: ItemQueue = items or queue.Queue(maxsize=settings.queue_size)
+        self._overflow = Overflow(now)
         self._shares_gil = items is None
         self._file: McapFile | None = None
         self._stream: CountingFile | None = None
@@ -223,9 +265,7 @@ class Recorder(Worker):
 
     def submit(self, item: Item) -> None:
         """Queue ``item`` for writing; never blocks (a full queue drops and counts)."""
-        try:
-            self._queue.put_nowait(item)
-        except queue.Full:
+        if not self._overflow.put(self._queue.put_nowait, item):
             self.dropped += count(item)
 
     def _after_stop(self) -> None:
@@ -272,7 +312,10 @@ class Recorder(Worker):
         if isinstance(item, RecordBatch):
             item = EncodedBatch.of(item)
         if not self._ready(item):
-            self.dropped += count(item)
+            if isinstance(item, RecordingGap):  # its items go into the write error's gap
+                self._dropped_at_stop -= item.dropped
+            else:
+                self.dropped += count(item)
             return
         if isinstance(item, EncodedBatch) and item.frame_count:
             # A batch spanning the file's duration: its later frames begin the next file.
@@ -312,6 +355,9 @@ class Recorder(Worker):
             self._guarded(lambda: mcap.write_truth(sample))
         elif isinstance(item, MachineSnapshot):
             self._guarded(lambda: mcap.write_ground(item))
+        elif isinstance(item, RecordingGap):
+            if self._guarded(lambda: mcap.write_gap(item)):
+                self.gaps.append((item.stopped_t_s, item.lost_s))
         else:
             self._guarded(lambda: mcap.write_event(item))
 

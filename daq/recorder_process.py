@@ -10,7 +10,8 @@ forked) and stands, for the service, in the recorder's place:
 - :meth:`RecorderProcess.submit` never blocks. The item goes into a bounded
   ``multiprocessing`` queue (``[recording] queue_size`` items) whose feeder thread
   pickles it into a pipe; a full queue drops the item and counts it (a batch as its
-  frames). A :class:`~daq.mcap_file.RecordBatch` crosses as the
+  frames), and the next item put is preceded by the gap this left in the file
+  (:class:`~daq.recorder.Overflow`). A :class:`~daq.mcap_file.RecordBatch` crosses as the
   :class:`~daq.mcap_file.EncodedBatch` the recorder writes (frames as one byte
   string: pickled ~20x faster than an object per frame).
 - The child's recorder takes from that queue itself and shares its counters (dropped,
@@ -43,7 +44,6 @@ import json
 import logging
 import multiprocessing
 import os
-import queue
 import signal
 import time
 from collections import deque
@@ -57,7 +57,7 @@ from cantools.database.can import Database
 
 from daq.errors import RecordingError
 from daq.mcap_file import EncodedBatch, RecordBatch
-from daq.recorder import Item, Recorder, count
+from daq.recorder import Item, Overflow, Recorder, count
 from daq.service_config import RecordingSettings
 from daq.subcommand import setup_logging
 
@@ -199,6 +199,7 @@ class RecorderProcess:
         #: What each item the child has not taken yet counts (for a child that dies).
         self._untaken: deque[int] = deque()
         self._dropped_here = 0
+        self._overflow = Overflow()
         self._closed = False
 
     def __enter__(self) -> "RecorderProcess":
@@ -264,14 +265,15 @@ class RecorderProcess:
             return
         if isinstance(item, RecordBatch):
             item = EncodedBatch.of(item)
-        try:
-            self._items.put_nowait(item)
-        except queue.Full:
+        if not self._overflow.put(self._put, item):
             self._dropped_here += count(item)
-        else:
-            self._submitted += 1
-            self._untaken.append(count(item))
-            self._forget_taken()
+
+    def _put(self, item: Item) -> None:
+        assert self._items is not None  # started
+        self._items.put_nowait(item)
+        self._submitted += 1
+        self._untaken.append(count(item))
+        self._forget_taken()
 
     def _forget_taken(self) -> None:
         untaken = self._untaken

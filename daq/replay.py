@@ -32,7 +32,7 @@ from array import array
 from collections import Counter
 from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
-from typing import IO, TextIO, cast
+from typing import IO, Any, TextIO, cast
 
 import can
 import numpy as np
@@ -49,7 +49,14 @@ from daq.errors import RecordingError
 from daq.frames import BUS_UP, BusEvent, RawFrame, from_can_message
 from daq.leg_restarts import warn_restarting_legs
 from daq.log_kind import FORMATS, looks_like
-from daq.mcap_file import BUS_TOPIC, CONFIG_ATTACHMENT, DBC_ATTACHMENT, RAW_TOPIC
+from daq.mcap_file import (
+    BUS_TOPIC,
+    CONFIG_ATTACHMENT,
+    DBC_ATTACHMENT,
+    RAW_TOPIC,
+    RECORDING_TOPIC,
+    WRITE_ERROR,
+)
 from daq.mcap_reading import RecordedAttachment, RecordedMessage, RecordingStream
 from daq.pipeline import FrameResult, Pipeline
 from daq.recording_run import MCAP_SUFFIX, expand, run_files
@@ -635,7 +642,8 @@ def run_items(
 ) -> Iterator[RawFrame | BusEvent]:
     """The frames and bus events of MCAP ``files`` (one run, in order); the first file's
     attachments are put into ``attachments`` as they are read (before its messages).
-    ``warn``: log a file cut short or a damaged chunk (:class:`RecordingStream`)."""
+    ``warn``: log a file cut short or a damaged chunk (:class:`RecordingStream`), and each
+    gap in the recording (:func:`recording_gap`)."""
     for path in files:
         with _open(path) as stream:
             for record in RecordingStream(stream, str(path), warn=warn):
@@ -643,7 +651,23 @@ def run_items(
                     if attachments is not None:
                         attachments.setdefault(record.name, record.data)
                 elif isinstance(record, RecordedMessage):
+                    if warn and record.topic == RECORDING_TOPIC:
+                        logger.warning("%s", recording_gap(path, json.loads(record.data)))
                     yield from _items(record, path)
+
+
+def recording_gap(path: Path, gap: dict[str, Any]) -> str:
+    """The line that says what a ``/daq/recording`` gap cost (older files: no reason).
+
+    >>> recording_gap(Path("a.mcap"), {"lost_s": 7.09, "dropped": 9950})[:67]
+    'a.mcap: 7.1 s not recorded (write error: 9950 frames and items lost'
+    """
+    return (
+        f"{path}: {float(gap.get('lost_s', math.nan)):.1f} s not recorded "
+        f"({gap.get('reason', WRITE_ERROR)}: {gap.get('dropped')} frames and items lost, "
+        "counted live in dropped.record); "
+        "the estimates after it differ from the live ones until the median has refilled"
+    )
 
 
 def _items(record: RecordedMessage, path: Path) -> Iterable[RawFrame | BusEvent]:
@@ -652,6 +676,10 @@ def _items(record: RecordedMessage, path: Path) -> Iterable[RawFrame | BusEvent]
             return list(recorded_frames(record.encoding, record.data))
         except (ValueError, KeyError) as exc:  # BatchFormatError, JSON
             raise RecordingError(path, f"a {RAW_TOPIC} message is unreadable: {exc}") from exc
+    if record.topic == RECORDING_TOPIC:
+        # Frames are missing here: their rolling counters restart, as after a bus gap live
+        # (which saw every frame: the jump was counted as frames lost on the bus).
+        return (BusEvent(json.loads(record.data)["t"], BUS_UP, "recording gap", True),)
     if record.topic == BUS_TOPIC:
         event = json.loads(record.data)
         lost = {key: int(event.get(key, 0)) for key in ("kernel_dropped", "rx_dropped")}

@@ -79,10 +79,16 @@ RECORDING_GAP = _object(
     "portal.RecordingGap",
     {
         "t": {"type": "number", "description": "wall-clock time recording resumed, Unix seconds"},
-        "stopped_t": {"type": "number", "description": "when it stopped (a write error)"},
+        "stopped_t": {"type": "number", "description": "when it stopped"},
         "lost_s": {"type": "number", "description": "seconds not recorded"},
         "dropped": {"type": "integer", "description": "items dropped meanwhile"},
+        "reason": {
+            "type": "string",
+            "description": 'why: "write error" or "recorder\'s queue full" (older files: '
+            "none, a write error)",
+        },
     },
+    optional=("reason",),
 )
 
 _XY = {"type": "array", "items": {"type": "number"}, "minItems": 2, "maxItems": 2}

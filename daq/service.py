@@ -151,8 +151,8 @@ class Service:
         self.owners = PrefixOwners(session, config.zenoh.key_prefix)
         #: The endpoints the session connects to (``[zenoh] connect`` or the JSON5 file);
         #: a client is connected when it has a link to any one of them.
-        mode, self.connect = connect_endpoints(config.zenoh, config.source)
-        self._connect_any_one = mode == "client"
+        self._zenoh_mode, self.connect = connect_endpoints(config.zenoh, config.source)
+        self._connect_any_one = self._zenoh_mode == "client"
         #: Times they went unreached, and for how long.
         self._outages = Outages()
         #: No frame for this long is a problem: the legs' stale time (at least a period),
@@ -377,6 +377,7 @@ class Service:
             | {"same_prefix": self.owners.others()},
         }
         self._tell_other_owners(status["zenoh"]["same_prefix"])
+        self.owners.tell_behind_router(self._zenoh_mode, status["zenoh"]["routers"])
         error_frames = dict(self.pipeline.error_frame_kinds)
         silent_s = now - self._last_frame_monotonic
         silent_legs = self._silent_legs()

@@ -5,6 +5,8 @@ and whether it is stale::
 
     {"machine_id", "prefix", "legs": [...], "pressure_limit_Pa", "warning_margin_m",
      "waiting_for": "<prefix>/status" | "<prefix>/ground" | null,
+     "waiting": "waiting for <prefix>/status[: no Zenoh link ...]" | null,
+     "zenoh_linked": true | false | null (the dashboard's session has a link: not known),
      "status": null | {"age_s", "stale", "bus": {"state", "interface", "channel",
                 "reason", "reopens"}, "frames_per_s", "frames_received",
                 "frames_bad", "dropped", "healthy", "problems", "uptime_s", "t"},
@@ -47,11 +49,10 @@ def latest_document(
     status = state.status
     ground = state.ground
     metrics = state.metrics
-    waiting_for = None
-    if status is None:
-        waiting_for = viewer.key(STATUS)
-    elif ground is None:
-        waiting_for = viewer.key(GROUND)
+    waiting_for = waiting = None
+    if status is None or ground is None:
+        suffix = STATUS if status is None else GROUND
+        waiting_for, waiting = viewer.key(suffix), state.waiting_for(suffix)
     return {
         "machine_id": viewer.machine_id,
         "prefix": viewer.prefix,
@@ -59,6 +60,8 @@ def latest_document(
         "pressure_limit_Pa": viewer.pressure_limit_Pa,
         "warning_margin_m": viewer.warning_margin_m,
         "waiting_for": waiting_for,
+        "waiting": waiting,
+        "zenoh_linked": state.linked,
         "status": None if status is None else _status(status, now_s, viewer.status_stale_s),
         "ground": None if ground is None else _ground(ground, now_s, viewer.ground_stale_s),
         "metrics": None if metrics is None else _metrics(metrics, now_s, viewer.status_stale_s),

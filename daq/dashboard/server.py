@@ -209,7 +209,9 @@ class Dashboard(HubServer):
         super().start()
 
     def latest(self) -> JsonObject:
+        linked = self.feed.linked()
         with self._lock:
+            self._state.linked = linked
             return latest_document(
                 self.viewer,
                 self._state,

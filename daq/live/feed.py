@@ -118,8 +118,21 @@ class LiveFeed:
                 logger.debug("undeclaring %s: %s", entity, exc)
         self._entities.clear()
 
+    def linked(self) -> bool:
+        """Whether the session has a link to any peer or router: without one, "waiting
+        for <prefix>/status" is no service to hear (an endpoint unreached, a service
+        not running), not a service that has said nothing yet."""
+        info = self.session.info
+        try:
+            return bool(info.routers_zid() or info.peers_zid())
+        except zenoh.ZError as exc:  # the session closing: not known, not "no link"
+            logger.debug("session info: %s", exc)
+            return True
+
     def drain(self, state: LiveState) -> int:
-        """Apply every queued payload to ``state``; returns how many were applied."""
+        """Apply every queued payload to ``state`` (and :meth:`linked` to its
+        ``linked``); returns how many were applied."""
+        state.linked = self.linked()
         applied = 0
         while True:
             try:

@@ -28,6 +28,8 @@ GROUND, STATUS, METRICS = "ground", "status", "metrics"
 SUFFIXES = (GROUND, STATUS, METRICS)
 #: The service's liveliness token (no payload: it exists while the service runs).
 ALIVE = "alive"
+#: What a viewer without a Zenoh link says while it waits.
+NO_LINK = "no Zenoh link to any peer or router yet (is the service running there? --connect?)"
 
 
 @dataclass(frozen=True, slots=True)
@@ -39,7 +41,10 @@ class LegReading:
     t_s: float | None
     #: Filtered vertical foot force (eq. 4 + running median).
     force_N: float | None
-    #: Contact pressure (eq. 5) from the filtered force.
+    #: Contact pressure (eq. 5) from the filtered force; 0 for a foot not in
+    #: ``contact``, as the report draws it: the payload's eq. (5) of a lifted leg's
+    #: cylinder force (the leg's own weight and inertia, -10 kPa say) is no soil
+    #: pressure, and the monitor and dashboard showed it as one.
     pressure_Pa: float | None
     contact: bool
     valid: bool
@@ -150,9 +155,21 @@ class LiveState:
         #: Payloads that were not JSON objects, could not be read, or came on a key
         #: not viewed.
         self.ignored = 0
+        #: Whether the viewer's session has a Zenoh link (:meth:`LiveFeed.linked
+        #: <daq.live.feed.LiveFeed.linked>`); None: not known.
+        self.linked: bool | None = None
 
     def key(self, suffix: str) -> str:
         return f"{self.prefix}/{suffix}"
+
+    def waiting_for(self, suffix: str) -> str:
+        """``waiting for <prefix>/<suffix>``, saying so when the viewer has no Zenoh link
+        at all (the same line said nothing of it: a wrong ``--connect`` and a service
+        that is down looked like a service about to talk)."""
+        text = f"waiting for {self.key(suffix)}"
+        if self.linked is False:
+            text += f": {NO_LINK}"
+        return text
 
     def apply(self, key: str, payload: bytes, received_s: float) -> bool:
         """Take one payload received on ``key``; False (and counted) when unusable.
@@ -184,11 +201,13 @@ class LiveState:
 
 def parse_leg(name: str, data: Mapping[str, Any]) -> LegReading:
     reasons = data.get("reasons")
+    pressure_Pa = _number(data, "pressure_Pa")
+    lifted = data.get("contact") is False and pressure_Pa is not None
     return LegReading(
         leg=name,
         t_s=_number(data, "t"),
         force_N=_number(data, "force_N"),
-        pressure_Pa=_number(data, "pressure_Pa"),
+        pressure_Pa=0.0 if lifted else pressure_Pa,
         contact=data.get("contact") is True,
         valid=data.get("valid") is True,
         reasons=tuple(str(r) for r in reasons) if isinstance(reasons, list) else (),

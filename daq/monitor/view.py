@@ -83,7 +83,7 @@ def render_text(viewer: ViewerConfig, state: LiveState, now_s: float) -> list[st
 def status_line(viewer: ViewerConfig, state: LiveState, now_s: float) -> Line:
     received = state.status
     if received is None:
-        return Line(f"waiting for {viewer.key(STATUS)}", WARN)
+        return Line(state.waiting_for(STATUS), WARN)
     age_s = received.age_s(now_s)
     summary = status_summary(received.value)
     if age_s > viewer.status_stale_s:
@@ -116,7 +116,7 @@ def health_text(status: StatusReading) -> str:
 def ground_line(viewer: ViewerConfig, state: LiveState, now_s: float) -> Line:
     received = state.ground
     if received is None:
-        return Line(f"waiting for {viewer.key(GROUND)}", WARN)
+        return Line(state.waiting_for(GROUND), WARN)
     ground = received.value
     text = (
         f"weight check: {_kN(ground.total_force_N)} kN on the feet of "
@@ -206,7 +206,7 @@ def plain_line(viewer: ViewerConfig, state: LiveState, now_s: float, wall_s: flo
     parts = [time.strftime("%H:%M:%S", time.localtime(wall_s))]
     status = state.status
     if status is None:
-        parts.append(f"waiting for {viewer.key(STATUS)}")
+        parts.append(state.waiting_for(STATUS))
     else:
         s = status.value
         age_s = status.age_s(now_s)
@@ -217,7 +217,7 @@ def plain_line(viewer: ViewerConfig, state: LiveState, now_s: float, wall_s: flo
         )
     received = state.ground
     if received is None:
-        return " ".join(parts) + f" | waiting for {viewer.key(GROUND)}"
+        return " ".join(parts) + f" | {state.waiting_for(GROUND)}"
     line = " ".join(parts)
     age_s = received.age_s(now_s)
     if age_s > viewer.ground_stale_s:

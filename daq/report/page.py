@@ -99,7 +99,10 @@ def header_rows(content: ReportContent) -> list[tuple[str, str]]:
         ("invalid estimates by reason", _counts(counts.invalid)),
         ("legs silent (no estimate for longer than the stale time)", _silences(content)),
         ("bus state changes", str(counts.bus_events)),
-        ("recording gaps (write errors)", _gaps(counts.recording_gaps, counts.recording_lost_s)),
+        (
+            "recording gaps (write errors, recorder's queue full)",
+            _gaps(counts.recording_gaps, counts.recording_lost_s),
+        ),
         ("simulation truth samples", str(counts.truth_samples)),
         ("cycles", str(len(content.cycles))),
     ]

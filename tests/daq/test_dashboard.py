@@ -20,7 +20,7 @@ from daq.dashboard.api import history_document, latest_document
 from daq.dashboard.cli import http_address
 from daq.dashboard.history import PressureHistory
 from daq.dashboard.server import Dashboard
-from daq.live.state import LiveState, parse_ground
+from daq.live.state import NO_LINK, LiveState, parse_ground
 from daq.live.viewer import ViewerConfig
 from dbc.errors import ConfigError, PortalDaqError
 from tests.daq.live_support import (
@@ -94,6 +94,12 @@ def test_latest_document_waiting_then_values_and_staleness() -> None:
     state = LiveState(PREFIX)
     waiting = latest_document(VIEWER, state, now_s=1.0)
     assert waiting["waiting_for"] == f"{PREFIX}/status"
+    assert waiting["waiting"] == f"waiting for {PREFIX}/status"
+    state.linked = False  # the dashboard's session has no link: the banner says so
+    unlinked = latest_document(VIEWER, state, now_s=1.0)
+    assert unlinked["waiting"] == f"waiting for {PREFIX}/status: {NO_LINK}"
+    assert unlinked["zenoh_linked"] is False
+    state.linked = True
     assert waiting["status"] is None and waiting["ground"] is None
     assert waiting["legs"] == list(LEGS) and waiting["pressure_limit_Pa"] == 200e3
 

@@ -487,6 +487,45 @@ def test_two_services_under_one_key_prefix_are_told(tmp_path: Path) -> None:
     assert f"(zenoh session {b_zid}): give each machine its own [machine] id" in told[0]
 
 
+@pytest.mark.parametrize(("mode", "told"), [("peer", 1), ("client", 0)])
+def test_a_peer_on_a_router_is_told_that_the_same_id_check_is_blind_there(
+    tmp_path: Path, mode: str, told: int
+) -> None:
+    """Zenoh routes nothing between two peers through a router: two services of one id
+    in peer mode on one site router (the README's ``mode = "peer"`` there) never saw each
+    other's token, ``same_prefix`` stayed empty and nothing said why (seen with two
+    ``portal-daq run`` on ``portal-daq router``). A peer with a router link says so once."""
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    path = write_service_config(
+        tmp_path, channel=f"test-{uuid.uuid4().hex}", port=free_port(), status_period_s=0.2
+    )
+    text = path.read_text()
+    zenoh_table = text[text.index("[zenoh]") : text.index("[publish]")]
+    listen = f'listen = ["tcp/127.0.0.1:{free_port()}"]\n' if mode == "peer" else ""
+    table = f'[zenoh]\nmode = "{mode}"\n{listen}connect = ["{endpoint}"]\n\n'
+    path.write_text(text.replace(zenoh_table, table, 1))
+    config = load_service_config(path)
+    key = f"{config.zenoh.key_prefix}/status"
+    lines = Lines()
+    viewer = peer_config()
+    viewer.insert_json5("mode", '"client"')
+    viewer.insert_json5("listen/endpoints", "[]")
+    viewer.insert_json5("connect/endpoints", json.dumps([endpoint]))
+    with zenoh.open(router_config(endpoint)) as router, lines.of("daq.prefix_owners"):
+        with live_service(config), zenoh.open(viewer) as session:
+            collector = Collector(session, key)
+            linked = collector.wait_for(key, lambda s: s["zenoh"]["routers"])
+            router_zid = str(router.info.zid())
+            assert linked["zenoh"]["routers"] == [router_zid]
+            collector.wait_for(key, lambda s: s["uptime_s"] > linked["uptime_s"])  # one more
+    said = [line for line in lines.messages if line.startswith("zenoh: this service is a peer")]
+    assert len(said) == told, lines.messages
+    if told:
+        assert f"linked to a router ({router_zid})" in said[0]
+        assert f"another service publishing under {config.zenoh.key_prefix} there" in said[0]
+        assert said[0].endswith('set mode = "client" ([zenoh] mode, or mode in its JSON5 file)')
+
+
 class Lines(logging.Handler):
     """The messages logged to a logger, from any thread (beside pytest's capture)."""
 

@@ -9,16 +9,19 @@ from pathlib import Path
 import pytest
 
 from daq import payloads
+from daq.dashboard.api import history_document
+from daq.dashboard.history import PressureHistory
 from daq.frames import RawFrame
 from daq.live.session import reachable, viewer_connect, viewer_zenoh_config
 from daq.live.state import LiveState, Received
-from daq.live.viewer import viewer_config
+from daq.live.viewer import ViewerConfig, viewer_config
+from daq.monitor.view import plain_line
 from daq.pipeline import Pipeline
 from daq.service_config import ZenohSettings, load_service_config
 from dbc.encoding import FrameEncoder
 from dbc.errors import ConfigError
 from estimator.equations import foot_force_N
-from tests.daq.live_support import status_payload
+from tests.daq.live_support import ground_payload, leg_payload, status_payload
 from tests.daq.service_support import leg_signals, write_service_config
 from tests.helpers import LEGS, ROOT, example_machine
 
@@ -55,6 +58,33 @@ def test_ground_from_the_real_pipeline_and_serializer() -> None:
     assert never.force_N is None and never.pressure_Pa is None
     assert never.valid is False and "stale" in never.reasons
     assert ground.weight_N == pytest.approx(machine.weight_N) and ground.complete is False
+
+
+def test_a_lifted_foot_reads_0_kPa_in_the_views_with_its_cylinder_force() -> None:
+    """A foot in the air has no soil pressure: the report draws it at 0 kPa, and the
+    monitor showed the payload's eq. (5) of the lifted leg's cylinder force, ``-10.0 kPa
+    air`` (seen with the simulator, SB2 lifted), the dashboard plotted it below zero."""
+    legs = {
+        "SB2_F1": leg_payload("SB2_F1", 50.0, -10e3),  # -3.3 kN: in the air, valid
+        "SB1_F1": leg_payload("SB1_F1", 50.0, 150e3),  # on the ground
+    }
+    assert legs["SB2_F1"]["contact"] is False and legs["SB2_F1"]["valid"] is True
+    ground = applied("ground", ground_payload(50.0, legs)).ground
+    assert ground is not None
+    lifted, down = ground.value.legs["SB2_F1"], ground.value.legs["SB1_F1"]
+    assert lifted.pressure_Pa == 0.0 and lifted.force_N == pytest.approx(-3300.0)
+    assert lifted.valid and not lifted.contact
+    assert down.pressure_Pa == 150e3  # on the ground: the payload's own
+
+    viewer = ViewerConfig("t.toml", "m", PREFIX, ("SB1_F1", "SB2_F1"), 200e3, 3.0, 1.0)
+    line = plain_line(viewer, applied("ground", ground_payload(50.0, legs)), 1.5, 0.0)
+    assert "| SB2_F1 -3.3 kN 0.0 kPa air ok" in line
+    history = PressureHistory(["SB1_F1", "SB2_F1"])
+    assert history.add(ground.value)
+    assert history_document(history, None, None)["pressure_Pa"] == {
+        "SB1_F1": [150e3],
+        "SB2_F1": [0.0],
+    }
 
 
 def test_status_fields_and_dropped_summed() -> None:

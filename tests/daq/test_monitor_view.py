@@ -8,7 +8,7 @@ import time
 
 import pytest
 
-from daq.live.state import LiveState
+from daq.live.state import NO_LINK, LiveState
 from daq.live.viewer import ViewerConfig
 from daq.monitor.view import (
     ALARM,
@@ -239,3 +239,20 @@ def test_plain_line_waiting_and_stale() -> None:
     assert waiting.endswith(" waiting for portal/m/status | waiting for portal/m/ground")
     stale = plain_line(VIEWER, state_at(received_s=100.0), now_s=104.0, wall_s=0.0)
     assert " STALE status 4.0 s: bus up" in stale and "| STALE ground 4.0 s |" in stale
+
+
+def test_waiting_without_a_zenoh_link_says_so() -> None:
+    """A wrong --connect, or no service where the viewer looks, said only "waiting for
+    portal/m/status", as when the service is there and about to talk."""
+    state = LiveState(PREFIX)
+    state.linked = True  # linked: nothing more to say
+    assert plain_line(VIEWER, state, 1.0, 0.0).endswith(
+        " waiting for portal/m/status | waiting for portal/m/ground"
+    )
+    state.linked = False
+    line = plain_line(VIEWER, state, 1.0, 0.0)
+    assert line.endswith(
+        f" waiting for portal/m/status: {NO_LINK} | waiting for portal/m/ground: {NO_LINK}"
+    )
+    assert NO_LINK.startswith("no Zenoh link to any peer or router yet")
+    assert f"waiting for portal/m/status: {NO_LINK}" in render_text(VIEWER, state, 1.0)

@@ -1,6 +1,7 @@
 """The recorder in a process of its own: what the service hands it is written as the
 recorder in a thread writes it, losses are counted, signals do not stop it."""
 
+import json
 import os
 import resource
 import signal
@@ -68,6 +69,42 @@ def test_a_full_queue_drops_and_counts_frames_and_the_rest_is_written(tmp_path: 
             os.kill(recorder.pid, signal.SIGCONT)
     assert recorder.dropped == 15 and recorder.depth == 0
     assert len(raw_times(recorder.paths[0])) == 15
+
+
+def test_what_a_full_queue_dropped_is_a_gap_in_the_file_before_the_next_item(
+    tmp_path: Path,
+) -> None:
+    """A recorder behind (a slow disk, a busy CPU) left a hole in the file that nothing in
+    it explained (replayed: every leg silent, as if the sensors were); the status alone
+    counted the drops."""
+    _, database = example_machine()
+    recorder = RecorderProcess(
+        RecordingSettings(directory=tmp_path, queue_size=5), database, machine_id="m"
+    )
+    with recorder:
+        assert recorder.pid is not None
+        os.kill(recorder.pid, signal.SIGSTOP)  # a child that does not take anything
+        try:
+            for i in range(10):
+                recorder.submit(RecordBatch.of(results(3, t0=1000.0 + i), signals=False))
+        finally:
+            os.kill(recorder.pid, signal.SIGCONT)
+        wait_drained(recorder)
+        recorder.submit(RecordBatch.of(results(3, t0=1010.0), signals=False))
+        wait_drained(recorder)
+    with open(recorder.paths[0], "rb") as file:  # in file order (the gap's time is wall time)
+        written = [
+            (c.topic, m.data) for _, c, m in make_reader(file).iter_messages(log_time_order=False)
+        ]
+    topics = [topic for topic, _ in written]
+    assert topics.count("/daq/recording") == 1
+    at = topics.index("/daq/recording")
+    assert at == 5 * 2 and topics[at + 1] == "/can/raw"  # after the 5 batches taken
+    gap = json.loads(written[at][1])
+    assert gap["dropped"] == 5 * 3 and gap["reason"] == "recorder's queue full"
+    assert gap["t"] - gap["stopped_t"] == pytest.approx(gap["lost_s"]) and gap["lost_s"] >= 0
+    assert recorder.dropped == 15 and len(recorder.gaps) == 1
+    assert len(raw_times(recorder.paths[0])) == 6 * 3
 
 
 def test_it_runs_at_sched_idle_and_only_close_stops_it(tmp_path: Path) -> None:

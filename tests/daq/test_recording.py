@@ -3,6 +3,7 @@ cut short by a crash."""
 
 import errno
 import io
+import itertools
 import json
 import logging
 import os
@@ -16,12 +17,14 @@ from daq import recorder as recorder_module
 from daq.can_batch import recorded_frames
 from daq.errors import RecordingError
 from daq.frames import BusEvent, RawFrame
-from daq.mcap_file import CountingFile, McapFile, RecordBatch
+from daq.mcap_file import CONFIG_ATTACHMENT, DBC_ATTACHMENT, CountingFile, McapFile, RecordBatch
 from daq.mcap_reading import RecordedMessage, RecordingStream, json_items
 from daq.pipeline import Pipeline
 from daq.recorder import Recorder, cannot_create, file_name
 from daq.recorder_process import RecorderProcess
 from daq.recording_run import read_run_file, run_files
+from daq.replay import replay
+from daq.report.loading import load_recording
 from daq.service_config import RecordingSettings
 from dbc.encoding import FrameEncoder
 from tests.daq.service_support import leg_signals
@@ -286,6 +289,68 @@ def test_replay_of_a_recording_counts_the_frames_lost_before_it(
     err = capsys.readouterr().err
     assert "97 frames lost before they were recorded or logged, not in the file (80 by the " in err
     assert "kernel: receive buffer full; 17 by the service's queue)" in err
+
+
+def recorded_with_a_full_queue(tmp_path: Path) -> Recorder:
+    """A recording of 4 batches of 3 frames whose queue (2 items) dropped 2 batches before
+    the recorder started, then one more batch: its file holds 9 frames and the gap."""
+    config, database = example_machine()
+    clock = iter(range(10**6))
+    recorder = Recorder(
+        RecordingSettings(directory=tmp_path, queue_size=2),
+        database,
+        machine_id="m",
+        attachments={
+            CONFIG_ATTACHMENT: EXAMPLE_CONFIG.read_bytes(),
+            DBC_ATTACHMENT: config.dbc_path.read_bytes(),
+        },
+        now=lambda: float(next(clock)),
+    )
+    frames = results(5 * 3)  # one leg's frames, its rolling counter going up by one each
+    for _ in range(4):  # not started: nothing takes from the queue
+        recorder.submit(RecordBatch.of(itertools.islice(frames, 3), signals=False))
+    assert recorder.dropped == 2 * 3
+    with recorder:  # opens its file at clock 1
+        wait_drained(recorder)
+        recorder.submit(RecordBatch.of(frames, signals=False))
+        wait_drained(recorder)
+    return recorder
+
+
+def test_what_a_full_queue_dropped_is_a_gap_in_the_file_in_a_thread_too(tmp_path: Path) -> None:
+    recorder = recorded_with_a_full_queue(tmp_path)
+    with open(recorder.paths[0], "rb") as file:
+        written = [
+            (c.topic, json.loads(m.data) if c.topic == "/daq/recording" else None)
+            for _, c, m in make_reader(file).iter_messages(log_time_order=False)
+        ]
+    gaps = [payload for topic, payload in written if topic == "/daq/recording"]
+    # since the first drop (clock 0, before the start) until the next item, put after it
+    assert [(gap["stopped_t"], gap["dropped"], gap["reason"]) for gap in gaps] == [
+        (0.0, 6, "recorder's queue full")
+    ]
+    assert gaps[0]["t"] == gaps[0]["lost_s"] > 1.0
+    assert [topic for topic, _ in written].index("/daq/recording") == 2 * 2
+    assert (
+        recorder.gaps == [(0.0, gaps[0]["lost_s"])] and len(raw_times(recorder.paths[0])) == 3 * 3
+    )
+
+
+def test_a_gap_restarts_the_rolling_counters_in_replay_and_report_and_is_said(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """The frames the recorder dropped were counted as lost on the bus by the counters'
+    jump (live saw them all: none lost), and replay said nothing of the gap."""
+    path = recorded_with_a_full_queue(tmp_path).paths[0]
+    report = load_recording(path)
+    assert report.counts.frames == 9 and report.counts.frames_lost == 0 and report.counts.bad == {}
+    assert report.counts.recording_gaps == 1
+    caplog.set_level(logging.WARNING, logger="daq.replay")
+    with_gap = io.StringIO()
+    assert replay([path], with_gap) == 9
+    said = f"{path}: {report.counts.recording_lost_s:.1f} s not recorded (recorder's queue full: 6"
+    assert said in caplog.text
+    assert ",counter" not in with_gap.getvalue()  # no estimate invalid for its counter
 
 
 @pytest.mark.parametrize("kind", [Recorder, RecorderProcess])

@@ -13,6 +13,7 @@ from pathlib import Path
 import pytest
 
 from daq.live.command import add_viewer_arguments, load_fleet
+from daq.live.state import NO_LINK
 from tests.daq.service_support import WAIT_S, free_port, write_service_config
 from tests.helpers import EXAMPLE_CONFIG, ROOT
 
@@ -132,6 +133,19 @@ def test_signals_stop_cleanly_with_status_0(command: str, signum: int, tmp_path:
         assert first.startswith("dashboard of portal/pam-proto-1 on http://127.0.0.1:")
     else:
         assert "waiting for portal/pam-proto-1/status" in first
+
+
+def test_a_monitor_with_no_zenoh_link_says_so_while_it_waits(tmp_path: Path) -> None:
+    """No service where the config says it listens: the line said only "waiting for
+    portal/pam-proto-1/status", as if the service were there and about to talk."""
+    path = write_service_config(tmp_path, port=free_port())  # nobody listens there
+    result = run("monitor", "--config", str(path), "--plain", "--duration", "1.5")
+    assert result.returncode == 0, result.stderr
+    (line,) = result.stdout.splitlines()
+    prefix = "portal/pam-proto-1"
+    assert line.endswith(
+        f" waiting for {prefix}/status: {NO_LINK} | waiting for {prefix}/ground: {NO_LINK}"
+    )
 
 
 @pytest.mark.parametrize(
