@@ -228,6 +228,9 @@ class Recorder(Worker):
         self.failed_items = 0
         #: Recording gaps so far: (stopped at, seconds lost), wall-clock time.
         self.gaps: list[tuple[float, float]] = []
+        #: Their count and the seconds they lost (what the status shows).
+        self.gap_count = 0
+        self.lost_s = 0.0
         #: Files begun, and the current one.
         self.paths: list[Path] = []
         self._files_created = 0
@@ -357,7 +360,7 @@ class Recorder(Worker):
             self._guarded(lambda: mcap.write_ground(item))
         elif isinstance(item, RecordingGap):
             if self._guarded(lambda: mcap.write_gap(item)):
-                self.gaps.append((item.stopped_t_s, item.lost_s))
+                self._count_gap(item.stopped_t_s, item.lost_s)
         else:
             self._guarded(lambda: mcap.write_event(item))
 
@@ -448,7 +451,7 @@ class Recorder(Worker):
         self.paths.append(path)
         if self.stopped_t_s is not None:
             lost_s = t_s - self.stopped_t_s
-            self.gaps.append((self.stopped_t_s, lost_s))
+            self._count_gap(self.stopped_t_s, lost_s)
             logger.warning(
                 "recording resumed in %s: %.1f s lost (%d items dropped)",
                 path,
@@ -458,6 +461,11 @@ class Recorder(Worker):
             self.stopped_t_s = None
         else:
             logger.info("recording to %s", path)
+
+    def _count_gap(self, stopped_t_s: float, lost_s: float) -> None:
+        self.gaps.append((stopped_t_s, lost_s))
+        self.gap_count += 1
+        self.lost_s += lost_s
 
     def _gap(self, t_s: float) -> RecordingGap:
         stopped_t_s = self.stopped_t_s if self.stopped_t_s is not None else t_s

@@ -98,6 +98,8 @@ class _Shared:
         "rejected",
         "current_bytes",
         "failing",
+        "gap_count",  # all of them: the text holds the latest _KEPT gaps only
+        "lost_s",
         "writer_alive",
         "stop",  # set by the service: finish the file and end
         "text_version",
@@ -363,7 +365,17 @@ class RecorderProcess:
 
     @property
     def gaps(self) -> list[tuple[float, float]]:
+        """The latest :data:`_KEPT` gaps."""
         return [(stopped, lost) for stopped, lost in self._text().get("gaps", [])]
+
+    @property
+    def gap_count(self) -> int:
+        """Every gap since the start (:attr:`gaps` holds the latest only)."""
+        return int(self._number("gap_count"))
+
+    @property
+    def lost_s(self) -> float:
+        return self._number("lost_s")
 
 
 def _leave_idle(pid: int) -> None:
@@ -461,6 +473,8 @@ def _share(recorder: Recorder, shared: _Shared, text: dict[str, Any]) -> dict[st
     shared.set("rejected", recorder.rejected)
     shared.set("current_bytes", recorder.current_bytes)
     shared.set("failing", 1.0 if recorder.failing else 0.0)
+    shared.set("gap_count", recorder.gap_count)
+    shared.set("lost_s", recorder.lost_s)
     path = recorder.current_path
     now = {
         "path": str(path) if path else None,

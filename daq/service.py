@@ -365,8 +365,8 @@ class Service:
                 "failing": recorder.failing,
                 "failed_items": recorder.failed_items,
                 "rejected": recorder.rejected,
-                "gaps": len(recorder.gaps),
-                "lost_s": sum(lost_s for _, lost_s in recorder.gaps),
+                "gaps": recorder.gap_count,
+                "lost_s": recorder.lost_s,
             },
             "leg_faults": {
                 leg: dict(faults) for leg, faults in sorted(self.pipeline.leg_faults.items())

@@ -107,6 +107,29 @@ def test_what_a_full_queue_dropped_is_a_gap_in_the_file_before_the_next_item(
     assert len(raw_times(recorder.paths[0])) == 6 * 3
 
 
+def test_every_gap_is_counted_beyond_the_latest_it_shares(tmp_path: Path) -> None:
+    """The status counted the gaps the child shares as text, the latest 200: after more,
+    ``recording.gaps`` stayed at 200 and ``lost_s`` summed the latest 200 alone."""
+    _, database = example_machine()
+    recorder = RecorderProcess(
+        RecordingSettings(directory=tmp_path, queue_size=1), database, machine_id="m"
+    )
+    with recorder:
+        for i in range(recorder_process._KEPT + 20):  # two at once: the second is dropped
+            recorder.submit(RecordBatch.of(results(1, t0=1000.0 + i), signals=False))
+            recorder.submit(RecordBatch.of(results(1, t0=1000.5 + i), signals=False))
+            wait_drained(recorder)  # the next put is the gap's
+    gaps = []
+    for path in recorder.paths:
+        with open(path, "rb") as file:
+            gaps += [
+                json.loads(m.data)["lost_s"]
+                for _, c, m in make_reader(file).iter_messages(topics=["/daq/recording"])
+            ]
+    assert len(gaps) > recorder_process._KEPT and len(recorder.gaps) == recorder_process._KEPT
+    assert recorder.gap_count == len(gaps) and recorder.lost_s == pytest.approx(sum(gaps))
+
+
 def test_it_runs_at_sched_idle_and_only_close_stops_it(tmp_path: Path) -> None:
     _, database = example_machine()
     recorder = RecorderProcess(RecordingSettings(directory=tmp_path), database, machine_id="m")
