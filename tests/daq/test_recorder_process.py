@@ -115,10 +115,17 @@ def test_every_gap_is_counted_beyond_the_latest_it_shares(tmp_path: Path) -> Non
         RecordingSettings(directory=tmp_path, queue_size=1), database, machine_id="m"
     )
     with recorder:
-        for i in range(recorder_process._KEPT + 20):  # two at once: the second is dropped
-            recorder.submit(RecordBatch.of(results(1, t0=1000.0 + i), signals=False))
-            recorder.submit(RecordBatch.of(results(1, t0=1000.5 + i), signals=False))
-            wait_drained(recorder)  # the next put is the gap's
+        assert recorder.pid is not None
+        for i in range(recorder_process._KEPT + 20):
+            # The child takes nothing meanwhile (on an idle machine it took each at once,
+            # and nothing was dropped): the gap before fills the queue, both are dropped.
+            os.kill(recorder.pid, signal.SIGSTOP)
+            try:
+                recorder.submit(RecordBatch.of(results(1, t0=1000.0 + i), signals=False))
+                recorder.submit(RecordBatch.of(results(1, t0=1000.5 + i), signals=False))
+            finally:
+                os.kill(recorder.pid, signal.SIGCONT)
+            wait_drained(recorder)
     gaps = []
     for path in recorder.paths:
         with open(path, "rb") as file:
