@@ -6,6 +6,8 @@ import os
 import resource
 import signal
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
@@ -54,19 +56,27 @@ def test_a_directory_it_cannot_create_is_a_recording_error(tmp_path: Path) -> No
         RecorderProcess(settings, database, machine_id="m").start()
 
 
+@contextmanager
+def child_stopped(recorder: RecorderProcess) -> Iterator[None]:
+    """The recorder's child takes nothing meanwhile (SIGSTOP): a queue fills, whatever the
+    machine's load."""
+    assert recorder.pid is not None
+    os.kill(recorder.pid, signal.SIGSTOP)
+    try:
+        yield
+    finally:
+        os.kill(recorder.pid, signal.SIGCONT)
+
+
 def test_a_full_queue_drops_and_counts_frames_and_the_rest_is_written(tmp_path: Path) -> None:
     _, database = example_machine()
     settings = RecordingSettings(directory=tmp_path, queue_size=5)
     recorder = RecorderProcess(settings, database, machine_id="m")
     with recorder:
-        assert recorder.pid is not None
-        os.kill(recorder.pid, signal.SIGSTOP)  # a child that does not take anything
-        try:
+        with child_stopped(recorder):
             for i in range(10):
                 recorder.submit(RecordBatch.of(results(3, t0=1000.0 + i), signals=False))
             assert recorder.depth == 5 and recorder.dropped == 5 * 3
-        finally:
-            os.kill(recorder.pid, signal.SIGCONT)
     assert recorder.dropped == 15 and recorder.depth == 0
     assert len(raw_times(recorder.paths[0])) == 15
 
@@ -82,13 +92,9 @@ def test_what_a_full_queue_dropped_is_a_gap_in_the_file_before_the_next_item(
         RecordingSettings(directory=tmp_path, queue_size=5), database, machine_id="m"
     )
     with recorder:
-        assert recorder.pid is not None
-        os.kill(recorder.pid, signal.SIGSTOP)  # a child that does not take anything
-        try:
+        with child_stopped(recorder):
             for i in range(10):
                 recorder.submit(RecordBatch.of(results(3, t0=1000.0 + i), signals=False))
-        finally:
-            os.kill(recorder.pid, signal.SIGCONT)
         wait_drained(recorder)
         recorder.submit(RecordBatch.of(results(3, t0=1010.0), signals=False))
         wait_drained(recorder)
@@ -115,16 +121,12 @@ def test_every_gap_is_counted_beyond_the_latest_it_shares(tmp_path: Path) -> Non
         RecordingSettings(directory=tmp_path, queue_size=1), database, machine_id="m"
     )
     with recorder:
-        assert recorder.pid is not None
         for i in range(recorder_process._KEPT + 20):
-            # The child takes nothing meanwhile (on an idle machine it took each at once,
-            # and nothing was dropped): the gap before fills the queue, both are dropped.
-            os.kill(recorder.pid, signal.SIGSTOP)
-            try:
+            # On an idle machine the child took each at once and nothing was dropped:
+            # stopped, the gap before fills the queue, both batches are dropped.
+            with child_stopped(recorder):
                 recorder.submit(RecordBatch.of(results(1, t0=1000.0 + i), signals=False))
                 recorder.submit(RecordBatch.of(results(1, t0=1000.5 + i), signals=False))
-            finally:
-                os.kill(recorder.pid, signal.SIGCONT)
             wait_drained(recorder)
     gaps = []
     for path in recorder.paths:
