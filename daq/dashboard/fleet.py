@@ -59,7 +59,9 @@ class FleetDashboard(HubServer):
         super().start()
 
     def fleet(self) -> JsonObject:
+        linked = self.feed.linked()
         with self._lock:
+            self._fleet.linked = linked
             return fleet_document(self._fleet, self._clock(), dropped=self.feed.dropped)
 
     def respond(self, path: str, query: dict[str, list[str]]) -> Response:

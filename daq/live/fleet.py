@@ -28,7 +28,7 @@ True
 from dataclasses import asdict, dataclass
 
 from daq.live.feed import Item, apply_item
-from daq.live.state import LiveState
+from daq.live.state import NO_LINK, LiveState
 from daq.live.viewer import GROUND_STALE_MIN_S, STATUS_STALE_PERIODS, ViewerConfig
 from daq.payloads import JsonObject
 from estimator.settings import EstimatorSettings
@@ -109,6 +109,18 @@ class FleetState:
         self.machines: dict[str, MachineEntry] = {}
         #: Items on keys not of the form ``<root>/<id>/<suffix>``.
         self.ignored = 0
+        #: Whether the viewer's session has a Zenoh link (as :attr:`LiveState.linked
+        #: <daq.live.state.LiveState.linked>`); None: not known.
+        self.linked: bool | None = None
+
+    def waiting(self) -> str:
+        """What a fleet view without machines says: waiting for their liveliness tokens,
+        and that it has no Zenoh link at all when so (a wrong ``--connect`` said "no
+        machine yet" for ever, as if no service were up)."""
+        text = f"waiting for liveliness tokens {self.settings.prefix}/alive"
+        if self.linked is False:
+            text += f": {NO_LINK}"
+        return text
 
     def apply(self, item: Item) -> bool:
         """Take one feed item; False when it changed nothing (or was not usable)."""
@@ -197,10 +209,12 @@ def summarize(entry: MachineEntry, settings: FleetSettings, now_s: float) -> Mac
 
 
 def fleet_document(fleet: FleetState, now_s: float, *, dropped: int = 0) -> JsonObject:
-    """``/api/fleet``: ``{"root", "pressure_limit_Pa", "machines": [summary...], "viewer"}``."""
+    """``/api/fleet``: ``{"root", "pressure_limit_Pa", "machines": [summary...], "waiting",
+    "viewer"}``."""
     return {
         "root": fleet.settings.root,
         "pressure_limit_Pa": fleet.settings.pressure_limit_Pa,
         "machines": [asdict(summary) for summary in fleet.summaries(now_s)],
-        "viewer": {"dropped": dropped, "ignored": fleet.ignored},
+        "waiting": fleet.waiting(),
+        "viewer": {"dropped": dropped, "ignored": fleet.ignored, "zenoh_linked": fleet.linked},
     }

@@ -64,14 +64,15 @@ class FleetView:
         self.fleet = FleetState(settings)
 
     def drain(self) -> None:
+        self.fleet.linked = self.feed.linked()
         while (item := self.feed.wait(0.0)) is not None:
             self.fleet.apply(item)
 
     def render(self, now_s: float) -> list[Line]:
-        return fleet_render(self.settings, self.fleet.summaries(now_s))
+        return fleet_render(self.settings, self.fleet.summaries(now_s), self.fleet.waiting())
 
     def plain(self, now_s: float, wall_s: float) -> str:
-        return fleet_plain_line(self.fleet.summaries(now_s), wall_s)
+        return fleet_plain_line(self.fleet.summaries(now_s), wall_s, self.fleet.waiting())
 
 
 def run_curses(

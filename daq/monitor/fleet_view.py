@@ -37,8 +37,11 @@ def machine_row(summary: MachineSummary, limit_Pa: float) -> Line:
     return Line(text, _tone(s, limit_Pa))
 
 
-def fleet_render(settings: FleetSettings, summaries: Sequence[MachineSummary]) -> list[Line]:
-    """The curses screen: a title, the header, one row per machine."""
+def fleet_render(
+    settings: FleetSettings, summaries: Sequence[MachineSummary], waiting: str
+) -> list[Line]:
+    """The curses screen: a title, the header, one row per machine (none: ``waiting``,
+    :meth:`FleetState.waiting <daq.live.fleet.FleetState.waiting>`)."""
     present = sum(1 for s in summaries if s.state != GONE)
     lines = [
         Line(
@@ -51,11 +54,11 @@ def fleet_render(settings: FleetSettings, summaries: Sequence[MachineSummary]) -
     ]
     lines += [machine_row(s, settings.pressure_limit_Pa) for s in summaries]
     if not summaries:
-        lines.append(Line(f"waiting for liveliness tokens {settings.prefix}/alive", DIM))
+        lines.append(Line(waiting, DIM))
     return lines
 
 
-def fleet_plain_line(summaries: Sequence[MachineSummary], wall_s: float) -> str:
+def fleet_plain_line(summaries: Sequence[MachineSummary], wall_s: float, waiting: str) -> str:
     """One line: local time, then per machine its state, contact, max pressure, margin, age.
 
     E.g. ``12:00:01 pam-1 live healthy 6/6 185.5 kPa SB1_F1 margin 0.42 m age 0.1 s |
@@ -63,7 +66,7 @@ def fleet_plain_line(summaries: Sequence[MachineSummary], wall_s: float) -> str:
     """
     parts = [time.strftime("%H:%M:%S", time.localtime(wall_s))]
     if not summaries:
-        return parts[0] + " no machine yet"
+        return f"{parts[0]} no machine yet: {waiting}"
     for s in summaries:
         if s.state in (GONE, WAITING):
             parts.append(f"{s.machine_id} {state_text(s)}")

@@ -13,6 +13,7 @@ import zenoh
 
 from daq.live.feed import Item, LiveFeed
 from daq.live.fleet import GONE, WAITING, FleetSettings, FleetState, fleet_document
+from daq.live.state import NO_LINK
 from daq.monitor.fleet_view import fleet_plain_line, fleet_render
 from daq.monitor.view import ALARM, DIM, OK, WARN
 from tests.daq.live_support import ground_payload, leg_payload, status_payload
@@ -62,7 +63,11 @@ def test_summary_of_a_live_machine() -> None:
     assert first.stability_margin_m is None and second.stability_margin_m == 0.42
     assert first.data_age_s == 0.5 and first.gone_for_s is None
     document = fleet_document(fleet, now_s=10.5, dropped=3)
-    assert document["root"] == "portal" and document["viewer"] == {"dropped": 3, "ignored": 0}
+    assert document["root"] == "portal" and document["viewer"] == {
+        "dropped": 3,
+        "ignored": 0,
+        "zenoh_linked": None,
+    }
     assert [m["machine_id"] for m in document["machines"]] == ["pam-1", "pam-2"]
     assert document["machines"][1]["stability_margin_m"] == 0.42
 
@@ -111,7 +116,7 @@ def test_fleet_monitor_text() -> None:
     machine(fleet, "pam-2", 10.0)
     fleet.apply(token("pam-2", False, 10.0))
     summaries = fleet.summaries(now_s=12.0)
-    lines = fleet_render(SETTINGS, summaries)
+    lines = fleet_render(SETTINGS, summaries, fleet.waiting())
     assert "1 of 2 machines present" in lines[0].text
     row_1, row_2 = lines[3], lines[4]
     assert row_1.text.split() == [
@@ -119,7 +124,7 @@ def test_fleet_monitor_text() -> None:
     ]  # fmt: skip
     assert row_1.tone == ALARM  # stale (and a negative margin)
     assert row_2.text.startswith("pam-2") and "GONE 2 s" in row_2.text and row_2.tone == DIM
-    line = fleet_plain_line(fleet.summaries(now_s=10.5), wall_s=0.0)
+    line = fleet_plain_line(fleet.summaries(now_s=10.5), 0.0, fleet.waiting())
     assert "| pam-2 GONE 0 s" in line
     assert "pam-1 live healthy 2/3 230.0 kPa SB1_F2 margin -0.05 m age 0.5 s" in line
     fresh = FleetState(SETTINGS)
@@ -127,9 +132,25 @@ def test_fleet_monitor_text() -> None:
     machine(fresh, "b", 10.0, {"SB1_F1": 170e3})  # above 80 % of it
     machine(fresh, "c", 10.0, {"SB1_F1": 100e3})
     machine(fresh, "d", 10.0, {"SB1_F1": 100e3}, stability={"margin_m": -0.01})
-    tones = [line.tone for line in fleet_render(SETTINGS, fresh.summaries(10.1))[3:]]
+    tones = [line.tone for line in fleet_render(SETTINGS, fresh.summaries(10.1), "")[3:]]
     assert tones == [ALARM, WARN, OK, ALARM]
-    assert fleet_plain_line([], 0.0).endswith("no machine yet")
+    empty = FleetState(SETTINGS)
+    assert fleet_plain_line([], 0.0, empty.waiting()).endswith(
+        " no machine yet: waiting for liveliness tokens portal/*/alive"
+    )
+    assert fleet_render(SETTINGS, [], empty.waiting())[-1].text == empty.waiting()
+
+
+def test_a_fleet_view_without_any_zenoh_link_says_so() -> None:
+    """A fleet view whose ``--connect`` reaches nothing said "no machine yet" for ever, as
+    if no service were up; the single-machine views said it already."""
+    fleet = FleetState(SETTINGS)
+    fleet.linked = False
+    assert fleet.waiting() == f"waiting for liveliness tokens portal/*/alive: {NO_LINK}"
+    assert fleet_document(fleet, now_s=0.0)["waiting"] == fleet.waiting()
+    assert fleet_document(fleet, now_s=0.0)["viewer"]["zenoh_linked"] is False
+    fleet.linked = True
+    assert fleet.waiting() == "waiting for liveliness tokens portal/*/alive"
 
 
 @pytest.mark.parametrize(

@@ -148,6 +148,18 @@ def test_a_monitor_with_no_zenoh_link_says_so_while_it_waits(tmp_path: Path) -> 
     )
 
 
+def test_a_fleet_monitor_with_no_zenoh_link_says_so_while_it_waits() -> None:
+    """``--connect`` to where nobody listens: "no machine yet" for ever, as if no service
+    were up."""
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    result = run("monitor", "--fleet", "--connect", endpoint, "--plain", "--duration", "1.5")
+    assert result.returncode == 0, result.stderr
+    (line,) = result.stdout.splitlines()
+    assert line.endswith(
+        f" no machine yet: waiting for liveliness tokens portal/*/alive: {NO_LINK}"
+    )
+
+
 @pytest.mark.parametrize(
     ("root", "reason"),
     [
