@@ -117,13 +117,16 @@ install -d -m 0755 "$(at /etc/systemd/system)"
 printf '%s\n' "$unit" > "$(at /etc/systemd/system/portal-daq.service)"
 chmod 0644 "$(at /etc/systemd/system/portal-daq.service)"
 install -d -m 0755 "$(at /etc/systemd/network)"
+networks=""  # what only systemd-networkd brings up
 if [ "$interface" = socketcan ] && [ "${channel#vcan}" = "$channel" ]; then
     network=$(<"$KIT/network/80-can0.network")
     printf '%s\n' "${network//Name=can0/"Name=$channel"}" > "$(at "/etc/systemd/network/80-$channel.network")"
+    networks="80-$channel.network"
 fi
 if [ "$VCAN" = yes ]; then
     install -m 0644 "$KIT/network/80-vcan0.netdev" "$KIT/network/80-vcan0.network" \
         "$(at /etc/systemd/network/)"
+    networks="${networks:+$networks }80-vcan0.netdev"
 fi
 install -D -m 0644 "$KIT/systemd/portal-daq.sysusers" "$(at /usr/lib/sysusers.d/portal-daq.conf)"
 install -D -m 0644 "$KIT/sysctl/90-portal-daq.conf" "$(at /etc/sysctl.d/90-portal-daq.conf)"
@@ -138,5 +141,25 @@ else
     install -d -m 0755 "$(at /etc)"
     systemd-sysusers --root="$ROOT" "$(at /usr/lib/sysusers.d/portal-daq.conf)"
     systemctl --root="$ROOT" reenable portal-daq.service
+fi
+# Debian's network is ifupdown's unless told otherwise: networkd, disabled, reads no file
+# of ours, and the CAN link stays down after a reboot (the service says "bus down").
+# Not enabled here: with it comes systemd-networkd-wait-online, which on a PC whose other
+# links networkd does not manage can hold network-online.target (and this unit) for 2 min.
+if [ -n "$networks" ]; then
+    if [ "$ROOT" = / ]; then
+        networkd=$(systemctl is-enabled systemd-networkd.service 2>/dev/null || true)
+    else
+        networkd=$(systemctl --root="$ROOT" is-enabled systemd-networkd.service 2>/dev/null || true)
+    fi
+    case "$networkd" in
+        enabled|enabled-runtime|static|indirect|alias) ;;
+        *) say "warning: systemd-networkd is ${networkd:-not installed} here: nothing reads" \
+               "$networks at boot, and $channel is not brought up after a reboot; enable it" \
+               "(systemctl enable systemd-networkd; if the boot then waits for" \
+               "network-online, systemctl disable systemd-networkd-wait-online), or bring" \
+               "$channel up as this PC's network is set up (ifupdown: a 'can' stanza in" \
+               "/etc/network/interfaces.d/ with the bitrate of $networks)" ;;
+    esac
 fi
 say "done; check with: systemctl status portal-daq (journalctl -u portal-daq for its log)"
