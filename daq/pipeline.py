@@ -34,6 +34,10 @@ UNMAPPED_SOURCE = "unmapped_source"
 #: the DBC from a sender it maps: its protection failed); every other kind is a frame
 #: refused (see :func:`decoded_frames`).
 DECODED_FAULTS = frozenset({CRC_FAULT, COUNTER_JUMP, COUNTER_REPEAT})
+#: Frames of one sender in a row whose CRC failed before it is logged: a sender whose
+#: every frame fails is configured otherwise than the [protection] table says, where
+#: interference corrupts a frame now and then.
+CRC_FAILING_LOGGED_AFTER = 20
 
 
 def decoded_frames(frames: int, bad: Mapping[str, int]) -> int:
@@ -102,6 +106,10 @@ class Pipeline:
         self._unmapped: set[tuple[str, int | None]] = set()
         # The messages and lengths of the wrong_dlc frames seen: each is logged once.
         self._wrong_lengths: set[str] = set()
+        # Frames in a row whose CRC failed, by sender (message, source address); and the
+        # senders logged (once each).
+        self._crc_failing: Counter[tuple[str, int | None]] = Counter()
+        self._crc_logged: set[tuple[str, int | None]] = set()
 
     @classmethod
     def from_config(cls, machine: MachineConfig, database: Database) -> "Pipeline":
@@ -152,6 +160,10 @@ class Pipeline:
             return FrameResult(frame, None, error)
         if decoded.faults:
             self.bad.update(decoded.faults)
+            if CRC_FAULT in decoded.faults:
+                self._crc_failed(decoded)
+        elif self._crc_failing:
+            self._crc_failing.pop((decoded.message, decoded.source_address), None)
         if decoded.frames_lost:
             self.frames_lost += decoded.frames_lost
         if self.pose is not None:
@@ -184,6 +196,26 @@ class Pipeline:
             decoded.message,
             address,
             UNMAPPED_SOURCE,
+        )
+
+    def _crc_failed(self, decoded: DecodedFrame) -> None:
+        """One line when a sender's frames fail their CRC :data:`CRC_FAILING_LOGGED_AFTER`
+        times in a row: with a wrong data ID, data ID mode or CRC layout in the config, every
+        frame fails, the legs it carries are invalid for ever, and only ``bad.crc`` said it."""
+        sender = (decoded.message, decoded.source_address)
+        self._crc_failing[sender] += 1
+        if self._crc_failing[sender] < CRC_FAILING_LOGGED_AFTER or sender in self._crc_logged:
+            return
+        self._crc_logged.add(sender)
+        address = "" if decoded.source_address is None else f" from 0x{decoded.source_address:02X}"
+        logger.warning(
+            "%s%s: %d frames in a row failed their CRC: check the message's [protection] "
+            "table against the sender (profile, data_id, data_id_mode, the CRC and counter "
+            "signals); the legs it carries are invalid (%s) meanwhile",
+            decoded.message,
+            address,
+            CRC_FAILING_LOGGED_AFTER,
+            CRC_FAULT,
         )
 
     def _log_wrong_length(self, error: FrameError) -> None:

@@ -455,6 +455,26 @@ def test_one_bad_crc_costs_exactly_one_sample() -> None:
     assert bench.pipeline.frames_lost == 0 and bench.pipeline.bad["crc"] == 1
 
 
+def test_a_sender_whose_every_frame_fails_its_crc_is_logged_once(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    """A data ID or mode other than the sender's: every frame fails its CRC, every sample
+    is invalid, and only bad.crc said it (the status stays healthy: sensor faults do not
+    make it unhealthy). One frame corrupted now and then is no such line."""
+    bench = Bench()
+    line = "LEG_HUB: 20 frames in a row failed their CRC: check the message's [protection]"
+    for k in range(19):
+        hub(bench, k % 15, k * 0.01, corrupt=True)
+    hub(bench, 4, 0.19)  # a good one: the streak starts again
+    for k in range(19):
+        hub(bench, k % 15, 0.2 + k * 0.01, corrupt=True)
+    assert line not in caplog.text
+    reasons = [hub(bench, k % 15, 0.4 + k * 0.01, corrupt=True) for k in range(30)]
+    assert reasons == [("crc",)] * 30
+    assert caplog.text.count(line) == 1
+    assert bench.pipeline.bad["crc"] == 19 + 19 + 30
+
+
 def test_frames_lost_around_a_bad_crc_are_counted() -> None:
     """The next good frame after a corrupted one is not flagged, but the frames missing
     between it and the last good one went uncounted (frames_lost 0 here): a burst of
