@@ -382,6 +382,7 @@ class Recorder(Worker):
         try:
             action()
         except (OSError, RecordingError) as exc:
+            path = self.current_path  # before the file is abandoned
             self.errors += 1
             self._retry_at = time.monotonic() + RETRY_AFTER_S
             stopping = self.stopped_t_s is None
@@ -393,7 +394,7 @@ class Recorder(Worker):
                 logger.error(
                     "recording stopped: %s; %d items lost from the file; "
                     "check free space and the rights on %s; retrying every %.0f s",
-                    _one_line(exc),
+                    _one_line(exc, path),
                     lost,
                     self.directory,
                     RETRY_AFTER_S,
@@ -520,8 +521,11 @@ def _first_frame_t_s(item: Item) -> float | None:
     return None
 
 
-def _one_line(exc: BaseException) -> str:
-    """An OS error as ``path: reason`` (errno text), anything else as its first line."""
+def _one_line(exc: BaseException, path: Path | None = None) -> str:
+    """An OS error as ``path: reason`` (errno text; ``path`` where the error names no
+    file: a write's disk full said "No space left on device" alone), anything else as its
+    first line."""
     if isinstance(exc, OSError) and exc.strerror:
-        return f"{exc.filename}: {exc.strerror}" if exc.filename else exc.strerror
+        filename = exc.filename or path
+        return f"{filename}: {exc.strerror}" if filename else exc.strerror
     return (str(exc).strip().splitlines() or [type(exc).__name__])[0]

@@ -124,6 +124,7 @@ def test_disk_full_while_running_stops_and_resumes_with_the_gap_recorded(
     stopped = one_line_logs(caplog, "recording stopped")
     resumed = one_line_logs(caplog, "recording resumed")
     assert len(stopped) == 1 and "No space left on device" in stopped[0]
+    assert f"recording stopped: {first}: No space left on device; " in stopped[0]
     assert len(resumed) == 1 and " s lost (" in resumed[0]
     first_again, second = mcap_files(small_disk)
     assert first_again == first and recorder.gaps and recorder.gaps[0][1] > 0
