@@ -98,7 +98,14 @@ try:
         bus = tomllib.load(file).get("bus", {})
 except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as error:
     sys.exit(f"install.sh: {sys.argv[1]}: {error}; fix it and run install.sh again")
-print(bus.get("interface", "socketcan"), bus.get("channel", "can0"))
+values = bus if isinstance(bus, dict) else {}
+interface, channel = values.get("interface", "socketcan"), values.get("channel", "can0")
+if values is not bus or not all(isinstance(v, str) and v.strip() for v in (interface, channel)):
+    sys.exit(
+        f"install.sh: {sys.argv[1]}: [bus] must be a table whose interface and channel are "
+        "names (interface = \"socketcan\", channel = \"can0\"); fix it and run install.sh again"
+    )
+print(interface, channel)
 PY
 )
 read -r interface channel <<<"$bus"

@@ -228,6 +228,33 @@ def test_the_installed_unit_is_bound_to_the_configured_channel(
         assert wants == ["multi-user.target.wants", "sys-subsystem-net-devices-can2.device.wants"]
 
 
+@pytest.mark.parametrize(
+    ("top", "bus"),
+    [("bus = 3\n", "[bux]"), ("", '[bus]\ninterface = "socketcan"\nchannel = 0\n[bux]')],
+)
+def test_a_bus_that_is_no_table_of_names_stops_the_install_in_one_line(
+    tmp_path: Path, top: str, bus: str
+) -> None:
+    # `bus = 3` was a traceback of install.sh's Python (AttributeError: 'int' object has no
+    # attribute 'get'); `channel = 0` installed a unit bound to a device named 0.
+    kit = tmp_path / "kit"
+    assert main(["init", str(kit), "--deploy"]) == 0
+    config = kit / "portal-daq.toml"
+    config.write_text(top + config.read_text().replace("\n[bus]\n", f"\n{bus}\n", 1))
+    result = subprocess.run(
+        [str(kit / "deploy/install.sh"), "--root", str(tmp_path / "root"), "--package",
+         str(ROOT), "--pip-args", "--no-deps"],
+        capture_output=True, text=True, timeout=600,
+    )  # fmt: skip
+    assert result.returncode != 0 and "Traceback" not in result.stderr
+    assert result.stderr.strip().splitlines()[-1] == (
+        f"install.sh: {tmp_path}/root/etc/portal-daq/portal-daq.toml: [bus] must be a table "
+        'whose interface and channel are names (interface = "socketcan", channel = "can0"); '
+        "fix it and run install.sh again"
+    )
+    assert not (tmp_path / "root/etc/systemd/system/portal-daq.service").exists()
+
+
 def test_init_writes_the_deployment_kit_of_the_repository(tmp_path: Path) -> None:
     # A user with the wheel alone had no install.sh, no unit: no way to deploy.
     assert main(["init", str(tmp_path), "--deploy"]) == 0
