@@ -68,7 +68,7 @@ from dbc.database import load_database_bytes
 from dbc.errors import ConfigError
 from dbc.machine import MachineConfig, load_machine_config, parse_machine_config
 from estimator.leg import LegEstimate
-from estimator.validity import OTHER_CHAMBER_STALE
+from estimator.validity import both_chambers_heard
 
 logger = logging.getLogger(__name__)
 
@@ -251,7 +251,7 @@ class _Heard:
             leg_times = times.get(row.leg)
             if leg_times is None:
                 leg_times = times[row.leg] = array("d")
-            if not (row.reasons and OTHER_CHAMBER_STALE.intersection(row.reasons)):
+            if both_chambers_heard(row.reasons):
                 leg_times.append(line.at(row.t_s))
             yield row
 

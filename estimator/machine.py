@@ -19,7 +19,7 @@ from estimator.leg import LegEstimate, LegEstimator, LegSample
 from estimator.metrics import SoilMetrics
 from estimator.settings import EstimatorSettings
 from estimator.stability import Stability, stability
-from estimator.validity import OTHER_CHAMBER_STALE
+from estimator.validity import both_chambers_heard
 from estimator.weight import WeightCheck, weight_check
 
 
@@ -91,7 +91,7 @@ class MachineEstimator(BusClock):
         if sample.t_s != self.latest_t_s:  # the same frame time (usual) would add nothing
             self.observe(sample.t_s)
         self._heard_at_s[leg] = self.bus_time_s
-        if not (sample.faults and OTHER_CHAMBER_STALE.intersection(sample.faults)):
+        if not sample.faults or both_chambers_heard(sample.faults):
             self._both_heard_at_s[leg] = self.bus_time_s
         return self.legs[leg].update(sample, self.bus_time_s)
 

@@ -16,6 +16,7 @@ All but ``range`` and ``stale`` come from the CAN layer (:mod:`dbc.samples`) as 
 sample's ``faults``.
 """
 
+from collections.abc import Iterable
 from typing import TypeVar
 
 import numpy as np
@@ -28,6 +29,17 @@ Value = TypeVar("Value", float, npt.NDArray[np.float64])
 STALE = "stale"
 #: A sample made without a fresh value of its other chamber (a transducer silent).
 OTHER_CHAMBER_STALE = frozenset({"piston_stale", "rod_stale"})
+
+
+def both_chambers_heard(reasons: Iterable[str]) -> bool:
+    """Whether a sample or estimate of these fault ``reasons`` was made with both chambers
+    fresh: its leg's sensors were heard (a leg whose every estimate is ``rod_stale`` is
+    silent, live as in replay and the report).
+
+    >>> [both_chambers_heard(reasons) for reasons in ((), ("range",), ("range", "rod_stale"))]
+    [True, True, False]
+    """
+    return OTHER_CHAMBER_STALE.isdisjoint(reasons)
 
 
 def pressure_in_range(p_Pa: Value, settings: EstimatorSettings) -> bool | npt.NDArray[np.bool_]:

@@ -32,7 +32,7 @@ from daq.pipeline import FrameResult
 from daq.report.timeline import Timeline
 from dbc.machine import MachineConfig
 from dbc.protection import COUNTER_JUMP, CRC_FAULT
-from estimator.validity import OTHER_CHAMBER_STALE
+from estimator.validity import both_chambers_heard
 
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
@@ -88,7 +88,7 @@ class LegTrack:
             bool(payload["valid"]),
             _number(payload["force_raw_N"]),
             bool(payload["contact"]),
-            not OTHER_CHAMBER_STALE.intersection(payload["reasons"]),
+            both_chambers_heard(payload["reasons"]),
         )
 
 
